@@ -1,0 +1,254 @@
+//! Cable models: elastic laws, damping, pretension and slack.
+//!
+//! A **cable run** is one straight stretch of cable between two anchors (capstan and joint
+//! pulley). Its tension as a function of its stretch `s` (m, positive = longer than at
+//! pretension) and stretch rate `ṡ` (m/s) is
+//!
+//! ```text
+//! T(s, ṡ) = max(0, T₀ + F(s) + c·ṡ)
+//! ```
+//!
+//! * `T₀` pretension (N), `c` cable damping (N·s/m);
+//! * `F` the elastic law:
+//!   - linear: `F(s) = k·s`, with `k = E·A/L` ([`CableLaw::linear_from_material`]);
+//!   - exponential (seed 001 eqs 2.5–2.6): `F(s) = k_e·ℓ·(exp(s/ℓ) − 1)` with length scale `ℓ`
+//!     (1 m in the seed, whose law is written with the stretch in metres). Its small-stretch
+//!     stiffness is `k_e`, and it stiffens as the cable is stretched.
+//! * `max(0, ·)` is **slack**: a cable cannot push.
+//!
+//! A **cable loop** (antagonistic pair, as in every Raven-II and EndoWrist axis) is two runs that
+//! see opposite stretches `+Δ` and `−Δ`. While both are taut the net tension is
+//!
+//! ```text
+//! γ = T_a − T_b = F(Δ) − F(−Δ) + 2c·Δ̇
+//! ```
+//!
+//! which for the exponential law with `ℓ = 1 m` is exactly eq. (2.6) of seed 001,
+//! `γ = k_e(e^Δ − e^−Δ) + 2b_e·Δ̇`; with slack, the net tension saturates at the taut side's
+//! tension. `expm1` is used so small stretches keep full relative precision.
+
+use crate::error::{check, CableError, Result};
+
+/// Elastic tension–stretch law `F(s)` of one cable run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CableLaw {
+    /// `F(s) = k·s`, `k` in N/m.
+    Linear {
+        /// Axial stiffness `k = E·A/L` (N/m).
+        stiffness: f64,
+    },
+    /// `F(s) = k_e·ℓ·(exp(s/ℓ) − 1)` (seed 001 eq. 2.6 per side).
+    Exponential {
+        /// Small-stretch stiffness `k_e` (N/m).
+        stiffness: f64,
+        /// Length scale `ℓ` (m); 1 m reproduces the seed.
+        length_scale: f64,
+    },
+}
+
+impl CableLaw {
+    /// Linear law from material data: Young's modulus `E` (Pa), cross-section `A` (m²) and free
+    /// length `L` (m): `k = E·A/L`.
+    pub fn linear_from_material(youngs_modulus: f64, area: f64, length: f64) -> Result<Self> {
+        let e = check::positive("cable.youngs_modulus", youngs_modulus)?;
+        let a = check::positive("cable.area", area)?;
+        let l = check::positive("cable.length", length)?;
+        Ok(CableLaw::Linear {
+            stiffness: e * a / l,
+        })
+    }
+
+    /// Build a law from its name (`"linear"` or `"exponential"`), validating the numbers.
+    pub fn from_name(name: &str, stiffness: f64, length_scale: f64, prefix: &str) -> Result<Self> {
+        let k = check::positive(&format!("{prefix}.cable_stiffness"), stiffness)?;
+        match name {
+            "linear" => Ok(CableLaw::Linear { stiffness: k }),
+            "exponential" => Ok(CableLaw::Exponential {
+                stiffness: k,
+                length_scale: check::positive(&format!("{prefix}.length_scale"), length_scale)?,
+            }),
+            other => Err(CableError::InvalidOption {
+                name: format!("{prefix}.cable_law"),
+                value: other.to_owned(),
+                allowed: "\"linear\", \"exponential\"".to_owned(),
+            }),
+        }
+    }
+
+    /// Name of the law (`"linear"` / `"exponential"`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            CableLaw::Linear { .. } => "linear",
+            CableLaw::Exponential { .. } => "exponential",
+        }
+    }
+
+    /// Small-stretch stiffness `dF/ds` at `s = 0` (N/m).
+    pub fn stiffness(&self) -> f64 {
+        match *self {
+            CableLaw::Linear { stiffness } | CableLaw::Exponential { stiffness, .. } => stiffness,
+        }
+    }
+
+    /// Elastic force `F(s)` (N) at stretch `s` (m).
+    #[inline]
+    pub fn elastic(&self, s: f64) -> f64 {
+        match *self {
+            CableLaw::Linear { stiffness } => stiffness * s,
+            CableLaw::Exponential {
+                stiffness,
+                length_scale,
+            } => stiffness * length_scale * (s / length_scale).exp_m1(),
+        }
+    }
+
+    /// Stiffness `dF/ds` at stretch `s` (N/m).
+    #[inline]
+    pub fn slope(&self, s: f64) -> f64 {
+        match *self {
+            CableLaw::Linear { stiffness } => stiffness,
+            CableLaw::Exponential {
+                stiffness,
+                length_scale,
+            } => stiffness * (s / length_scale).exp(),
+        }
+    }
+
+    /// Elastic energy `∫₀ˢ F(σ) dσ` (J).
+    pub fn energy(&self, s: f64) -> f64 {
+        match *self {
+            CableLaw::Linear { stiffness } => 0.5 * stiffness * s * s,
+            CableLaw::Exponential {
+                stiffness,
+                length_scale,
+            } => stiffness * length_scale * (length_scale * (s / length_scale).exp_m1() - s),
+        }
+    }
+}
+
+/// One cable run: elastic law, damping, pretension, slack.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CableRun {
+    /// Elastic law.
+    pub law: CableLaw,
+    /// Damping `c` (N·s/m), ≥ 0.
+    pub damping: f64,
+    /// Pretension `T₀` (N), ≥ 0.
+    pub pretension: f64,
+}
+
+impl CableRun {
+    /// Validated constructor; `prefix` names the run in error messages.
+    pub fn new(law: CableLaw, damping: f64, pretension: f64, prefix: &str) -> Result<Self> {
+        let run = Self {
+            law,
+            damping,
+            pretension,
+        };
+        run.validate(prefix)?;
+        Ok(run)
+    }
+
+    /// Check every field's range; `prefix` names the run in error messages.
+    pub fn validate(&self, prefix: &str) -> Result<()> {
+        check::positive(&format!("{prefix}.cable_stiffness"), self.law.stiffness())?;
+        if let CableLaw::Exponential { length_scale, .. } = self.law {
+            check::positive(&format!("{prefix}.length_scale"), length_scale)?;
+        }
+        check::non_negative(&format!("{prefix}.cable_damping"), self.damping)?;
+        check::non_negative(&format!("{prefix}.pretension"), self.pretension)?;
+        Ok(())
+    }
+
+    /// Tension `max(0, T₀ + F(s) + c·ṡ)` (N).
+    #[inline]
+    pub fn tension(&self, stretch: f64, stretch_rate: f64) -> f64 {
+        (self.pretension + self.law.elastic(stretch) + self.damping * stretch_rate).max(0.0)
+    }
+
+    /// Tangent stiffness at `s` while taut (N/m), for step-size advice.
+    pub fn slope(&self, stretch: f64) -> f64 {
+        self.law.slope(stretch)
+    }
+}
+
+/// Antagonistic loop of two identical runs with stretches `+Δ` (side a) and `−Δ` (side b).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CableLoop {
+    /// Parameters shared by both sides.
+    pub run: CableRun,
+}
+
+impl CableLoop {
+    /// Side tensions `(T_a, T_b)` (N) at loop stretch `Δ` (m) and rate `Δ̇` (m/s).
+    #[inline]
+    pub fn tensions(&self, delta: f64, delta_rate: f64) -> (f64, f64) {
+        (
+            self.run.tension(delta, delta_rate),
+            self.run.tension(-delta, -delta_rate),
+        )
+    }
+
+    /// Potential energy of both sides while taut, pretension work excluded (it cancels): J.
+    pub fn energy(&self, delta: f64) -> f64 {
+        self.run.law.energy(delta) + self.run.law.energy(-delta)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    fn exp_loop() -> CableLoop {
+        CableLoop {
+            run: CableRun::new(
+                CableLaw::Exponential {
+                    stiffness: 720e3,
+                    length_scale: 1.0,
+                },
+                4000.0,
+                5e3,
+                "l",
+            )
+            .unwrap(),
+        }
+    }
+
+    #[test]
+    fn taut_loop_reproduces_seed_eq_2_6() {
+        let lp = exp_loop();
+        for &(d, dd) in &[(1e-5, 0.0), (-3e-4, 0.01), (2e-3, -0.2)] {
+            let (a, b) = lp.tensions(d, dd);
+            let seed = 720e3 * (f64::exp(d) - f64::exp(-d)) + 2.0 * 4000.0 * dd;
+            assert_relative_eq!(a - b, seed, max_relative = 1e-9);
+        }
+    }
+
+    #[test]
+    fn slack_side_never_pushes() {
+        let run = CableRun::new(CableLaw::Linear { stiffness: 1e4 }, 10.0, 5.0, "r").unwrap();
+        assert_eq!(run.tension(-1e-3, 0.0), 0.0);
+        assert_relative_eq!(run.tension(1e-3, 0.0), 15.0);
+        assert_eq!(run.tension(-1.0, -10.0), 0.0);
+    }
+
+    #[test]
+    fn material_constructor_is_ea_over_l() {
+        let law = CableLaw::linear_from_material(200e9, 1e-7, 0.5).unwrap();
+        assert_relative_eq!(law.stiffness(), 40e3);
+        assert!(CableLaw::linear_from_material(-1.0, 1e-7, 0.5).is_err());
+    }
+
+    #[test]
+    fn energy_is_integral_of_force() {
+        let law = CableLaw::Exponential {
+            stiffness: 1e3,
+            length_scale: 0.01,
+        };
+        let (s, n) = (0.004, 100_000);
+        let h = s / n as f64;
+        let quad: f64 = (0..n).map(|i| law.elastic((i as f64 + 0.5) * h) * h).sum();
+        assert_relative_eq!(law.energy(s), quad, max_relative = 1e-8);
+    }
+}

@@ -1,0 +1,252 @@
+//! Antagonistic cable-driven joint (one forceps jaw of seed 000, or a 1-DOF pulley board).
+//!
+//! A position-driven motor displacement `x_m` (m) pulls the **drive** cable and releases the
+//! **return** cable, both wrapped on a joint pulley of radius `r`. Each cable is a
+//! [`CableRun`](crate::cable::CableRun) with its own stiffness, damping, pretension and slack.
+//!
+//! ```text
+//! s₁ = x_m − r·θ,        ṡ₁ = ẋ_m − r·θ̇          drive-cable stretch (m)
+//! s₂ = r·θ − x_m,        ṡ₂ = r·θ̇ − ẋ_m          return-cable stretch (m)
+//! T_j,k = max(0, T₀,k + F_k(s_k) + c_k·ṡ_k)        joint-side tensions (N)
+//! J·θ̈ = r·(T_j,1 − T_j,2) − F_f(θ̇) − l_e·F_c      joint dynamics (seed 000 eq. 9)
+//! ```
+//!
+//! **Contact** (optional) with an object at angle `θ_c` through a lever arm `l_e`: penetration
+//! `p = l_e·(θ − θ_c)`, force `F_c = max(0, k_c·p + c_c·ṗ)` while `p > 0`, else 0 (N).
+//!
+//! **Motor-side tensions** (what the sensors at the motors of seed 000 measure) include the
+//! capstan losses of the routing pulleys (total wrap `φ`, coefficient `μ`), with the cable
+//! hauled in by the motor on the drive side when `ẋ_m > 0`:
+//!
+//! ```text
+//! T_m,1 = T_j,1 · exp(+μφ·σ_ε(ẋ_m)),   T_m,2 = T_j,2 · exp(−μφ·σ_ε(ẋ_m))
+//! ```
+//!
+//! so `F_M = F_T + F_f` of seed 000 eq. (4) with losses `F_f = T_m − T_j`. The routing friction
+//! is lumped at the motor end: it changes the measured tensions, not the joint dynamics.
+//!
+//! State `x = [θ, θ̇]` (rad, rad/s); input `u = [x_m, ẋ_m]` (m, m/s); outputs
+//! `y = [T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c]` (N, N, N, N, rad, N). Use first-order input hold
+//! (`InputHold::Foh`) when `x_m` is a sampled position so that `x_m` and `ẋ_m` stay consistent
+//! inside a sample interval.
+
+use super::Model;
+use crate::cable::{CableLaw, CableRun};
+use crate::error::{check, Result};
+use crate::friction::{smooth_sign, StaticFriction};
+
+/// Contact with an object (jaw clamping, tissue) at a fixed angle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// Joint angle where contact starts `θ_c` (rad); contact for `θ > θ_c`.
+    pub angle: f64,
+    /// Contact stiffness `k_c` (N/m), > 0.
+    pub stiffness: f64,
+    /// Contact damping `c_c` (N·s/m), ≥ 0 (no pull: force clamped at 0).
+    pub damping: f64,
+    /// Lever arm `l_e` from the joint axis to the contact point (m), > 0.
+    pub lever_arm: f64,
+}
+
+impl Contact {
+    /// Validated constructor.
+    pub fn new(angle: f64, stiffness: f64, damping: f64, lever_arm: f64) -> Result<Self> {
+        Ok(Self {
+            angle: check::finite("contact.angle", angle)?,
+            stiffness: check::positive("contact.stiffness", stiffness)?,
+            damping: check::non_negative("contact.damping", damping)?,
+            lever_arm: check::positive("contact.lever_arm", lever_arm)?,
+        })
+    }
+
+    /// Contact force (N) at joint angle `theta` and rate `omega`.
+    #[inline]
+    pub fn force(&self, theta: f64, omega: f64) -> f64 {
+        let p = self.lever_arm * (theta - self.angle);
+        if p > 0.0 {
+            (self.stiffness * p + self.damping * self.lever_arm * omega).max(0.0)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The antagonistic joint; see the module docs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AntagonisticJoint {
+    /// Joint pulley radius `r` (m).
+    pub radius: f64,
+    /// Drive cable (pulled by positive `x_m`).
+    pub drive: CableRun,
+    /// Return cable (released by positive `x_m`).
+    pub ret: CableRun,
+    /// Joint inertia `J` (kg·m²).
+    pub inertia: f64,
+    /// Joint friction (viscous `b`, Coulomb `F_c`, optional Stribeck), N·m.
+    pub friction: StaticFriction,
+    /// Capstan friction coefficient `μ` of the routing pulleys, ≥ 0.
+    pub capstan_mu: f64,
+    /// Total wrap angle `φ` of the routing pulleys (rad), ≥ 0.
+    pub capstan_wrap: f64,
+    /// Smoothing velocity of the capstan sign (m/s), > 0.
+    pub capstan_smoothing: f64,
+    /// Optional contact.
+    pub contact: Option<Contact>,
+}
+
+impl AntagonisticJoint {
+    /// Validated constructor.
+    pub fn new(
+        radius: f64,
+        drive: CableRun,
+        ret: CableRun,
+        inertia: f64,
+        friction: StaticFriction,
+        capstan_mu: f64,
+        capstan_wrap: f64,
+        capstan_smoothing: f64,
+        contact: Option<Contact>,
+    ) -> Result<Self> {
+        drive.validate("drive")?;
+        ret.validate("return")?;
+        friction.validate("friction")?;
+        Ok(Self {
+            radius: check::positive("radius", radius)?,
+            drive,
+            ret,
+            inertia: check::positive("inertia", inertia)?,
+            friction,
+            capstan_mu: check::non_negative("capstan_mu", capstan_mu)?,
+            capstan_wrap: check::non_negative("capstan_wrap", capstan_wrap)?,
+            capstan_smoothing: check::positive("capstan_smoothing", capstan_smoothing)?,
+            contact,
+        })
+    }
+
+    /// An EndoWrist-like forceps jaw (seed 000): 0.45 mm steel rope of 0.5 m
+    /// (`E·A ≈ 15.9 kN` with a rope modulus of 100 GPa, so `k ≈ 31.8 kN/m`), 2.5 mm pulley
+    /// (8 mm wrist), 10 N pretension (sensor range 0–50 N), `μ = 0.05` over `2π` of routing wrap,
+    /// and a contact at 0.3 rad through a 10 mm lever arm with 2 kN/m. Illustrative values.
+    pub fn forceps_example() -> Self {
+        let cable = CableRun {
+            law: CableLaw::Linear { stiffness: 31.8e3 },
+            damping: 20.0,
+            pretension: 10.0,
+        };
+        AntagonisticJoint {
+            radius: 2.5e-3,
+            drive: cable,
+            ret: cable,
+            inertia: 1e-6,
+            friction: StaticFriction {
+                coulomb: 2e-3,
+                static_level: 2e-3,
+                stribeck_velocity: 1.0,
+                stribeck_exponent: 2.0,
+                viscous: 1e-4,
+                smoothing: 0.05,
+            },
+            capstan_mu: 0.05,
+            capstan_wrap: std::f64::consts::TAU,
+            capstan_smoothing: 1e-3,
+            contact: Some(Contact {
+                angle: 0.3,
+                stiffness: 2e3,
+                damping: 1.0,
+                lever_arm: 10e-3,
+            }),
+        }
+    }
+
+    #[inline]
+    fn joint_tensions(&self, x: &[f64], u: &[f64]) -> (f64, f64) {
+        let s1 = u[0] - self.radius * x[0];
+        let sd1 = u[1] - self.radius * x[1];
+        (self.drive.tension(s1, sd1), self.ret.tension(-s1, -sd1))
+    }
+
+    #[inline]
+    fn contact_force(&self, x: &[f64]) -> f64 {
+        self.contact.map_or(0.0, |c| c.force(x[0], x[1]))
+    }
+}
+
+impl Model for AntagonisticJoint {
+    fn n_states(&self) -> usize {
+        2
+    }
+    fn n_inputs(&self) -> usize {
+        2
+    }
+    fn n_outputs(&self) -> usize {
+        6
+    }
+
+    fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
+        let (t1, t2) = self.joint_tensions(x, u);
+        let lever = self.contact.map_or(0.0, |c| c.lever_arm);
+        dx[0] = x[1];
+        dx[1] =
+            (self.radius * (t1 - t2) - self.friction.force(x[1]) - lever * self.contact_force(x))
+                / self.inertia;
+    }
+
+    fn output(&self, x: &[f64], u: &[f64], y: &mut [f64]) {
+        let (t1, t2) = self.joint_tensions(x, u);
+        let a = self.capstan_mu * self.capstan_wrap * smooth_sign(u[1], self.capstan_smoothing);
+        y[0] = t1 * a.exp();
+        y[1] = t2 * (-a).exp();
+        y[2] = t1;
+        y[3] = t2;
+        y[4] = x[0];
+        y[5] = self.contact_force(x);
+    }
+
+    fn state_names(&self) -> Vec<String> {
+        vec!["theta".into(), "dtheta".into()]
+    }
+    fn input_names(&self) -> Vec<String> {
+        vec!["x_m".into(), "dx_m".into()]
+    }
+    fn output_names(&self) -> Vec<String> {
+        [
+            "tension_motor_drive",
+            "tension_motor_return",
+            "tension_joint_drive",
+            "tension_joint_return",
+            "theta",
+            "contact_force",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn static_equilibrium_tensions_are_pretension_plus_minus_k_stretch() {
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        j.friction = StaticFriction::NONE;
+        // at equilibrium r·(T1 − T2) = 0 → θ = x_m / r for identical cables
+        let x = [0.1, 0.0];
+        let u = [0.1 * j.radius + 1e-5, 0.0];
+        let mut y = [0.0; 6];
+        j.output(&x, &u, &mut y);
+        assert_relative_eq!(y[2], 10.0 + 31.8e3 * 1e-5, max_relative = 1e-12);
+        assert_relative_eq!(y[3], 10.0 - 31.8e3 * 1e-5, max_relative = 1e-12);
+    }
+
+    #[test]
+    fn contact_pushes_back_only_when_penetrating() {
+        let c = Contact::new(0.3, 2e3, 1.0, 0.01).unwrap();
+        assert_eq!(c.force(0.29, 1.0), 0.0);
+        assert_relative_eq!(c.force(0.31, 0.0), 2e3 * 0.01 * 0.01, max_relative = 1e-12);
+        assert_eq!(c.force(0.3001, -100.0), 0.0);
+    }
+}

@@ -1,0 +1,46 @@
+//! Continuous-time models `ẋ = f(x, u)`, `y = h(x, u)` of cable-driven mechanisms.
+//!
+//! Every model implements [`Model`], which is all the integrator (and later the square-root UKF
+//! and the gap diagnosis) needs. Models are immutable after validation; evaluation is
+//! allocation-free and works on flat slices whose layouts the models document and name.
+
+mod antagonistic;
+mod dahl;
+mod raven2;
+mod transmission;
+
+pub use antagonistic::{AntagonisticJoint, Contact};
+pub use dahl::DahlElement;
+pub use raven2::raven2;
+pub use transmission::{CableTransmission, Gravity, JointKind, TransmissionLink, MAX_LINKS};
+
+/// A continuous-time state-space model `ẋ = f(x, u)`, `y = h(x, u)`.
+///
+/// Implementations must be pure functions of their arguments (no interior state), so that a
+/// model can be shared across threads and evaluated at arbitrary points (RK4 stages, sigma
+/// points, finite differences).
+pub trait Model {
+    /// Number of states `n`.
+    fn n_states(&self) -> usize;
+    /// Number of inputs `m`.
+    fn n_inputs(&self) -> usize;
+    /// Number of outputs `p`.
+    fn n_outputs(&self) -> usize;
+    /// Writes `f(x, u)` into `dx` (length `n`). `x` has length `n`, `u` length `m`.
+    fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]);
+    /// Writes `h(x, u)` into `y` (length `p`).
+    fn output(&self, x: &[f64], u: &[f64], y: &mut [f64]);
+    /// Names of the states, in layout order (units in the model docs).
+    fn state_names(&self) -> Vec<String>;
+    /// Names of the inputs, in layout order.
+    fn input_names(&self) -> Vec<String>;
+    /// Names of the outputs, in layout order.
+    fn output_names(&self) -> Vec<String>;
+    /// A representative state for step-size advice (equilibrium at rest by default: zeros).
+    fn rest_state(&self) -> Vec<f64> {
+        vec![0.0; self.n_states()]
+    }
+}
+
+/// Standard gravity (m/s²).
+pub const GRAVITY: f64 = 9.80665;

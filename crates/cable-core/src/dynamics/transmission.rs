@@ -1,0 +1,414 @@
+//! Cable-driven transmission with 1 to 3 coupled links (seed 001 eqs 2.3–2.8).
+//!
+//! Per link `i` a motor (inertia `I_m`, gear ratio `N`, capstan radius `r_m`, friction `τ_m`)
+//! pulls an antagonistic cable loop wrapped on the joint pulley (radius `r_l`), which drives a
+//! link (inertia `I_l`, friction `F_l`, gravity load `g`). Cable routing couples the axes: the
+//! motor angles that keep every cable at its rest length are `q_m = T·q_l` with the
+//! lower-triangular transmission matrix of eq. (2.8):
+//!
+//! ```text
+//! T_ii = tr_i = r_l,i·N_i / r_m,i          (motor rad per joint rad, or per m when prismatic)
+//! T_ij = C_ij·tr_i   (j < i)               (coupling of joint j into cable i, seed C01, C02, C12)
+//! ```
+//!
+//! **Equations** (state per link `[q_m, q̇_m, q_l, q̇_l]`, input motor torque `τ` and external
+//! joint load `τ_ext`):
+//!
+//! ```text
+//! ρ_i  = r_m,i / N_i                                   capstan metres per motor radian
+//! Δ    = ρ ⊙ (q_m − T·q_l),  Δ̇ = ρ ⊙ (q̇_m − T·q̇_l)    loop stretch (m), eq. (2.6) argument
+//! (T_a, T_b) = loop tensions at (Δ, Δ̇)                  see `crate::cable`; γ = T_a − T_b
+//! I_m,i q̈_m,i = τ_i − τ_m,i(q̇_m,i) − ρ_i·γ_i           eqs (2.3)–(2.5), τ_rn = r_m·γ/N
+//! Γ    = Tᵀ·(ρ ⊙ γ)                                     eq. (2.7) generalised by eq. (2.8)
+//! I_l,j q̈_l,j = Γ_j − F_l,j(q̇_l,j) − g_j(q_l,j) + τ_ext,j   eqs (2.1)–(2.2), diagonal inertia
+//! ```
+//!
+//! For an uncoupled link `Γ_i = tr_i·ρ_i·γ_i = r_l,i·γ_i`, eq. (2.7). `Γ = Tᵀρ⊙γ` is the
+//! transpose (virtual-work) map of eq. (2.8), so the transmission is power-consistent and the
+//! frictionless, undamped system conserves
+//! `E = ½Σ I_m q̇_m² + ½Σ I_l q̇_l² + Σ V_loop(Δ) + Σ ∫g`.
+//!
+//! **Link dynamics** are decoupled: each link has a constant inertia and its own gravity load
+//! `g(q) = A·cos(q + φ)` (revolute, N·m) or `A·cos φ` (prismatic, N); configuration-dependent
+//! inertia and Coriolis terms of eq. (2.1) are not modelled.
+//!
+//! **Torque convention**: the input `τ` is the torque of eq. (2.3), entering the motor-shaft
+//! equation directly and positive in the direction of positive `q_m`; `τ_ext` is a generalised
+//! force applied to the joint, positive in the direction of positive `q_l`.
+
+use super::{Model, GRAVITY};
+use crate::cable::CableLoop;
+use crate::error::{check, CableError, Result};
+use crate::friction::StaticFriction;
+
+/// Largest number of coupled links.
+pub const MAX_LINKS: usize = 3;
+
+/// Joint type: decides units (rad vs m) and the gravity law.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    /// Rotary joint: `q_l` in rad, torques in N·m, inertia in kg·m².
+    Revolute,
+    /// Sliding joint: `q_l` in m, forces in N, inertia (mass) in kg.
+    Prismatic,
+}
+
+impl JointKind {
+    /// Parse `"revolute"` / `"prismatic"`.
+    pub fn from_name(name: &str, field: &str) -> Result<Self> {
+        match name {
+            "revolute" => Ok(JointKind::Revolute),
+            "prismatic" => Ok(JointKind::Prismatic),
+            other => Err(CableError::InvalidOption {
+                name: field.to_owned(),
+                value: other.to_owned(),
+                allowed: "\"revolute\", \"prismatic\"".to_owned(),
+            }),
+        }
+    }
+    /// Lower-case name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            JointKind::Revolute => "revolute",
+            JointKind::Prismatic => "prismatic",
+        }
+    }
+}
+
+/// Gravity load of one link: `g(q) = A·cos(q + φ)` (revolute) or `A·cos φ` (prismatic).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gravity {
+    /// Amplitude `A` = m·g₀·l_c (N·m) for revolute joints or m·g₀ (N) for prismatic joints.
+    pub amplitude: f64,
+    /// Phase `φ` (rad): for a revolute joint `q + φ` is the link's angle above the horizontal;
+    /// for a prismatic joint `φ` is the axis' angle from the vertical, so `A·cos φ` is the
+    /// weight along the axis.
+    pub offset: f64,
+}
+
+impl Gravity {
+    /// No gravity load.
+    pub const NONE: Gravity = Gravity {
+        amplitude: 0.0,
+        offset: 0.0,
+    };
+
+    /// Gravity from a mass (kg) and centre-of-mass distance (m, ignored for prismatic joints).
+    pub fn from_mass(kind: JointKind, mass: f64, com_distance: f64, offset: f64) -> Self {
+        let amplitude = match kind {
+            JointKind::Revolute => mass * GRAVITY * com_distance,
+            JointKind::Prismatic => mass * GRAVITY,
+        };
+        Gravity { amplitude, offset }
+    }
+
+    #[inline]
+    fn load(&self, kind: JointKind, q: f64) -> f64 {
+        match kind {
+            JointKind::Revolute => self.amplitude * (q + self.offset).cos(),
+            JointKind::Prismatic => self.amplitude * self.offset.cos(),
+        }
+    }
+
+    fn potential(&self, kind: JointKind, q: f64) -> f64 {
+        match kind {
+            JointKind::Revolute => self.amplitude * (q + self.offset).sin(),
+            JointKind::Prismatic => self.amplitude * self.offset.cos() * q,
+        }
+    }
+}
+
+/// Parameters of one motor–cable–link axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TransmissionLink {
+    /// Motor inertia `I_m` (kg·m²) in the torque convention of the module docs.
+    pub motor_inertia: f64,
+    /// Gear ratio `N` (motor rad per capstan rad).
+    pub gear_ratio: f64,
+    /// Capstan radius `r_m` (m).
+    pub capstan_radius: f64,
+    /// Motor friction `τ_m(q̇_m)` (Coulomb `τ_cm` + viscous `τ_vm`, eq. 2.4).
+    pub motor_friction: StaticFriction,
+    /// The antagonistic cable loop (law `k_e`, damping `b_e`, pretension).
+    pub cable: CableLoop,
+    /// Joint type.
+    pub kind: JointKind,
+    /// Joint pulley radius `r_l` (m); for a prismatic joint the metres of cable per metre of
+    /// travel (1 for a direct cable drive, as Raven-II's insertion axis).
+    pub joint_radius: f64,
+    /// Link inertia `I_l` (kg·m², or kg for prismatic).
+    pub link_inertia: f64,
+    /// Link friction `F_cl`, `F_vl` (eq. 2.2).
+    pub link_friction: StaticFriction,
+    /// Gravity load.
+    pub gravity: Gravity,
+}
+
+impl TransmissionLink {
+    fn validate(&self, i: usize) -> Result<()> {
+        let p = |f: &str| format!("links[{i}].{f}");
+        check::positive(&p("motor_inertia"), self.motor_inertia)?;
+        check::positive(&p("gear_ratio"), self.gear_ratio)?;
+        check::positive(&p("capstan_radius"), self.capstan_radius)?;
+        check::positive(&p("joint_radius"), self.joint_radius)?;
+        check::positive(&p("link_inertia"), self.link_inertia)?;
+        check::finite(&p("gravity_amplitude"), self.gravity.amplitude)?;
+        check::finite(&p("gravity_offset"), self.gravity.offset)?;
+        self.motor_friction.validate(&p("motor_friction"))?;
+        self.link_friction.validate(&p("link_friction"))?;
+        self.cable.run.validate(&format!("links[{i}]"))
+    }
+
+    /// Transmission ratio `tr = r_l·N/r_m`.
+    pub fn ratio(&self) -> f64 {
+        self.joint_radius * self.gear_ratio / self.capstan_radius
+    }
+}
+
+/// The coupled 1–3 link cable transmission; see the module docs for the equations.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CableTransmission {
+    links: Vec<TransmissionLink>,
+    coupling: [[f64; MAX_LINKS]; MAX_LINKS],
+    t: [[f64; MAX_LINKS]; MAX_LINKS],
+    rho: [f64; MAX_LINKS],
+}
+
+impl CableTransmission {
+    /// Validated constructor. `coupling` is the `n×n` row-major matrix of coupling coefficients
+    /// `C_ij` (cable `i`, joint `j`); only the strictly lower triangle may be non-zero
+    /// (seed eq. 2.8: `C_10 = C01`, `C_20 = C02`, `C_21 = C12`). Pass an empty slice for none.
+    pub fn new(links: Vec<TransmissionLink>, coupling: &[f64]) -> Result<Self> {
+        let n = links.len();
+        if n == 0 || n > MAX_LINKS {
+            return Err(CableError::Shape {
+                what: "links".into(),
+                expected: format!("1 to {MAX_LINKS} links"),
+                got: format!("{n} links"),
+            });
+        }
+        for (i, l) in links.iter().enumerate() {
+            l.validate(i)?;
+        }
+        let mut c = [[0.0; MAX_LINKS]; MAX_LINKS];
+        if !coupling.is_empty() {
+            if coupling.len() != n * n {
+                return Err(CableError::Shape {
+                    what: "coupling".into(),
+                    expected: format!("({n}, {n})"),
+                    got: format!("{} values", coupling.len()),
+                });
+            }
+            for i in 0..n {
+                for j in 0..n {
+                    let v = coupling[i * n + j];
+                    let name = format!("coupling[{i}][{j}]");
+                    check::finite(&name, v)?;
+                    if j >= i && v != 0.0 {
+                        return Err(CableError::InvalidParameter {
+                            name,
+                            value: v,
+                            requirement:
+                                "0 on and above the diagonal (eq. 2.8 is lower-triangular)",
+                        });
+                    }
+                    c[i][j] = v;
+                }
+            }
+        }
+        let mut t = [[0.0; MAX_LINKS]; MAX_LINKS];
+        let mut rho = [0.0; MAX_LINKS];
+        for i in 0..n {
+            let tr = links[i].ratio();
+            t[i][i] = tr;
+            for j in 0..i {
+                t[i][j] = c[i][j] * tr;
+            }
+            rho[i] = links[i].capstan_radius / links[i].gear_ratio;
+        }
+        Ok(Self {
+            links,
+            coupling: c,
+            t,
+            rho,
+        })
+    }
+
+    /// Number of links `n`.
+    pub fn n_links(&self) -> usize {
+        self.links.len()
+    }
+
+    /// The per-link parameters.
+    pub fn links(&self) -> &[TransmissionLink] {
+        &self.links
+    }
+
+    /// Coupling coefficients `C_ij` (row-major `n×n`).
+    pub fn coupling(&self) -> Vec<f64> {
+        let n = self.n_links();
+        (0..n * n).map(|k| self.coupling[k / n][k % n]).collect()
+    }
+
+    /// Transmission matrix `T` of eq. (2.8) (row-major `n×n`): `q_m = T·q_l` at rest length.
+    pub fn transmission_matrix(&self) -> Vec<f64> {
+        let n = self.n_links();
+        (0..n * n).map(|k| self.t[k / n][k % n]).collect()
+    }
+
+    /// Rigid-cable transmission kinematics `q_m = T·q_l`.
+    pub fn joint_to_motor(&self, q_l: &[f64], q_m: &mut [f64]) {
+        let n = self.n_links();
+        for i in 0..n {
+            q_m[i] = (0..=i).map(|j| self.t[i][j] * q_l[j]).sum();
+        }
+    }
+
+    /// Inverse kinematics `q_l = T⁻¹·q_m` by forward substitution (joint estimate from motor
+    /// encoders alone, the baseline of seed 001 ch. 3).
+    pub fn motor_to_joint(&self, q_m: &[f64], q_l: &mut [f64]) {
+        let n = self.n_links();
+        for i in 0..n {
+            let s: f64 = (0..i).map(|j| self.t[i][j] * q_l[j]).sum();
+            q_l[i] = (q_m[i] - s) / self.t[i][i];
+        }
+    }
+
+    /// Loop stretches `Δ` (m) and rates `Δ̇` (m/s) at state `x`.
+    #[inline]
+    fn stretches(&self, x: &[f64]) -> ([f64; MAX_LINKS], [f64; MAX_LINKS]) {
+        let n = self.n_links();
+        let (mut d, mut dd) = ([0.0; MAX_LINKS], [0.0; MAX_LINKS]);
+        for i in 0..n {
+            let (mut tq, mut tw) = (0.0, 0.0);
+            for j in 0..=i {
+                tq += self.t[i][j] * x[4 * j + 2];
+                tw += self.t[i][j] * x[4 * j + 3];
+            }
+            d[i] = self.rho[i] * (x[4 * i] - tq);
+            dd[i] = self.rho[i] * (x[4 * i + 1] - tw);
+        }
+        (d, dd)
+    }
+
+    /// Side tensions `(T_a, T_b)` per link at state `x`.
+    #[inline]
+    fn tensions(&self, x: &[f64]) -> [(f64, f64); MAX_LINKS] {
+        let (d, dd) = self.stretches(x);
+        let mut out = [(0.0, 0.0); MAX_LINKS];
+        for i in 0..self.n_links() {
+            out[i] = self.links[i].cable.tensions(d[i], dd[i]);
+        }
+        out
+    }
+
+    /// Generalised joint forces `Γ = Tᵀ·(ρ ⊙ γ)` from the net tensions `γ`.
+    #[inline]
+    fn joint_forces(&self, gamma: &[f64; MAX_LINKS]) -> [f64; MAX_LINKS] {
+        let n = self.n_links();
+        let mut g = [0.0; MAX_LINKS];
+        for j in 0..n {
+            g[j] = (j..n).map(|i| self.t[i][j] * self.rho[i] * gamma[i]).sum();
+        }
+        g
+    }
+
+    /// Total mechanical energy (J) at `x`: kinetic + cable (both sides taut) + gravity.
+    /// Conserved by the exact flow when friction and cable damping are zero and no cable slacks.
+    pub fn energy(&self, x: &[f64]) -> f64 {
+        let (d, _) = self.stretches(x);
+        self.links
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                0.5 * l.motor_inertia * x[4 * i + 1].powi(2)
+                    + 0.5 * l.link_inertia * x[4 * i + 3].powi(2)
+                    + l.cable.energy(d[i])
+                    + l.gravity.potential(l.kind, x[4 * i + 2])
+            })
+            .sum()
+    }
+}
+
+impl Model for CableTransmission {
+    fn n_states(&self) -> usize {
+        4 * self.n_links()
+    }
+    fn n_inputs(&self) -> usize {
+        2 * self.n_links()
+    }
+    fn n_outputs(&self) -> usize {
+        5 * self.n_links()
+    }
+
+    fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
+        let n = self.n_links();
+        let tens = self.tensions(x);
+        let mut gamma = [0.0; MAX_LINKS];
+        for i in 0..n {
+            gamma[i] = tens[i].0 - tens[i].1;
+        }
+        let big_gamma = self.joint_forces(&gamma);
+        for i in 0..n {
+            let l = &self.links[i];
+            let (wm, ql, wl) = (x[4 * i + 1], x[4 * i + 2], x[4 * i + 3]);
+            dx[4 * i] = wm;
+            dx[4 * i + 1] =
+                (u[i] - l.motor_friction.force(wm) - self.rho[i] * gamma[i]) / l.motor_inertia;
+            dx[4 * i + 2] = wl;
+            dx[4 * i + 3] = (big_gamma[i] - l.link_friction.force(wl) - l.gravity.load(l.kind, ql)
+                + u[n + i])
+                / l.link_inertia;
+        }
+    }
+
+    fn output(&self, x: &[f64], _u: &[f64], y: &mut [f64]) {
+        let n = self.n_links();
+        let tens = self.tensions(x);
+        let mut gamma = [0.0; MAX_LINKS];
+        for i in 0..n {
+            gamma[i] = tens[i].0 - tens[i].1;
+        }
+        let big_gamma = self.joint_forces(&gamma);
+        for i in 0..n {
+            y[5 * i] = x[4 * i];
+            y[5 * i + 1] = x[4 * i + 2];
+            y[5 * i + 2] = tens[i].0;
+            y[5 * i + 3] = tens[i].1;
+            y[5 * i + 4] = big_gamma[i];
+        }
+    }
+
+    fn state_names(&self) -> Vec<String> {
+        (1..=self.n_links())
+            .flat_map(|i| {
+                [
+                    format!("q_m{i}"),
+                    format!("dq_m{i}"),
+                    format!("q_l{i}"),
+                    format!("dq_l{i}"),
+                ]
+            })
+            .collect()
+    }
+    fn input_names(&self) -> Vec<String> {
+        let n = self.n_links();
+        (1..=n)
+            .map(|i| format!("tau_m{i}"))
+            .chain((1..=n).map(|i| format!("tau_ext{i}")))
+            .collect()
+    }
+    fn output_names(&self) -> Vec<String> {
+        (1..=self.n_links())
+            .flat_map(|i| {
+                [
+                    format!("q_m{i}"),
+                    format!("q_l{i}"),
+                    format!("tension_a{i}"),
+                    format!("tension_b{i}"),
+                    format!("joint_torque{i}"),
+                ]
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,377 @@
+//! Fixed-step explicit integration: classical RK4 with sub-stepping, input hold, divergence
+//! detection, and step-size advice from the model's stiffest mode.
+//!
+//! One RK4 step of size `h` from `x` with inputs `u(τ)` over the step:
+//!
+//! ```text
+//! k₁ = f(x,            u(0))
+//! k₂ = f(x + h/2·k₁,   u(h/2))
+//! k₃ = f(x + h/2·k₂,   u(h/2))
+//! k₄ = f(x + h·k₃,     u(h))
+//! x⁺ = x + h/6·(k₁ + 2k₂ + 2k₃ + k₄)
+//! ```
+//!
+//! Inputs are sampled at the same instants as states (`u[k]` at `t_k = k·dt`). Between samples
+//! they are held constant (**zero-order hold**, `u(τ) = u[k]`, what a digital controller applies)
+//! or interpolated linearly (**first-order hold**, `u(τ) = u[k] + τ/dt·(u[k+1] − u[k])`, right for
+//! sampled positions). A sample interval `dt` is split into `substeps` RK4 steps of `dt/substeps`.
+//!
+//! Trajectories follow the logging convention: `states[0] = x0`,
+//! `states[k+1] = Φ(states[k], u over [t_k, t_{k+1}])`, `outputs[k] = h(states[k], u[k])`.
+
+mod stability;
+
+pub use stability::{jacobian, propose_step, rk4_stability_radius, StepAdvice};
+
+use crate::dynamics::Model;
+use crate::error::{check, CableError, Result};
+
+/// How inputs behave between samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum InputHold {
+    /// Zero-order hold: `u[k]` over the whole interval.
+    #[default]
+    Zoh,
+    /// First-order hold: linear from `u[k]` to `u[k+1]` (the last sample is held).
+    Foh,
+}
+
+impl InputHold {
+    /// Parse `"zoh"` / `"foh"`.
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "zoh" => Ok(InputHold::Zoh),
+            "foh" => Ok(InputHold::Foh),
+            other => Err(CableError::InvalidOption {
+                name: "hold".into(),
+                value: other.into(),
+                allowed: "\"zoh\", \"foh\"".into(),
+            }),
+        }
+    }
+}
+
+/// Scratch space for RK4 so that stepping allocates nothing.
+#[derive(Debug, Clone)]
+pub struct Rk4 {
+    k1: Vec<f64>,
+    k2: Vec<f64>,
+    k3: Vec<f64>,
+    k4: Vec<f64>,
+    tmp: Vec<f64>,
+    u_mid: Vec<f64>,
+    u_end: Vec<f64>,
+    u_start: Vec<f64>,
+}
+
+impl Rk4 {
+    /// Workspace for a model with `n` states and `m` inputs.
+    pub fn new(n: usize, m: usize) -> Self {
+        Self {
+            k1: vec![0.0; n],
+            k2: vec![0.0; n],
+            k3: vec![0.0; n],
+            k4: vec![0.0; n],
+            tmp: vec![0.0; n],
+            u_mid: vec![0.0; m],
+            u_end: vec![0.0; m],
+            u_start: vec![0.0; m],
+        }
+    }
+
+    /// Workspace sized for `model`.
+    pub fn for_model<M: Model + ?Sized>(model: &M) -> Self {
+        Self::new(model.n_states(), model.n_inputs())
+    }
+
+    /// One RK4 step of size `h` with inputs `u0` at the start, `um` at the midpoint and `u1` at
+    /// the end of the step. Updates `x` in place. No validation (hot path).
+    #[inline]
+    pub fn step_with<M: Model + ?Sized>(
+        &mut self,
+        model: &M,
+        x: &mut [f64],
+        u0: &[f64],
+        um: &[f64],
+        u1: &[f64],
+        h: f64,
+    ) {
+        let n = x.len();
+        model.derivative(x, u0, &mut self.k1);
+        for i in 0..n {
+            self.tmp[i] = x[i] + 0.5 * h * self.k1[i];
+        }
+        model.derivative(&self.tmp, um, &mut self.k2);
+        for i in 0..n {
+            self.tmp[i] = x[i] + 0.5 * h * self.k2[i];
+        }
+        model.derivative(&self.tmp, um, &mut self.k3);
+        for i in 0..n {
+            self.tmp[i] = x[i] + h * self.k3[i];
+        }
+        model.derivative(&self.tmp, u1, &mut self.k4);
+        for i in 0..n {
+            x[i] += h / 6.0 * (self.k1[i] + 2.0 * self.k2[i] + 2.0 * self.k3[i] + self.k4[i]);
+        }
+    }
+
+    /// One RK4 step of size `h` with a constant input (zero-order hold).
+    #[inline]
+    pub fn step<M: Model + ?Sized>(&mut self, model: &M, x: &mut [f64], u: &[f64], h: f64) {
+        self.step_with(model, x, u, u, u, h);
+    }
+
+    /// Advance one sample interval `dt` in `substeps` RK4 steps, with inputs going linearly
+    /// from `u_a` to `u_b` over the interval (pass `u_b = u_a` for zero-order hold).
+    pub fn advance<M: Model + ?Sized>(
+        &mut self,
+        model: &M,
+        x: &mut [f64],
+        u_a: &[f64],
+        u_b: &[f64],
+        dt: f64,
+        substeps: usize,
+    ) {
+        let h = dt / substeps as f64;
+        let mut u_start = std::mem::take(&mut self.u_start);
+        let mut u_mid = std::mem::take(&mut self.u_mid);
+        let mut u_end = std::mem::take(&mut self.u_end);
+        for j in 0..substeps {
+            let (a, b) = (
+                j as f64 / substeps as f64,
+                (j as f64 + 1.0) / substeps as f64,
+            );
+            let m = 0.5 * (a + b);
+            for i in 0..u_a.len() {
+                let du = u_b[i] - u_a[i];
+                u_start[i] = u_a[i] + a * du;
+                u_mid[i] = u_a[i] + m * du;
+                u_end[i] = u_a[i] + b * du;
+            }
+            self.step_with(model, x, &u_start, &u_mid, &u_end, h);
+        }
+        self.u_start = u_start;
+        self.u_mid = u_mid;
+        self.u_end = u_end;
+    }
+}
+
+/// Options of a trajectory simulation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimOptions {
+    /// Sample interval `dt` (s), > 0.
+    pub dt: f64,
+    /// RK4 steps per sample interval, ≥ 1.
+    pub substeps: usize,
+    /// Input behaviour between samples.
+    pub hold: InputHold,
+}
+
+impl SimOptions {
+    /// Validated options.
+    pub fn new(dt: f64, substeps: usize, hold: InputHold) -> Result<Self> {
+        check::positive("dt", dt)?;
+        if substeps == 0 {
+            return Err(CableError::InvalidParameter {
+                name: "substeps".into(),
+                value: 0.0,
+                requirement: "an integer >= 1",
+            });
+        }
+        Ok(Self { dt, substeps, hold })
+    }
+}
+
+/// A simulated trajectory: row-major `(T, n)` states and `(T, p)` outputs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    /// Number of samples `T`.
+    pub len: usize,
+    /// States, row-major `(T, n)`.
+    pub states: Vec<f64>,
+    /// Outputs, row-major `(T, p)`.
+    pub outputs: Vec<f64>,
+}
+
+/// Validate shapes and values of a simulation request; returns `T`.
+pub fn validate_request<M: Model + ?Sized>(model: &M, inputs: &[f64], x0: &[f64]) -> Result<usize> {
+    let (n, m) = (model.n_states(), model.n_inputs());
+    if m == 0 || inputs.len() % m != 0 || inputs.is_empty() {
+        return Err(CableError::Shape {
+            what: "inputs".into(),
+            expected: format!("(T, {m}) with T >= 1"),
+            got: format!("{} values", inputs.len()),
+        });
+    }
+    check::len("x0", x0, n)?;
+    check::all_finite("inputs", inputs, m)?;
+    check::all_finite("x0", x0, 1)?;
+    Ok(inputs.len() / m)
+}
+
+/// Store sample `k` (state `x`, output `h(x, u)`) into row-major buffers, or report divergence
+/// when either is non-finite.
+pub(crate) fn record<M: Model + ?Sized>(
+    model: &M,
+    k: usize,
+    x: &[f64],
+    u: &[f64],
+    dt: f64,
+    states: &mut [f64],
+    outputs: &mut [f64],
+) -> Result<()> {
+    let (n, p) = (model.n_states(), model.n_outputs());
+    let y = &mut outputs[k * p..(k + 1) * p];
+    model.output(x, u, y);
+    if !x.iter().chain(y.iter()).all(|v| v.is_finite()) {
+        return Err(CableError::Diverged {
+            step: k,
+            time_s: k as f64 * dt,
+        });
+    }
+    states[k * n..(k + 1) * n].copy_from_slice(x);
+    Ok(())
+}
+
+/// Simulate `model` over the sampled inputs (row-major `(T, m)`) from `x0`.
+///
+/// Errors: shape or non-finite inputs, invalid options, and [`CableError::Diverged`] with the
+/// first sample whose state (or output) is non-finite — never NaN-filled arrays.
+pub fn simulate<M: Model + ?Sized>(
+    model: &M,
+    inputs: &[f64],
+    x0: &[f64],
+    opts: &SimOptions,
+) -> Result<Trajectory> {
+    let t_len = validate_request(model, inputs, x0)?;
+    let (n, m, p) = (model.n_states(), model.n_inputs(), model.n_outputs());
+    let mut states = vec![0.0; t_len * n];
+    let mut outputs = vec![0.0; t_len * p];
+    let mut ws = Rk4::for_model(model);
+    let mut x = x0.to_vec();
+    for k in 0..t_len {
+        let u_k = &inputs[k * m..(k + 1) * m];
+        if k > 0 {
+            let u_prev = &inputs[(k - 1) * m..k * m];
+            let u_b = match opts.hold {
+                InputHold::Zoh => u_prev,
+                InputHold::Foh => u_k,
+            };
+            ws.advance(model, &mut x, u_prev, u_b, opts.dt, opts.substeps);
+        }
+        record(model, k, &x, u_k, opts.dt, &mut states, &mut outputs)?;
+    }
+    Ok(Trajectory {
+        len: t_len,
+        states,
+        outputs,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// ẋ = λx with u ignored, to check the order of accuracy.
+    struct Decay(f64);
+    impl Model for Decay {
+        fn n_states(&self) -> usize {
+            1
+        }
+        fn n_inputs(&self) -> usize {
+            1
+        }
+        fn n_outputs(&self) -> usize {
+            1
+        }
+        fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
+            dx[0] = self.0 * x[0] + u[0];
+        }
+        fn output(&self, x: &[f64], _u: &[f64], y: &mut [f64]) {
+            y[0] = x[0];
+        }
+        fn state_names(&self) -> Vec<String> {
+            vec!["x".into()]
+        }
+        fn input_names(&self) -> Vec<String> {
+            vec!["u".into()]
+        }
+        fn output_names(&self) -> Vec<String> {
+            vec!["y".into()]
+        }
+    }
+
+    #[test]
+    fn rk4_is_fourth_order() {
+        let model = Decay(-1.0);
+        let err = |steps: usize| {
+            let u = vec![0.0; steps + 1];
+            let opts = SimOptions::new(1.0 / steps as f64, 1, InputHold::Zoh).unwrap();
+            let tr = simulate(&model, &u, &[1.0], &opts).unwrap();
+            (tr.states[steps] - (-1.0f64).exp()).abs()
+        };
+        let ratio = err(20) / err(40);
+        assert!((ratio - 16.0).abs() < 0.5, "ratio {ratio}");
+    }
+
+    #[test]
+    fn foh_integrates_a_ramp_input_exactly_enough() {
+        // ẋ = u, u ramps 0 → 1 over one sample: x(1) = 1/2 with FOH, 0 with ZOH
+        let model = Decay(0.0);
+        let u = [0.0, 1.0];
+        let foh = simulate(
+            &model,
+            &u,
+            &[0.0],
+            &SimOptions::new(1.0, 1, InputHold::Foh).unwrap(),
+        )
+        .unwrap();
+        let zoh = simulate(
+            &model,
+            &u,
+            &[0.0],
+            &SimOptions::new(1.0, 1, InputHold::Zoh).unwrap(),
+        )
+        .unwrap();
+        assert!((foh.states[1] - 0.5).abs() < 1e-15);
+        assert!(zoh.states[1].abs() < 1e-15);
+    }
+
+    #[test]
+    fn divergence_is_reported_with_its_step() {
+        let model = Decay(-1000.0);
+        let u = vec![0.0; 2000];
+        let opts = SimOptions::new(0.01, 1, InputHold::Zoh).unwrap();
+        match simulate(&model, &u, &[1.0], &opts) {
+            Err(CableError::Diverged { step, time_s }) => {
+                assert!(step > 10 && step < 2000, "step {step}");
+                assert!((time_s - step as f64 * 0.01).abs() < 1e-12);
+            }
+            other => panic!("expected divergence, got {other:?}"),
+        }
+        // ten substeps bring |λh| to 1: stable
+        let opts = SimOptions::new(0.01, 10, InputHold::Zoh).unwrap();
+        assert!(simulate(&model, &u, &[1.0], &opts).is_ok());
+    }
+
+    #[test]
+    fn bad_requests_are_typed_errors() {
+        let model = Decay(-1.0);
+        let opts = SimOptions::new(0.1, 1, InputHold::Zoh).unwrap();
+        assert!(matches!(
+            simulate(&model, &[0.0, f64::NAN], &[1.0], &opts),
+            Err(CableError::NotFinite { index: 1, .. })
+        ));
+        assert!(matches!(
+            simulate(&model, &[0.0], &[1.0, 2.0], &opts),
+            Err(CableError::Shape { .. })
+        ));
+        assert!(matches!(
+            simulate(&model, &[], &[1.0], &opts),
+            Err(CableError::Shape { .. })
+        ));
+        assert!(SimOptions::new(0.0, 1, InputHold::Zoh).is_err());
+        assert!(SimOptions::new(-1.0, 1, InputHold::Zoh).is_err());
+        assert!(SimOptions::new(0.1, 0, InputHold::Zoh).is_err());
+    }
+}

@@ -1,0 +1,24 @@
+//! # cable-core
+//!
+//! Pure-Rust numerical core of cablekit: dynamics of cable-driven robots (friction, cable laws,
+//! cable-driven transmissions, antagonistic joints), a fixed-step RK4 integrator with
+//! sub-stepping and a stability advisor. Later modules (square-root UKF, neural-network
+//! inference, tension distribution) plug into the same [`Model`](dynamics::Model) trait and
+//! [`CableError`] type.
+//!
+//! This crate knows nothing of Python; `crates/cable-py` converts arrays and errors at the edge.
+//!
+//! Conventions: SI units everywhere (m, rad, s, N, N·m, kg, kg·m²); states, inputs and outputs are
+//! flat `f64` slices whose layout each model documents and names (`state_names()` …);
+//! trajectories are row-major `(T, n)` buffers.
+#![warn(missing_docs)]
+
+pub mod cable;
+pub mod control;
+pub mod dynamics;
+pub mod error;
+pub mod friction;
+pub mod integrate;
+
+pub use dynamics::Model;
+pub use error::{CableError, Result};
