@@ -21,4 +21,4 @@ pub mod friction;
 pub mod integrate;
 
 pub use dynamics::Model;
-pub use error::{CableError, Result};
+pub use error::{check, CableError, Result};

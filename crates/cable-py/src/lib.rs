@@ -1,1 +1,31 @@
+//! `cablekit._cablekit`: thin PyO3 bindings of cable-core.
+//!
+//! Each file mirrors a core module and only converts, releases the GIL, calls the core and
+//! converts back. No algorithm lives here.
 
+mod convert;
+mod dynamics;
+mod errors;
+mod friction;
+mod integrate;
+
+use pyo3::prelude::*;
+
+/// The compiled extension module; import `cablekit` instead.
+#[pymodule]
+fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<dynamics::Model>()?;
+    m.add_class::<dynamics::CableTransmission>()?;
+    m.add_class::<dynamics::AntagonisticJoint>()?;
+    m.add_class::<dynamics::DahlElement>()?;
+    m.add_function(wrap_pyfunction!(integrate::simulate_arrays, m)?)?;
+    m.add_function(wrap_pyfunction!(integrate::simulate_servo_arrays, m)?)?;
+    m.add_function(wrap_pyfunction!(integrate::propose_step_raw, m)?)?;
+    m.add_function(wrap_pyfunction!(friction::coulomb_friction, m)?)?;
+    m.add_function(wrap_pyfunction!(friction::stribeck_friction, m)?)?;
+    m.add_function(wrap_pyfunction!(friction::capstan_ratio, m)?)?;
+    m.add_function(wrap_pyfunction!(friction::dahl_rate, m)?)?;
+    m.add_function(wrap_pyfunction!(friction::cable_tension, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,615 @@
+//! Model classes: `Model` (base, shared evaluation methods) and one subclass per core model.
+
+use cable_core::cable::{CableLaw, CableLoop, CableRun};
+use cable_core::dynamics::{self as core, Gravity, JointKind, Model as _, TransmissionLink};
+use cable_core::friction::{Dahl, StaticFriction};
+use cable_core::integrate::{jacobian, Rk4};
+use cable_core::{check, CableError};
+use numpy::{PyArray1, PyArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyFloat, PyInt};
+
+use crate::convert::{to_matrix, to_vector, vector};
+use crate::errors::guarded;
+
+/// The core models behind the Python classes.
+#[derive(Debug, Clone)]
+pub enum AnyModel {
+    /// Coupled cable transmission.
+    Transmission(core::CableTransmission),
+    /// Antagonistic joint.
+    Antagonistic(core::AntagonisticJoint),
+    /// Dahl friction element.
+    Dahl(core::DahlElement),
+}
+
+/// Evaluate `$body` with `$m` bound to the concrete core model (monomorphised per variant).
+macro_rules! with_model {
+    ($any:expr, $m:ident => $body:expr) => {
+        match $any {
+            $crate::dynamics::AnyModel::Transmission($m) => $body,
+            $crate::dynamics::AnyModel::Antagonistic($m) => $body,
+            $crate::dynamics::AnyModel::Dahl($m) => $body,
+        }
+    };
+}
+pub(crate) use with_model;
+
+/// Base class of every cablekit model: sizes, names, and single evaluations of `f`, `h` and RK4.
+#[pyclass(subclass, frozen, module = "cablekit._cablekit")]
+pub struct Model {
+    pub inner: AnyModel,
+}
+
+#[pymethods]
+impl Model {
+    #[getter]
+    fn n_states(&self) -> usize {
+        with_model!(&self.inner, m => m.n_states())
+    }
+    #[getter]
+    fn n_inputs(&self) -> usize {
+        with_model!(&self.inner, m => m.n_inputs())
+    }
+    #[getter]
+    fn n_outputs(&self) -> usize {
+        with_model!(&self.inner, m => m.n_outputs())
+    }
+    #[getter]
+    fn state_names(&self) -> Vec<String> {
+        with_model!(&self.inner, m => m.state_names())
+    }
+    #[getter]
+    fn input_names(&self) -> Vec<String> {
+        with_model!(&self.inner, m => m.input_names())
+    }
+    #[getter]
+    fn output_names(&self) -> Vec<String> {
+        with_model!(&self.inner, m => m.output_names())
+    }
+
+    /// `f(x, u)`: the state derivative.
+    fn derivative<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (x, u) = self.point(x, u)?;
+        let dx = guarded(|| {
+            Ok(with_model!(&self.inner, m => {
+                let mut dx = vec![0.0; m.n_states()];
+                m.derivative(&x, &u, &mut dx);
+                dx
+            }))
+        })?;
+        Ok(to_vector(py, dx))
+    }
+
+    /// `h(x, u)`: the outputs.
+    fn output<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (x, u) = self.point(x, u)?;
+        let y = guarded(|| {
+            Ok(with_model!(&self.inner, m => {
+                let mut y = vec![0.0; m.n_outputs()];
+                m.output(&x, &u, &mut y);
+                y
+            }))
+        })?;
+        Ok(to_vector(py, y))
+    }
+
+    /// One sample interval `dt` of RK4 in `substeps` steps from `x` (inputs held at `u`, or
+    /// linear towards `u_next`).
+    #[pyo3(signature = (x, u, dt, substeps = 1, u_next = None))]
+    fn rk4_step<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: &Bound<'py, PyAny>,
+        dt: f64,
+        substeps: usize,
+        u_next: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (mut x, u) = self.point(x, u)?;
+        let u_b = match u_next {
+            Some(obj) => vector(obj, "u_next", self.n_inputs())?,
+            None => u.clone(),
+        };
+        check::all_finite("u_next", &u_b, 1).map_err(crate::errors::PyCableError)?;
+        guarded(|| {
+            cable_core::integrate::SimOptions::new(dt, substeps, Default::default())?;
+            with_model!(&self.inner, m => Rk4::for_model(m).advance(m, &mut x, &u, &u_b, dt, substeps));
+            Ok(())
+        })?;
+        Ok(to_vector(py, x))
+    }
+
+    /// Jacobian `∂f/∂x` at `(x, u)` by central differences.
+    fn jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let (x, u) = self.point(x, u)?;
+        let n = self.n_states();
+        let jac = guarded(|| Ok(with_model!(&self.inner, m => jacobian(m, &x, &u))))?;
+        let rows: Vec<f64> = (0..n * n).map(|k| jac[(k / n, k % n)]).collect();
+        Ok(to_matrix(py, rows, n, n))
+    }
+
+    fn __repr__(&self) -> String {
+        let name = match &self.inner {
+            AnyModel::Transmission(t) => format!("CableTransmission(n_links={})", t.n_links()),
+            AnyModel::Antagonistic(_) => "AntagonisticJoint(...)".to_owned(),
+            AnyModel::Dahl(d) => format!(
+                "DahlElement(sigma0={}, coulomb={}, exponent={})",
+                d.dahl.sigma0, d.dahl.coulomb, d.dahl.exponent
+            ),
+        };
+        name
+    }
+}
+
+impl Model {
+    /// Validated `(x, u)` evaluation point.
+    fn point(&self, x: &Bound<'_, PyAny>, u: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<f64>)> {
+        let x = vector(x, "x", self.n_states())?;
+        let u = vector(u, "u", self.n_inputs())?;
+        check::all_finite("x", &x, 1).map_err(crate::errors::PyCableError)?;
+        check::all_finite("u", &u, 1).map_err(crate::errors::PyCableError)?;
+        Ok((x, u))
+    }
+}
+
+/// Initializer of a `Model` subclass wrapping `inner`.
+fn wrap<S: pyo3::PyClass<BaseType = Model>>(inner: AnyModel, sub: S) -> PyClassInitializer<S> {
+    PyClassInitializer::from(Model { inner }).add_subclass(sub)
+}
+
+/// A float, or a sequence of `n` floats, broadcast to `n` values.
+fn per_link(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec<f64>> {
+    if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
+        return Ok(vec![obj.extract::<f64>()?; n]);
+    }
+    let v: Vec<f64> = obj.extract().map_err(|_| {
+        crate::errors::raise(
+            "ParameterError",
+            format!("{name} must be a float or a sequence of {n} floats"),
+            &[],
+        )
+    })?;
+    if v.len() != n {
+        return Err(crate::errors::raise(
+            "ShapeError",
+            format!("{name} has {} values but the model has {n} links", v.len()),
+            &[],
+        ));
+    }
+    Ok(v)
+}
+
+fn seq_len(obj: &Bound<'_, PyAny>) -> Option<usize> {
+    if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
+        None
+    } else {
+        obj.len().ok()
+    }
+}
+
+/// Cable-driven transmission with 1–3 coupled links (seed 001 eqs 2.3–2.8).
+#[pyclass(extends = Model, frozen, module = "cablekit._cablekit")]
+pub struct CableTransmission;
+
+fn transmission(slf: &PyRef<'_, CableTransmission>) -> core::CableTransmission {
+    match &slf.as_super().inner {
+        AnyModel::Transmission(t) => t.clone(),
+        _ => unreachable!("CableTransmission always wraps a transmission"),
+    }
+}
+
+#[pymethods]
+impl CableTransmission {
+    #[new]
+    #[pyo3(signature = (
+        *, motor_inertia, gear_ratio, capstan_radius, joint_radius, link_inertia, cable_stiffness,
+        cable_damping = None, pretension = None, cable_law = "linear", length_scale = 1.0,
+        joint_kind = None, motor_coulomb = None, motor_viscous = None, motor_smoothing = None,
+        link_coulomb = None, link_viscous = None, link_smoothing = None,
+        gravity_amplitude = None, gravity_offset = None, coupling = None
+    ))]
+    fn new(
+        motor_inertia: &Bound<'_, PyAny>,
+        gear_ratio: &Bound<'_, PyAny>,
+        capstan_radius: &Bound<'_, PyAny>,
+        joint_radius: &Bound<'_, PyAny>,
+        link_inertia: &Bound<'_, PyAny>,
+        cable_stiffness: &Bound<'_, PyAny>,
+        cable_damping: Option<&Bound<'_, PyAny>>,
+        pretension: Option<&Bound<'_, PyAny>>,
+        cable_law: &str,
+        length_scale: f64,
+        joint_kind: Option<Vec<String>>,
+        motor_coulomb: Option<&Bound<'_, PyAny>>,
+        motor_viscous: Option<&Bound<'_, PyAny>>,
+        motor_smoothing: Option<&Bound<'_, PyAny>>,
+        link_coulomb: Option<&Bound<'_, PyAny>>,
+        link_viscous: Option<&Bound<'_, PyAny>>,
+        link_smoothing: Option<&Bound<'_, PyAny>>,
+        gravity_amplitude: Option<&Bound<'_, PyAny>>,
+        gravity_offset: Option<&Bound<'_, PyAny>>,
+        coupling: Option<Vec<Vec<f64>>>,
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let required = [
+            motor_inertia,
+            gear_ratio,
+            capstan_radius,
+            joint_radius,
+            link_inertia,
+            cable_stiffness,
+        ];
+        let optional = [
+            cable_damping,
+            pretension,
+            motor_coulomb,
+            motor_viscous,
+            motor_smoothing,
+            link_coulomb,
+            link_viscous,
+            link_smoothing,
+            gravity_amplitude,
+            gravity_offset,
+        ];
+        let n = required
+            .iter()
+            .copied()
+            .chain(optional.iter().flatten().copied())
+            .filter_map(seq_len)
+            .max()
+            .unwrap_or(1);
+        let get = |o: Option<&Bound<'_, PyAny>>, name: &str, default: f64| -> PyResult<Vec<f64>> {
+            match o {
+                Some(o) => per_link(o, name, n),
+                None => Ok(vec![default; n]),
+            }
+        };
+        let mi = per_link(motor_inertia, "motor_inertia", n)?;
+        let gr = per_link(gear_ratio, "gear_ratio", n)?;
+        let cr = per_link(capstan_radius, "capstan_radius", n)?;
+        let jr = per_link(joint_radius, "joint_radius", n)?;
+        let li = per_link(link_inertia, "link_inertia", n)?;
+        let ks = per_link(cable_stiffness, "cable_stiffness", n)?;
+        let cd = get(cable_damping, "cable_damping", 0.0)?;
+        let pt = get(pretension, "pretension", 0.0)?;
+        let mc = get(motor_coulomb, "motor_coulomb", 0.0)?;
+        let mv = get(motor_viscous, "motor_viscous", 0.0)?;
+        let ms = get(motor_smoothing, "motor_smoothing", 0.1)?;
+        let lc = get(link_coulomb, "link_coulomb", 0.0)?;
+        let lv = get(link_viscous, "link_viscous", 0.0)?;
+        let ls = get(link_smoothing, "link_smoothing", 1e-3)?;
+        let ga = get(gravity_amplitude, "gravity_amplitude", 0.0)?;
+        let go = get(gravity_offset, "gravity_offset", 0.0)?;
+        let kinds = joint_kind.unwrap_or_else(|| vec!["revolute".into(); n]);
+        if kinds.len() != n {
+            return Err(crate::errors::raise(
+                "ShapeError",
+                format!(
+                    "joint_kind has {} entries but the model has {n} links",
+                    kinds.len()
+                ),
+                &[],
+            ));
+        }
+        let coupling_flat: Vec<f64> = match coupling {
+            None => Vec::new(),
+            Some(rows) => {
+                if rows.len() != n || rows.iter().any(|r| r.len() != n) {
+                    return Err(crate::errors::raise(
+                        "ShapeError",
+                        format!("coupling must be {n}x{n}"),
+                        &[],
+                    ));
+                }
+                rows.concat()
+            }
+        };
+        let model = guarded(|| {
+            let mut links = Vec::with_capacity(n);
+            for i in 0..n {
+                let p = format!("links[{i}]");
+                let law = CableLaw::from_name(cable_law, ks[i], length_scale, &p)?;
+                let kind = JointKind::from_name(&kinds[i], &format!("{p}.joint_kind"))?;
+                links.push(TransmissionLink {
+                    motor_inertia: mi[i],
+                    gear_ratio: gr[i],
+                    capstan_radius: cr[i],
+                    motor_friction: StaticFriction::coulomb_viscous(
+                        &format!("{p}.motor"),
+                        mc[i],
+                        mv[i],
+                        ms[i],
+                    )?,
+                    cable: CableLoop {
+                        run: CableRun::new(law, cd[i], pt[i], &p)?,
+                    },
+                    kind,
+                    joint_radius: jr[i],
+                    link_inertia: li[i],
+                    link_friction: StaticFriction::coulomb_viscous(
+                        &format!("{p}.link"),
+                        lc[i],
+                        lv[i],
+                        ls[i],
+                    )?,
+                    gravity: Gravity {
+                        amplitude: ga[i],
+                        offset: go[i],
+                    },
+                });
+            }
+            core::CableTransmission::new(links, &coupling_flat)
+        })?;
+        Ok(wrap(AnyModel::Transmission(model), CableTransmission))
+    }
+
+    /// The Raven-II parameter set for the first `links` axes (1 to 3).
+    #[staticmethod]
+    #[pyo3(signature = (links = 3))]
+    fn raven2(py: Python<'_>, links: usize) -> PyResult<Py<CableTransmission>> {
+        let model = guarded(|| core::raven2(links))?;
+        Py::new(py, wrap(AnyModel::Transmission(model), CableTransmission))
+    }
+
+    #[getter]
+    fn n_links(slf: PyRef<'_, Self>) -> usize {
+        transmission(&slf).n_links()
+    }
+
+    /// Transmission matrix `T` of eq. (2.8), shape `(n, n)`.
+    #[getter]
+    fn transmission_matrix<'py>(slf: PyRef<'py, Self>) -> Bound<'py, PyArray2<f64>> {
+        let t = transmission(&slf);
+        let n = t.n_links();
+        to_matrix(slf.py(), t.transmission_matrix(), n, n)
+    }
+
+    /// All parameters as a dict of per-link lists (the constructor's keywords).
+    fn params<'py>(slf: PyRef<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+        let t = transmission(&slf);
+        let d = PyDict::new(slf.py());
+        let col =
+            |f: &dyn Fn(&TransmissionLink) -> f64| t.links().iter().map(f).collect::<Vec<f64>>();
+        d.set_item("motor_inertia", col(&|l| l.motor_inertia))?;
+        d.set_item("gear_ratio", col(&|l| l.gear_ratio))?;
+        d.set_item("capstan_radius", col(&|l| l.capstan_radius))?;
+        d.set_item("joint_radius", col(&|l| l.joint_radius))?;
+        d.set_item("link_inertia", col(&|l| l.link_inertia))?;
+        d.set_item("cable_stiffness", col(&|l| l.cable.run.law.stiffness()))?;
+        d.set_item("cable_damping", col(&|l| l.cable.run.damping))?;
+        d.set_item("pretension", col(&|l| l.cable.run.pretension))?;
+        let first = t.links()[0].cable.run.law;
+        d.set_item("cable_law", first.name())?;
+        d.set_item(
+            "length_scale",
+            match first {
+                CableLaw::Exponential { length_scale, .. } => length_scale,
+                CableLaw::Linear { .. } => 1.0,
+            },
+        )?;
+        d.set_item(
+            "joint_kind",
+            t.links().iter().map(|l| l.kind.name()).collect::<Vec<_>>(),
+        )?;
+        d.set_item("motor_coulomb", col(&|l| l.motor_friction.coulomb))?;
+        d.set_item("motor_viscous", col(&|l| l.motor_friction.viscous))?;
+        d.set_item("motor_smoothing", col(&|l| l.motor_friction.smoothing))?;
+        d.set_item("link_coulomb", col(&|l| l.link_friction.coulomb))?;
+        d.set_item("link_viscous", col(&|l| l.link_friction.viscous))?;
+        d.set_item("link_smoothing", col(&|l| l.link_friction.smoothing))?;
+        d.set_item("gravity_amplitude", col(&|l| l.gravity.amplitude))?;
+        d.set_item("gravity_offset", col(&|l| l.gravity.offset))?;
+        let n = t.n_links();
+        let c = t.coupling();
+        d.set_item(
+            "coupling",
+            (0..n)
+                .map(|i| c[i * n..(i + 1) * n].to_vec())
+                .collect::<Vec<_>>(),
+        )?;
+        Ok(d)
+    }
+
+    /// Rigid-cable kinematics `q_m = T·q_l`.
+    fn joint_to_motor<'py>(
+        slf: PyRef<'py, Self>,
+        q_l: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let t = transmission(&slf);
+        let q = vector(q_l, "q_l", t.n_links())?;
+        let mut out = vec![0.0; t.n_links()];
+        t.joint_to_motor(&q, &mut out);
+        Ok(to_vector(slf.py(), out))
+    }
+
+    /// Transmission-kinematics joint estimate `q_l = T⁻¹·q_m`.
+    fn motor_to_joint<'py>(
+        slf: PyRef<'py, Self>,
+        q_m: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let t = transmission(&slf);
+        let q = vector(q_m, "q_m", t.n_links())?;
+        let mut out = vec![0.0; t.n_links()];
+        t.motor_to_joint(&q, &mut out);
+        Ok(to_vector(slf.py(), out))
+    }
+
+    /// Mechanical energy (J) at state `x` (kinetic + taut cable + gravity).
+    fn energy(slf: PyRef<'_, Self>, x: &Bound<'_, PyAny>) -> PyResult<f64> {
+        let t = transmission(&slf);
+        let x = vector(x, "x", t.n_states())?;
+        Ok(t.energy(&x))
+    }
+}
+
+/// Antagonistic cable-driven joint (seed 000 forceps jaw, or a pulley board).
+#[pyclass(extends = Model, frozen, module = "cablekit._cablekit")]
+pub struct AntagonisticJoint;
+
+fn antagonistic(slf: &PyRef<'_, AntagonisticJoint>) -> core::AntagonisticJoint {
+    match &slf.as_super().inner {
+        AnyModel::Antagonistic(j) => *j,
+        _ => unreachable!("AntagonisticJoint always wraps an antagonistic joint"),
+    }
+}
+
+#[pymethods]
+impl AntagonisticJoint {
+    #[new]
+    #[pyo3(signature = (
+        *, radius, stiffness, inertia, damping = 0.0, pretension = 0.0,
+        stiffness_return = None, damping_return = None, pretension_return = None,
+        cable_law = "linear", length_scale = 1.0,
+        viscous = 0.0, coulomb = 0.0, smoothing = 0.05,
+        capstan_mu = 0.0, capstan_wrap = 0.0, capstan_smoothing = 1e-3,
+        contact_angle = None, contact_stiffness = None, contact_damping = 0.0, contact_lever_arm = None
+    ))]
+    fn new(
+        radius: f64,
+        stiffness: f64,
+        inertia: f64,
+        damping: f64,
+        pretension: f64,
+        stiffness_return: Option<f64>,
+        damping_return: Option<f64>,
+        pretension_return: Option<f64>,
+        cable_law: &str,
+        length_scale: f64,
+        viscous: f64,
+        coulomb: f64,
+        smoothing: f64,
+        capstan_mu: f64,
+        capstan_wrap: f64,
+        capstan_smoothing: f64,
+        contact_angle: Option<f64>,
+        contact_stiffness: Option<f64>,
+        contact_damping: f64,
+        contact_lever_arm: Option<f64>,
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let joint = guarded(|| {
+            let drive = CableRun::new(
+                CableLaw::from_name(cable_law, stiffness, length_scale, "drive")?,
+                damping,
+                pretension,
+                "drive",
+            )?;
+            let ret = CableRun::new(
+                CableLaw::from_name(
+                    cable_law,
+                    stiffness_return.unwrap_or(stiffness),
+                    length_scale,
+                    "return",
+                )?,
+                damping_return.unwrap_or(damping),
+                pretension_return.unwrap_or(pretension),
+                "return",
+            )?;
+            let contact = match (contact_angle, contact_stiffness, contact_lever_arm) {
+                (None, None, None) => None,
+                (Some(a), Some(k), Some(l)) => Some(core::Contact::new(a, k, contact_damping, l)?),
+                _ => {
+                    return Err(CableError::InvalidOption {
+                        name: "contact".into(),
+                        value: "partially specified".into(),
+                        allowed:
+                            "all of contact_angle, contact_stiffness, contact_lever_arm, or none"
+                                .into(),
+                    })
+                }
+            };
+            let friction =
+                StaticFriction::coulomb_viscous("friction", coulomb, viscous, smoothing)?;
+            core::AntagonisticJoint::new(
+                radius,
+                drive,
+                ret,
+                inertia,
+                friction,
+                capstan_mu,
+                capstan_wrap,
+                capstan_smoothing,
+                contact,
+            )
+        })?;
+        Ok(wrap(AnyModel::Antagonistic(joint), AntagonisticJoint))
+    }
+
+    /// The illustrative EndoWrist-like forceps jaw used by `cablekit simulate --example forceps`.
+    #[staticmethod]
+    fn forceps_example(py: Python<'_>) -> PyResult<Py<AntagonisticJoint>> {
+        Py::new(
+            py,
+            wrap(
+                AnyModel::Antagonistic(core::AntagonisticJoint::forceps_example()),
+                AntagonisticJoint,
+            ),
+        )
+    }
+
+    /// All parameters as a dict (the constructor's keywords).
+    fn params<'py>(slf: PyRef<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+        let j = antagonistic(&slf);
+        let d = PyDict::new(slf.py());
+        d.set_item("radius", j.radius)?;
+        d.set_item("stiffness", j.drive.law.stiffness())?;
+        d.set_item("damping", j.drive.damping)?;
+        d.set_item("pretension", j.drive.pretension)?;
+        d.set_item("stiffness_return", j.ret.law.stiffness())?;
+        d.set_item("damping_return", j.ret.damping)?;
+        d.set_item("pretension_return", j.ret.pretension)?;
+        d.set_item("cable_law", j.drive.law.name())?;
+        d.set_item(
+            "length_scale",
+            match j.drive.law {
+                CableLaw::Exponential { length_scale, .. } => length_scale,
+                CableLaw::Linear { .. } => 1.0,
+            },
+        )?;
+        d.set_item("inertia", j.inertia)?;
+        d.set_item("viscous", j.friction.viscous)?;
+        d.set_item("coulomb", j.friction.coulomb)?;
+        d.set_item("smoothing", j.friction.smoothing)?;
+        d.set_item("capstan_mu", j.capstan_mu)?;
+        d.set_item("capstan_wrap", j.capstan_wrap)?;
+        d.set_item("capstan_smoothing", j.capstan_smoothing)?;
+        if let Some(c) = j.contact {
+            d.set_item("contact_angle", c.angle)?;
+            d.set_item("contact_stiffness", c.stiffness)?;
+            d.set_item("contact_damping", c.damping)?;
+            d.set_item("contact_lever_arm", c.lever_arm)?;
+        }
+        Ok(d)
+    }
+}
+
+/// Dahl friction element: state `[F]`, input `[v]`, output `[F]` (seed 002 eq. 8).
+#[pyclass(extends = Model, frozen, module = "cablekit._cablekit")]
+pub struct DahlElement;
+
+#[pymethods]
+impl DahlElement {
+    #[new]
+    #[pyo3(signature = (*, sigma0, coulomb, exponent = 1.0))]
+    fn new(sigma0: f64, coulomb: f64, exponent: f64) -> PyResult<PyClassInitializer<Self>> {
+        let dahl = guarded(|| Dahl::new(sigma0, coulomb, exponent))?;
+        Ok(wrap(
+            AnyModel::Dahl(core::DahlElement { dahl }),
+            DahlElement,
+        ))
+    }
+}

@@ -1,0 +1,126 @@
+//! Trajectory simulation and step advice (GIL released for the integration).
+
+use cable_core::control::{simulate_closed_loop, MotorPd};
+use cable_core::dynamics::Model as _;
+use cable_core::integrate::{propose_step, simulate, InputHold, SimOptions};
+use numpy::PyArray2;
+use pyo3::prelude::*;
+
+use crate::convert::{matrix, to_matrix, vector};
+use crate::dynamics::{with_model, AnyModel, CableTransmission, Model};
+use crate::errors::guarded;
+
+type Arrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+
+/// Simulate `model` on inputs `(T, m)`; returns `(states (T, n), outputs (T, p))`.
+#[pyfunction]
+#[pyo3(signature = (model, inputs, dt, x0 = None, substeps = 1, hold = "zoh"))]
+pub fn simulate_arrays<'py>(
+    py: Python<'py>,
+    model: PyRef<'py, Model>,
+    inputs: &Bound<'py, PyAny>,
+    dt: f64,
+    x0: Option<&Bound<'py, PyAny>>,
+    substeps: usize,
+    hold: &str,
+) -> PyResult<Arrays<'py>> {
+    let inner: AnyModel = model.inner.clone();
+    let (n, m, p) = with_model!(&inner, mm => (mm.n_states(), mm.n_inputs(), mm.n_outputs()));
+    let (u, t_len) = matrix(inputs, "inputs", Some(m))?;
+    let x0 = match x0 {
+        Some(obj) => vector(obj, "x0", n)?,
+        None => with_model!(&inner, mm => mm.rest_state()),
+    };
+    let hold = guarded(|| InputHold::from_name(hold))?;
+    let traj = py.detach(|| {
+        guarded(|| {
+            let opts = SimOptions::new(dt, substeps, hold)?;
+            with_model!(&inner, mm => simulate(mm, &u, &x0, &opts))
+        })
+    })?;
+    Ok((
+        to_matrix(py, traj.states, t_len, n),
+        to_matrix(py, traj.outputs, t_len, p),
+    ))
+}
+
+/// Closed-loop simulation under a motor-space PD servo; returns `(states, outputs, inputs)`.
+#[pyfunction]
+#[pyo3(signature = (model, references, dt, *, kp, kd, torque_limit, external = None, x0 = None, substeps = 1))]
+pub fn simulate_servo_arrays<'py>(
+    py: Python<'py>,
+    model: PyRef<'py, CableTransmission>,
+    references: &Bound<'py, PyAny>,
+    dt: f64,
+    kp: Vec<f64>,
+    kd: Vec<f64>,
+    torque_limit: Vec<f64>,
+    external: Option<&Bound<'py, PyAny>>,
+    x0: Option<&Bound<'py, PyAny>>,
+    substeps: usize,
+) -> PyResult<(
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<f64>>,
+)> {
+    let t = match &model.as_super().inner {
+        AnyModel::Transmission(t) => t.clone(),
+        _ => unreachable!("CableTransmission always wraps a transmission"),
+    };
+    let nl = t.n_links();
+    let (refs, t_len) = matrix(references, "references", Some(2 * nl))?;
+    let ext = match external {
+        Some(obj) => {
+            let (e, rows) = matrix(obj, "external", Some(nl))?;
+            if rows != t_len {
+                return Err(crate::errors::raise(
+                    "ShapeError",
+                    format!("external must have {t_len} rows like references, got {rows}"),
+                    &[],
+                ));
+            }
+            e
+        }
+        None => vec![0.0; t_len * nl],
+    };
+    let x0 = match x0 {
+        Some(obj) => vector(obj, "x0", t.n_states())?,
+        None => t.rest_state(),
+    };
+    let run = py.detach(|| {
+        guarded(|| {
+            let pd = MotorPd::new(kp, kd, torque_limit)?;
+            let opts = SimOptions::new(dt, substeps, InputHold::Zoh)?;
+            simulate_closed_loop(&t, &pd, &refs, &ext, &x0, &opts)
+        })
+    })?;
+    Ok((
+        to_matrix(py, run.trajectory.states, t_len, t.n_states()),
+        to_matrix(py, run.trajectory.outputs, t_len, t.n_outputs()),
+        to_matrix(py, run.inputs, t_len, t.n_inputs()),
+    ))
+}
+
+/// Step advice: `(max_stable_step, (re, im), substeps)`.
+#[pyfunction]
+#[pyo3(signature = (model, dt, x = None, u = None, safety = 0.9))]
+pub fn propose_step_raw(
+    model: PyRef<'_, Model>,
+    dt: f64,
+    x: Option<&Bound<'_, PyAny>>,
+    u: Option<&Bound<'_, PyAny>>,
+    safety: f64,
+) -> PyResult<(f64, (f64, f64), usize)> {
+    let inner = &model.inner;
+    let (n, m) = with_model!(inner, mm => (mm.n_states(), mm.n_inputs()));
+    let x = match x {
+        Some(o) => vector(o, "x", n)?,
+        None => with_model!(inner, mm => mm.rest_state()),
+    };
+    let u = match u {
+        Some(o) => vector(o, "u", m)?,
+        None => vec![0.0; m],
+    };
+    let adv = guarded(|| with_model!(inner, mm => propose_step(mm, &x, &u, dt, safety)))?;
+    Ok((adv.max_stable_step, adv.stiffest_eigenvalue, adv.substeps))
+}

@@ -1,0 +1,67 @@
+"""cablekit: simulate, estimate and diagnose cable-driven robots.
+
+The numerical core is Rust (``cablekit._cablekit``); this package re-exports it with named,
+documented Python entry points. SI units everywhere.
+"""
+
+from __future__ import annotations
+
+from cablekit._cablekit import (
+    AntagonisticJoint,
+    CableTransmission,
+    DahlElement,
+    Model,
+    __version__,
+    cable_tension,
+    capstan_ratio,
+    coulomb_friction,
+    dahl_rate,
+    stribeck_friction,
+)
+from cablekit.errors import (
+    CablekitError,
+    DataError,
+    DTypeError,
+    InternalError,
+    LayoutError,
+    NotFiniteError,
+    ParameterError,
+    ShapeError,
+    SimulationDivergedError,
+)
+from cablekit.simulation import (
+    MotorPD,
+    SimulationResult,
+    StepAdvice,
+    propose_step,
+    simulate,
+    simulate_servo,
+)
+
+__all__ = [
+    "AntagonisticJoint",
+    "CableTransmission",
+    "CablekitError",
+    "DTypeError",
+    "DahlElement",
+    "DataError",
+    "InternalError",
+    "LayoutError",
+    "Model",
+    "MotorPD",
+    "NotFiniteError",
+    "ParameterError",
+    "ShapeError",
+    "SimulationDivergedError",
+    "SimulationResult",
+    "StepAdvice",
+    "__version__",
+    "cable_tension",
+    "capstan_ratio",
+    "coulomb_friction",
+    "dahl_rate",
+    "propose_step",
+    "simulate",
+    "simulate_servo",
+    "stribeck_friction",
+]

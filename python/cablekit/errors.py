@@ -1,0 +1,57 @@
+"""The cablekit exception hierarchy.
+
+Every error raised by cablekit, from Rust or Python, is a :class:`CablekitError`. The compiled core
+maps each typed Rust error to one of these classes by name, so they also derive from the matching
+built-in (``except ValueError`` keeps working).
+"""
+
+from __future__ import annotations
+
+
+class CablekitError(Exception):
+    """Base class of every cablekit error."""
+
+
+class ShapeError(CablekitError, ValueError):
+    """An array has the wrong number of dimensions, rows or columns. ``argument`` names it."""
+
+
+class DTypeError(CablekitError, TypeError):
+    """An array is not a ``numpy.ndarray`` of ``float64``."""
+
+
+class LayoutError(CablekitError, ValueError):
+    """An array is not C-contiguous (cablekit never copies behind your back)."""
+
+
+class NotFiniteError(CablekitError, ValueError):
+    """An input holds NaN or inf. ``argument`` and flat ``index`` say where."""
+
+
+class ParameterError(CablekitError, ValueError):
+    """A physical or numerical parameter is out of range (e.g. negative stiffness, dt <= 0)."""
+
+
+class SimulationDivergedError(CablekitError, ArithmeticError):
+    """The integrated state became non-finite. ``step`` and ``time`` (s) say where."""
+
+
+class DataError(CablekitError, ValueError):
+    """A data file (CSV, TOML) is malformed: missing column, bad time base, unknown unit."""
+
+
+class InternalError(CablekitError, RuntimeError):
+    """A bug inside cablekit (a Rust panic caught at the boundary). Please report it."""
+
+
+__all__ = [
+    "CablekitError",
+    "DTypeError",
+    "DataError",
+    "InternalError",
+    "LayoutError",
+    "NotFiniteError",
+    "ParameterError",
+    "ShapeError",
+    "SimulationDivergedError",
+]
