@@ -17,7 +17,7 @@ from cablekit.examples import EXAMPLES, run_example
 def _simulate(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    print(f"cablekit: simulating example {args.example!r} ({args.duration} s at dt={args.dt} s) ...", flush=True)
+    print(f"cablekit: simulating {args.example!r} ({args.duration} s, dt={args.dt} s) ...", flush=True)
     t0 = time.perf_counter()
     result = run_example(args.example, duration=args.duration, dt=args.dt)
     elapsed = time.perf_counter() - t0

@@ -11,6 +11,13 @@ from cablekit.errors import ParameterError
 from cablekit.simulation import MotorPD, SimulationResult, propose_step, simulate, simulate_servo
 
 
+def _grid(duration: float, dt: float) -> np.ndarray:
+    """Sample times ``k*dt`` covering ``duration`` seconds."""
+    if not (dt > 0 and duration > 0):
+        raise ParameterError(f"duration and dt must be > 0, got duration={duration}, dt={dt}")
+    return np.arange(round(duration / dt), dtype=np.float64) * dt
+
+
 def raven_link(duration: float = 4.0, dt: float = 1e-3) -> SimulationResult:
     """Raven-II shoulder, elbow and insertion under Raven's 1 kHz motor-space PD servo.
 
@@ -21,7 +28,7 @@ def raven_link(duration: float = 4.0, dt: float = 1e-3) -> SimulationResult:
     motor-encoder-only robots cannot see.
     """
     model = CableTransmission.raven2(3)
-    t = np.arange(int(round(duration / dt)), dtype=np.float64) * dt
+    t = _grid(duration, dt)
     w = 2 * np.pi * 0.5
     centre = np.array([np.pi / 4, np.pi / 2, 0.40])
     amp = np.array([np.radians(15), np.radians(15), 0.05])
@@ -47,7 +54,7 @@ def forceps(duration: float = 4.0, dt: float = 1e-3) -> SimulationResult:
     """
     model = AntagonisticJoint.forceps_example()
     r = model.params()["radius"]
-    t = np.arange(int(round(duration / dt)), dtype=np.float64) * dt
+    t = _grid(duration, dt)
     w = 2 * np.pi * 0.5
     x_m = r * 0.5 * np.sin(w * t)
     dx_m = r * 0.5 * w * np.cos(w * t)

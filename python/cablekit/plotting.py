@@ -49,14 +49,13 @@ def _raven_panels(result: SimulationResult, axes: Any) -> None:
     n = sum(1 for name in result.state_names if name.startswith("q_l"))
     ref = result.meta.get("reference_joint")
     for i in range(1, n + 1):
-        scale, unit = (1e3, "mm") if i == 3 else (np.degrees(1.0), "deg")
-        q = result[f"q_l{i}"]
-        axes[0].plot(t, q * scale if i < 3 else q * 1e2, label=f"joint {i} [{'cm' if i == 3 else 'deg'}]")
+        # revolute joints in degrees, the prismatic insertion axis in centimetres
+        scale, unit = (1e2, "cm") if i == 3 else (float(np.degrees(1.0)), "deg")
+        axes[0].plot(t, result[f"q_l{i}"] * scale, label=f"joint {i} [{unit}]")
         if isinstance(ref, np.ndarray):
-            axes[0].plot(t, (ref[:, i - 1]) * (scale if i < 3 else 1e2), "k:", lw=0.8)
+            axes[0].plot(t, ref[:, i - 1] * scale, "k:", lw=0.8)
         axes[1].plot(t, result[f"tension_a{i}"] - result[f"tension_b{i}"], label=f"net tension {i} [N]")
         axes[2].plot(t, result[f"tau_m{i}"], label=f"motor torque {i} [N·m]")
-        del unit
     axes[0].set_ylabel("joint position")
     axes[1].set_ylabel("cable tension")
     axes[2].set_ylabel("servo torque")

@@ -1,0 +1,190 @@
+"""Type stub of the compiled core (checked against the built module by mypy.stubtest in .ci/run)."""
+
+from typing import Any, final
+
+import numpy as np
+from numpy.typing import NDArray
+from typing_extensions import disjoint_base
+
+__all__ = [
+    "AntagonisticJoint",
+    "CableTransmission",
+    "DahlElement",
+    "Model",
+    "__version__",
+    "cable_tension",
+    "capstan_ratio",
+    "coulomb_friction",
+    "dahl_rate",
+    "propose_step_raw",
+    "simulate_arrays",
+    "simulate_servo_arrays",
+    "stribeck_friction",
+]
+
+__version__: str
+
+_F = NDArray[np.float64]
+
+@disjoint_base
+class Model:
+    """Base class of every cablekit model (ẋ = f(x, u), y = h(x, u))."""
+
+    @property
+    def n_states(self) -> int: ...
+    @property
+    def n_inputs(self) -> int: ...
+    @property
+    def n_outputs(self) -> int: ...
+    @property
+    def state_names(self) -> list[str]: ...
+    @property
+    def input_names(self) -> list[str]: ...
+    @property
+    def output_names(self) -> list[str]: ...
+    def derivative(self, x: _F, u: _F) -> _F:
+        """f(x, u), shape (n_states,)."""
+    def output(self, x: _F, u: _F) -> _F:
+        """h(x, u), shape (n_outputs,)."""
+    def rk4_step(self, x: _F, u: _F, dt: float, substeps: int = 1, u_next: _F | None = None) -> _F:
+        """State after one sample interval dt (s) of RK4 in `substeps` steps."""
+    def jacobian(self, x: _F, u: _F) -> _F:
+        """∂f/∂x by central differences, shape (n_states, n_states)."""
+
+@final
+class CableTransmission(Model):
+    """Cable-driven transmission with 1–3 coupled links (seed 001 eqs 2.3–2.8).
+
+    State per link [q_m (rad), dq_m (rad/s), q_l (rad or m), dq_l]; inputs
+    [tau_m (N·m) per link, tau_ext (N·m or N) per link]; outputs per link
+    [q_m, q_l, tension_a (N), tension_b (N), joint_torque (N·m or N)].
+    Per-link keywords take a float (broadcast) or a sequence of n floats:
+    motor_inertia kg·m², gear_ratio -, capstan_radius m, joint_radius m (m/m if prismatic),
+    link_inertia kg·m² (kg), cable_stiffness N/m, cable_damping N·s/m, pretension N,
+    motor_coulomb N·m, motor_viscous N·m·s/rad, motor_smoothing rad/s, link_coulomb,
+    link_viscous, link_smoothing, gravity_amplitude (N·m or N), gravity_offset rad.
+    cable_law "linear" | "exponential" (length_scale m); joint_kind list of
+    "revolute" | "prismatic"; coupling n×n strictly lower-triangular C_ij.
+    """
+
+    def __new__(
+        cls,
+        *,
+        motor_inertia: float | list[float],
+        gear_ratio: float | list[float],
+        capstan_radius: float | list[float],
+        joint_radius: float | list[float],
+        link_inertia: float | list[float],
+        cable_stiffness: float | list[float],
+        cable_damping: float | list[float] | None = None,
+        pretension: float | list[float] | None = None,
+        cable_law: str = "linear",
+        length_scale: float = 1.0,
+        joint_kind: list[str] | None = None,
+        motor_coulomb: float | list[float] | None = None,
+        motor_viscous: float | list[float] | None = None,
+        motor_smoothing: float | list[float] | None = None,
+        link_coulomb: float | list[float] | None = None,
+        link_viscous: float | list[float] | None = None,
+        link_smoothing: float | list[float] | None = None,
+        gravity_amplitude: float | list[float] | None = None,
+        gravity_offset: float | list[float] | None = None,
+        coupling: list[list[float]] | None = None,
+    ) -> CableTransmission: ...
+    @staticmethod
+    def raven2(links: int = 3) -> CableTransmission:
+        """Raven-II shoulder/elbow/insertion parameter set (first `links` axes)."""
+    @property
+    def n_links(self) -> int: ...
+    @property
+    def transmission_matrix(self) -> _F:
+        """T of eq. (2.8): q_m = T q_l at rest length, shape (n, n)."""
+    def params(self) -> dict[str, Any]:
+        """Constructor keywords with per-link lists."""
+    def joint_to_motor(self, q_l: _F) -> _F: ...
+    def motor_to_joint(self, q_m: _F) -> _F: ...
+    def energy(self, x: _F) -> float:
+        """Kinetic + taut-cable + gravity energy (J)."""
+
+@final
+class AntagonisticJoint(Model):
+    """Antagonistic cable-driven joint: state [theta, dtheta]; inputs [x_m (m), dx_m (m/s)];
+    outputs [tension_motor_drive, tension_motor_return, tension_joint_drive,
+    tension_joint_return (N), theta (rad), contact_force (N)].
+    """
+
+    def __new__(
+        cls,
+        *,
+        radius: float,
+        stiffness: float,
+        inertia: float,
+        damping: float = 0.0,
+        pretension: float = 0.0,
+        stiffness_return: float | None = None,
+        damping_return: float | None = None,
+        pretension_return: float | None = None,
+        cable_law: str = "linear",
+        length_scale: float = 1.0,
+        viscous: float = 0.0,
+        coulomb: float = 0.0,
+        smoothing: float = 0.05,
+        capstan_mu: float = 0.0,
+        capstan_wrap: float = 0.0,
+        capstan_smoothing: float = 1e-3,
+        contact_angle: float | None = None,
+        contact_stiffness: float | None = None,
+        contact_damping: float = 0.0,
+        contact_lever_arm: float | None = None,
+    ) -> AntagonisticJoint: ...
+    @staticmethod
+    def forceps_example() -> AntagonisticJoint: ...
+    def params(self) -> dict[str, Any]: ...
+
+@final
+class DahlElement(Model):
+    """Dahl friction element (seed 002 eq. 8): state [F], input [v], output [F]."""
+
+    def __new__(cls, *, sigma0: float, coulomb: float, exponent: float = 1.0) -> DahlElement: ...
+
+def simulate_arrays(
+    model: Model, inputs: _F, dt: float, x0: _F | None = None, substeps: int = 1, hold: str = "zoh"
+) -> tuple[_F, _F]: ...
+def simulate_servo_arrays(
+    model: CableTransmission,
+    references: _F,
+    dt: float,
+    *,
+    kp: list[float],
+    kd: list[float],
+    torque_limit: list[float],
+    external: _F | None = None,
+    x0: _F | None = None,
+    substeps: int = 1,
+) -> tuple[_F, _F, _F]: ...
+def propose_step_raw(
+    model: Model, dt: float, x: _F | None = None, u: _F | None = None, safety: float = 0.9
+) -> tuple[float, tuple[float, float], int]: ...
+def coulomb_friction(v: _F, *, coulomb: float, smoothing: float) -> _F: ...
+def stribeck_friction(
+    v: _F,
+    *,
+    coulomb: float,
+    static_level: float,
+    stribeck_velocity: float,
+    exponent: float = 2.0,
+    viscous: float = 0.0,
+    smoothing: float,
+) -> _F: ...
+def capstan_ratio(v: _F, *, mu: float, wrap: float, smoothing: float) -> _F: ...
+def dahl_rate(force: _F, v: _F, *, sigma0: float, coulomb: float, exponent: float = 1.0) -> _F: ...
+def cable_tension(
+    stretch: _F,
+    stretch_rate: _F,
+    *,
+    stiffness: float,
+    damping: float = 0.0,
+    pretension: float = 0.0,
+    law: str = "linear",
+    length_scale: float = 1.0,
+) -> _F: ...
