@@ -11,6 +11,11 @@ use crate::dynamics::{with_model, AnyModel, CableTransmission, Model};
 use crate::errors::guarded;
 
 type Arrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+type Arrays3<'py> = (
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<f64>>,
+);
 
 /// Simulate `model` on inputs `(T, m)`; returns `(states (T, n), outputs (T, p))`.
 #[pyfunction]
@@ -58,11 +63,7 @@ pub fn simulate_servo_arrays<'py>(
     external: Option<&Bound<'py, PyAny>>,
     x0: Option<&Bound<'py, PyAny>>,
     substeps: usize,
-) -> PyResult<(
-    Bound<'py, PyArray2<f64>>,
-    Bound<'py, PyArray2<f64>>,
-    Bound<'py, PyArray2<f64>>,
-)> {
+) -> PyResult<Arrays3<'py>> {
     let t = match &model.as_super().inner {
         AnyModel::Transmission(t) => t.clone(),
         _ => unreachable!("CableTransmission always wraps a transmission"),

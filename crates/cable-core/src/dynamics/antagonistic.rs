@@ -224,6 +224,7 @@ impl Model for AntagonisticJoint {
 }
 
 #[cfg(test)]
+#[allow(clippy::float_cmp)] // exact zeros are the claims under test (slack, no contact)
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
