@@ -66,8 +66,24 @@ class SimulationResult:
         return path
 
 
-def _time(n: int, dt: float) -> NDArray[np.float64]:
-    return np.arange(n, dtype=np.float64) * dt
+def _result(
+    model: Model,
+    inputs: NDArray[np.float64],
+    states: NDArray[np.float64],
+    outputs: NDArray[np.float64],
+    dt: float,
+    **meta: object,
+) -> SimulationResult:
+    return SimulationResult(
+        t=np.arange(states.shape[0], dtype=np.float64) * dt,
+        inputs=inputs,
+        states=states,
+        outputs=outputs,
+        input_names=model.input_names,
+        state_names=model.state_names,
+        output_names=model.output_names,
+        meta={"dt": dt, "model": repr(model), **meta},
+    )
 
 
 def simulate(
@@ -94,16 +110,7 @@ def simulate(
         SimulationDivergedError (with ``.step`` and ``.time``).
     """
     states, outputs = _cablekit.simulate_arrays(model, inputs, dt, x0, substeps, hold)
-    return SimulationResult(
-        t=_time(states.shape[0], dt),
-        inputs=inputs,
-        states=states,
-        outputs=outputs,
-        input_names=model.input_names,
-        state_names=model.state_names,
-        output_names=model.output_names,
-        meta={"dt": dt, "substeps": substeps, "hold": hold, "model": repr(model)},
-    )
+    return _result(model, inputs, states, outputs, dt, substeps=substeps, hold=hold)
 
 
 @dataclass(frozen=True)
@@ -153,16 +160,7 @@ def simulate_servo(
         x0=x0,
         substeps=substeps,
     )
-    return SimulationResult(
-        t=_time(states.shape[0], dt),
-        inputs=inputs,
-        states=states,
-        outputs=outputs,
-        input_names=model.input_names,
-        state_names=model.state_names,
-        output_names=model.output_names,
-        meta={"dt": dt, "substeps": substeps, "hold": "zoh", "model": repr(model), "controller": controller},
-    )
+    return _result(model, inputs, states, outputs, dt, substeps=substeps, hold="zoh", controller=controller)
 
 
 @dataclass(frozen=True)

@@ -75,15 +75,14 @@ impl Model {
         x: &Bound<'py, PyAny>,
         u: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (x, u) = self.point(x, u)?;
-        let dx = guarded(|| {
-            Ok(with_model!(&self.inner, m => {
-                let mut dx = vec![0.0; m.n_states()];
-                m.derivative(&x, &u, &mut dx);
-                dx
-            }))
-        })?;
-        Ok(to_vector(py, dx))
+        let n = self.n_states();
+        self.evaluate(
+            py,
+            x,
+            u,
+            n,
+            |m, x, u, out| with_model!(m, mm => mm.derivative(x, u, out)),
+        )
     }
 
     /// `h(x, u)`: the outputs.
@@ -93,15 +92,14 @@ impl Model {
         x: &Bound<'py, PyAny>,
         u: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (x, u) = self.point(x, u)?;
-        let y = guarded(|| {
-            Ok(with_model!(&self.inner, m => {
-                let mut y = vec![0.0; m.n_outputs()];
-                m.output(&x, &u, &mut y);
-                y
-            }))
-        })?;
-        Ok(to_vector(py, y))
+        let p = self.n_outputs();
+        self.evaluate(
+            py,
+            x,
+            u,
+            p,
+            |m, x, u, out| with_model!(m, mm => mm.output(x, u, out)),
+        )
     }
 
     /// One sample interval `dt` of RK4 in `substeps` steps from `x` (inputs held at `u`, or
@@ -158,6 +156,24 @@ impl Model {
 }
 
 impl Model {
+    /// Validate `(x, u)`, run `eval` into a fresh length-`len` buffer (panics caught).
+    fn evaluate<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: &Bound<'py, PyAny>,
+        len: usize,
+        eval: impl Fn(&AnyModel, &[f64], &[f64], &mut [f64]),
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (x, u) = self.point(x, u)?;
+        let mut out = vec![0.0; len];
+        guarded(|| {
+            eval(&self.inner, &x, &u, &mut out);
+            Ok(())
+        })?;
+        Ok(to_vector(py, out))
+    }
+
     /// Validated `(x, u)` evaluation point.
     fn point(&self, x: &Bound<'_, PyAny>, u: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<f64>)> {
         let x = vector(x, "x", self.n_states())?;
