@@ -124,8 +124,8 @@ pub fn simulate_closed_loop(
     let mut x = x0.to_vec();
     for k in 0..t_len {
         if k > 0 {
-            let u_prev = inputs[(k - 1) * m..k * m].to_vec();
-            ws.advance(model, &mut x, &u_prev, &u_prev, opts.dt, opts.substeps);
+            let u_prev = &inputs[(k - 1) * m..k * m];
+            ws.advance(model, &mut x, u_prev, u_prev, opts.dt, opts.substeps);
         }
         let r = &references[k * 2 * n..(k + 1) * 2 * n];
         let u = &mut inputs[k * m..(k + 1) * m];

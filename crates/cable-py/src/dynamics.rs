@@ -143,15 +143,14 @@ impl Model {
     }
 
     fn __repr__(&self) -> String {
-        let name = match &self.inner {
+        match &self.inner {
             AnyModel::Transmission(t) => format!("CableTransmission(n_links={})", t.n_links()),
             AnyModel::Antagonistic(_) => "AntagonisticJoint(...)".to_owned(),
             AnyModel::Dahl(d) => format!(
                 "DahlElement(sigma0={}, coulomb={}, exponent={})",
                 d.dahl.sigma0, d.dahl.coulomb, d.dahl.exponent
             ),
-        };
-        name
+        }
     }
 }
 
