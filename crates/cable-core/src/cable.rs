@@ -181,11 +181,28 @@ pub struct CableLoop {
 
 impl CableLoop {
     /// Side tensions `(T_a, T_b)` (N) at loop stretch `Δ` (m) and rate `Δ̇` (m/s).
+    ///
+    /// The exponential law needs one `expm1` per loop, not two: with `m = expm1(Δ/ℓ)`,
+    /// `expm1(−Δ/ℓ) = −m/(1 + m)` exactly, and the quotient keeps full relative precision
+    /// for small stretches (the exponentials are a third of an RK4 step of the Raven model).
     #[inline]
     pub fn tensions(&self, delta: f64, delta_rate: f64) -> (f64, f64) {
+        let run = &self.run;
+        let (fa, fb) = match run.law {
+            CableLaw::Linear { stiffness } => (stiffness * delta, -(stiffness * delta)),
+            CableLaw::Exponential {
+                stiffness,
+                length_scale,
+            } => {
+                let m = (delta / length_scale).exp_m1();
+                let kl = stiffness * length_scale;
+                (kl * m, kl * (-m / (1.0 + m)))
+            }
+        };
+        let c = run.damping * delta_rate;
         (
-            self.run.tension(delta, delta_rate),
-            self.run.tension(-delta, -delta_rate),
+            (run.pretension + fa + c).max(0.0),
+            (run.pretension + fb - c).max(0.0),
         )
     }
 
@@ -223,6 +240,37 @@ mod tests {
             let (a, b) = lp.tensions(d, dd);
             let seed = 720e3 * (f64::exp(d) - f64::exp(-d)) + 2.0 * 4000.0 * dd;
             assert_relative_eq!(a - b, seed, max_relative = 1e-9);
+        }
+    }
+
+    #[test]
+    fn loop_tensions_equal_two_single_runs() {
+        let lp = exp_loop();
+        let lin = CableLoop {
+            run: CableRun::new(CableLaw::Linear { stiffness: 3e4 }, 7.0, 12.0, "r").unwrap(),
+        };
+        for l in [lp, lin] {
+            for &(d, dd) in &[
+                (0.0, 0.0),
+                (1e-9, 1e-3),
+                (-2e-6, 0.4),
+                (3e-3, -2.0),
+                (-0.2, 0.0),
+            ] {
+                let (a, b) = l.tensions(d, dd);
+                assert_relative_eq!(
+                    a,
+                    l.run.tension(d, dd),
+                    max_relative = 1e-15,
+                    epsilon = 1e-12
+                );
+                assert_relative_eq!(
+                    b,
+                    l.run.tension(-d, -dd),
+                    max_relative = 1e-15,
+                    epsilon = 1e-12
+                );
+            }
         }
     }
 

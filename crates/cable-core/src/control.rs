@@ -14,7 +14,7 @@
 
 use crate::dynamics::{CableTransmission, Model};
 use crate::error::{check, CableError, Result};
-use crate::integrate::{record, Rk4, SimOptions, Trajectory};
+use crate::integrate::{record, Rk4, SimOptions, Trajectory, TrajectoryMut};
 
 /// Motor-space PD servo with saturation (per axis).
 #[derive(Debug, Clone, PartialEq)]
@@ -79,6 +79,15 @@ pub struct ClosedLoopRun {
     pub inputs: Vec<f64>,
 }
 
+/// Caller-owned storage of a closed-loop run: trajectory and applied inputs `(T, 2n)`.
+#[derive(Debug)]
+pub struct ClosedLoopMut<'a> {
+    /// States and outputs.
+    pub trajectory: TrajectoryMut<'a>,
+    /// Applied inputs, row-major `(T, 2n)`.
+    pub inputs: &'a mut [f64],
+}
+
 /// Simulate `model` under `controller`, tracking motor-space references `(T, 2n)`
 /// `[q_m,ref, q̇_m,ref]` with external loads `(T, n)` (pass zeros for none).
 pub fn simulate_closed_loop(
@@ -89,6 +98,24 @@ pub fn simulate_closed_loop(
     x0: &[f64],
     opts: &SimOptions,
 ) -> Result<ClosedLoopRun> {
+    let t_len = validate_servo(model, controller, references, external, x0)?;
+    let mut trajectory = Trajectory::zeros(model, t_len);
+    let mut inputs = vec![0.0; t_len * model.n_inputs()];
+    let out = ClosedLoopMut {
+        trajectory: trajectory.as_mut(),
+        inputs: &mut inputs,
+    };
+    simulate_closed_loop_into(model, controller, references, external, x0, opts, out)?;
+    Ok(ClosedLoopRun { trajectory, inputs })
+}
+
+fn validate_servo(
+    model: &CableTransmission,
+    controller: &MotorPd,
+    references: &[f64],
+    external: &[f64],
+    x0: &[f64],
+) -> Result<usize> {
     let n = model.n_links();
     if controller.kp.len() != n {
         return Err(CableError::Shape {
@@ -116,10 +143,33 @@ pub fn simulate_closed_loop(
     check::all_finite("references", references, 2 * n)?;
     check::all_finite("external", external, n)?;
     check::all_finite("x0", x0, 1)?;
-    let (ns, m, p) = (model.n_states(), model.n_inputs(), model.n_outputs());
-    let mut states = vec![0.0; t_len * ns];
-    let mut outputs = vec![0.0; t_len * p];
-    let mut inputs = vec![0.0; t_len * m];
+    Ok(t_len)
+}
+
+/// [`simulate_closed_loop`] into caller-owned buffers; returns `T`.
+pub fn simulate_closed_loop_into(
+    model: &CableTransmission,
+    controller: &MotorPd,
+    references: &[f64],
+    external: &[f64],
+    x0: &[f64],
+    opts: &SimOptions,
+    out: ClosedLoopMut<'_>,
+) -> Result<usize> {
+    let t_len = validate_servo(model, controller, references, external, x0)?;
+    let ClosedLoopMut {
+        mut trajectory,
+        inputs,
+    } = out;
+    trajectory.check(model, t_len)?;
+    let (n, m) = (model.n_links(), model.n_inputs());
+    if inputs.len() != t_len * m {
+        return Err(CableError::Shape {
+            what: "inputs buffer".into(),
+            expected: format!("({t_len}, {m})"),
+            got: format!("{} values", inputs.len()),
+        });
+    }
     let mut ws = Rk4::for_model(model);
     let mut x = x0.to_vec();
     for k in 0..t_len {
@@ -133,14 +183,7 @@ pub fn simulate_closed_loop(
             u[i] = controller.command(i, x[4 * i], x[4 * i + 1], r[i], r[n + i]);
             u[n + i] = external[k * n + i];
         }
-        record(model, k, &x, u, opts.dt, &mut states, &mut outputs)?;
+        record(model, k, &x, u, opts.dt, &mut trajectory)?;
     }
-    Ok(ClosedLoopRun {
-        trajectory: Trajectory {
-            len: t_len,
-            states,
-            outputs,
-        },
-        inputs,
-    })
+    Ok(t_len)
 }

