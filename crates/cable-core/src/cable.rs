@@ -166,9 +166,61 @@ impl CableRun {
         (self.pretension + self.law.elastic(stretch) + self.damping * stretch_rate).max(0.0)
     }
 
+    /// Tension with a creep relaxation state `w` (N): `max(0, T₀ + F(s) + c·ṡ − w)`; see
+    /// [`Creep`].
+    #[inline]
+    pub fn relaxed_tension(&self, stretch: f64, stretch_rate: f64, relaxation: f64) -> f64 {
+        (self.pretension + self.law.elastic(stretch) + self.damping * stretch_rate - relaxation)
+            .max(0.0)
+    }
+
     /// Tangent stiffness at `s` while taut (N/m), for step-size advice.
     pub fn slope(&self, stretch: f64) -> f64 {
         self.law.slope(stretch)
+    }
+}
+
+/// Cable creep / stress relaxation as a standard linear solid (Zener) in relaxation form.
+///
+/// A cable held at a constant stretch loses a fraction `κ` of its elastic tension with time
+/// constant `τ`; each run carries one relaxation state `w` (N):
+///
+/// ```text
+/// T = max(0, T₀ + F(s) + c·ṡ − w),     ẇ = (κ·F(s) − w) / τ
+/// ```
+///
+/// At rest `w → κ·F(s)` (relaxed tension `T₀ + (1 − κ)·F(s)`); fast motion sees the full
+/// `F(s)`. Polymer (Dyneema, Vectran) and long steel routes creep; steel ropes on short runs
+/// barely do.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Creep {
+    /// Relaxed fraction `κ` of the elastic tension, in `[0, 1)`.
+    pub fraction: f64,
+    /// Relaxation time constant `τ` (s), > 0.
+    pub time_constant: f64,
+}
+
+impl Creep {
+    /// Validated constructor.
+    pub fn new(fraction: f64, time_constant: f64) -> Result<Self> {
+        let k = check::non_negative("creep.fraction", fraction)?;
+        if k >= 1.0 {
+            return Err(CableError::InvalidParameter {
+                name: "creep.fraction".into(),
+                value: k,
+                requirement: "in [0, 1)",
+            });
+        }
+        Ok(Self {
+            fraction: k,
+            time_constant: check::positive("creep.time_constant", time_constant)?,
+        })
+    }
+
+    /// `dw/dt` (N/s) at relaxation state `w` (N) and elastic force `F(s)` (N).
+    #[inline]
+    pub fn rate(&self, w: f64, elastic: f64) -> f64 {
+        (self.fraction * elastic - w) / self.time_constant
     }
 }
 

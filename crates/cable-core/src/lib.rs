@@ -18,6 +18,7 @@ pub mod control;
 pub mod dynamics;
 pub mod error;
 pub mod friction;
+pub mod identify;
 pub mod integrate;
 
 pub use dynamics::Model;

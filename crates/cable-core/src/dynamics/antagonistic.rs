@@ -25,15 +25,22 @@
 //! so `F_M = F_T + F_f` of seed 000 eq. (4) with losses `F_f = T_m − T_j`. The routing friction
 //! is lumped at the motor end: it changes the measured tensions, not the joint dynamics.
 //!
-//! State `x = [θ, θ̇]` (rad, rad/s); input `u = [x_m, ẋ_m]` (m, m/s); outputs
+//! **Optional hysteresis and creep** (both off by default):
+//! * Dahl joint friction ([`Dahl`], seed 002 eq. 8): a friction torque state `z` (N·m) adds
+//!   `−z` to the joint equation, `ż = σ₀·|1 − z/F_d·sgn θ̇|ⁿ·sgn(·)·θ̇`.
+//! * Cable creep ([`Creep`]): one relaxation state `w_k` (N) per cable,
+//!   `T_j,k = max(0, T₀,k + F_k(s_k) + c_k·ṡ_k − w_k)`, `ẇ_k = (κ·F_k(s_k) − w_k)/τ`.
+//!
+//! State `x = [θ, θ̇, (z), (w₁, w₂)]` (rad, rad/s, N·m, N, N — the bracketed states exist only
+//! when the effect is on); input `u = [x_m, ẋ_m]` (m, m/s); outputs
 //! `y = [T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c]` (N, N, N, N, rad, N). Use first-order input hold
 //! (`InputHold::Foh`) when `x_m` is a sampled position so that `x_m` and `ẋ_m` stay consistent
 //! inside a sample interval.
 
 use super::Model;
-use crate::cable::{CableLaw, CableRun};
+use crate::cable::{CableLaw, CableRun, Creep};
 use crate::error::{check, Result};
-use crate::friction::{smooth_sign, StaticFriction};
+use crate::friction::{smooth_sign, Dahl, StaticFriction};
 
 /// Contact with an object (jaw clamping, tissue) at a fixed angle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -92,6 +99,10 @@ pub struct AntagonisticJoint {
     pub capstan_smoothing: f64,
     /// Optional contact.
     pub contact: Option<Contact>,
+    /// Optional Dahl (hysteretic) joint friction, in addition to `friction`.
+    pub dahl: Option<Dahl>,
+    /// Optional creep of both cables.
+    pub creep: Option<Creep>,
 }
 
 impl AntagonisticJoint {
@@ -120,7 +131,37 @@ impl AntagonisticJoint {
             capstan_wrap: check::non_negative("capstan_wrap", capstan_wrap)?,
             capstan_smoothing: check::positive("capstan_smoothing", capstan_smoothing)?,
             contact,
+            dahl: None,
+            creep: None,
         })
+    }
+
+    /// The same joint with Dahl joint friction (validated).
+    pub fn with_dahl(mut self, dahl: Option<Dahl>) -> Result<Self> {
+        if let Some(d) = dahl {
+            Dahl::new(d.sigma0, d.coulomb, d.exponent)?;
+        }
+        self.dahl = dahl;
+        Ok(self)
+    }
+
+    /// The same joint with cable creep (validated).
+    pub fn with_creep(mut self, creep: Option<Creep>) -> Result<Self> {
+        if let Some(c) = creep {
+            Creep::new(c.fraction, c.time_constant)?;
+        }
+        self.creep = creep;
+        Ok(self)
+    }
+
+    /// Index of the Dahl state, if any.
+    fn dahl_index(&self) -> Option<usize> {
+        self.dahl.map(|_| 2)
+    }
+
+    /// Index of the first creep state, if any.
+    fn creep_index(&self) -> Option<usize> {
+        self.creep.map(|_| 2 + usize::from(self.dahl.is_some()))
     }
 
     /// An EndoWrist-like forceps jaw (seed 000): 0.45 mm steel rope of 0.5 m
@@ -155,14 +196,26 @@ impl AntagonisticJoint {
                 damping: 1.0,
                 lever_arm: 10e-3,
             }),
+            dahl: None,
+            creep: None,
         }
     }
 
+    /// Drive-cable stretch and rate `(s₁, ṡ₁)`; the return cable sees `(−s₁, −ṡ₁)`.
+    #[inline]
+    fn stretch(&self, x: &[f64], u: &[f64]) -> (f64, f64) {
+        (u[0] - self.radius * x[0], u[1] - self.radius * x[1])
+    }
+
+    /// Joint-side tensions `(T_j,1, T_j,2)`.
     #[inline]
     fn joint_tensions(&self, x: &[f64], u: &[f64]) -> (f64, f64) {
-        let s1 = u[0] - self.radius * x[0];
-        let sd1 = u[1] - self.radius * x[1];
-        (self.drive.tension(s1, sd1), self.ret.tension(-s1, -sd1))
+        let (s1, sd1) = self.stretch(x, u);
+        let (w1, w2) = self.creep_index().map_or((0.0, 0.0), |k| (x[k], x[k + 1]));
+        (
+            self.drive.relaxed_tension(s1, sd1, w1),
+            self.ret.relaxed_tension(-s1, -sd1, w2),
+        )
     }
 
     #[inline]
@@ -173,7 +226,7 @@ impl AntagonisticJoint {
 
 impl Model for AntagonisticJoint {
     fn n_states(&self) -> usize {
-        2
+        2 + usize::from(self.dahl.is_some()) + 2 * usize::from(self.creep.is_some())
     }
     fn n_inputs(&self) -> usize {
         2
@@ -185,10 +238,19 @@ impl Model for AntagonisticJoint {
     fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
         let (t1, t2) = self.joint_tensions(x, u);
         let lever = self.contact.map_or(0.0, |c| c.lever_arm);
+        let mut torque =
+            self.radius * (t1 - t2) - self.friction.force(x[1]) - lever * self.contact_force(x);
+        if let (Some(d), Some(k)) = (self.dahl, self.dahl_index()) {
+            torque -= x[k];
+            dx[k] = d.rate(x[k], x[1]);
+        }
+        if let (Some(c), Some(k)) = (self.creep, self.creep_index()) {
+            let (s1, _) = self.stretch(x, u);
+            dx[k] = c.rate(x[k], self.drive.law.elastic(s1));
+            dx[k + 1] = c.rate(x[k + 1], self.ret.law.elastic(-s1));
+        }
         dx[0] = x[1];
-        dx[1] =
-            (self.radius * (t1 - t2) - self.friction.force(x[1]) - lever * self.contact_force(x))
-                / self.inertia;
+        dx[1] = torque / self.inertia;
     }
 
     fn output(&self, x: &[f64], u: &[f64], y: &mut [f64]) {
@@ -203,7 +265,14 @@ impl Model for AntagonisticJoint {
     }
 
     fn state_names(&self) -> Vec<String> {
-        vec!["theta".into(), "dtheta".into()]
+        let mut names = vec!["theta".to_owned(), "dtheta".to_owned()];
+        if self.dahl.is_some() {
+            names.push("dahl_torque".into());
+        }
+        if self.creep.is_some() {
+            names.extend(["creep_drive".into(), "creep_return".into()]);
+        }
+        names
     }
     fn input_names(&self) -> Vec<String> {
         vec!["x_m".into(), "dx_m".into()]
@@ -249,5 +318,51 @@ mod tests {
         assert_eq!(c.force(0.29, 1.0), 0.0);
         assert_relative_eq!(c.force(0.31, 0.0), 2e3 * 0.01 * 0.01, max_relative = 1e-12);
         assert_eq!(c.force(0.3001, -100.0), 0.0);
+    }
+
+    #[test]
+    fn creep_relaxes_a_held_stretch_by_its_fraction() {
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        let j = j.with_creep(Some(Creep::new(0.3, 0.5).unwrap())).unwrap();
+        assert_eq!(j.n_states(), 4);
+        // joint held (huge inertia), motor pulled by 0.1 mm: drive tension relaxes to
+        // T0 + 0.7·k·s with time constant 0.5 s (10 s = 20 τ)
+        let mut held = j;
+        held.inertia = 1e12;
+        let u = [1e-4, 0.0];
+        let opts =
+            crate::integrate::SimOptions::new(1e-3, 1, crate::integrate::InputHold::Zoh).unwrap();
+        let u = [u[0], u[1]].repeat(10_000);
+        let tr = crate::integrate::simulate(&held, &u, &[0.0; 4], &opts).unwrap();
+        let last = &tr.outputs[tr.outputs.len() - 6..];
+        assert_relative_eq!(last[2], 10.0 + 0.7 * 31.8e3 * 1e-4, max_relative = 1e-6);
+        assert_relative_eq!(last[3], 10.0 - 0.7 * 31.8e3 * 1e-4, max_relative = 1e-6);
+        assert!(Creep::new(1.0, 0.5).is_err());
+        assert!(Creep::new(0.2, 0.0).is_err());
+    }
+
+    #[test]
+    fn dahl_torque_saturates_and_opposes_motion() {
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        let j = j
+            .with_dahl(Some(Dahl::new(5.0, 1e-3, 1.0).unwrap()))
+            .unwrap();
+        assert_eq!(j.n_states(), 3);
+        let mut dx = [0.0; 3];
+        // moving forward with z at the Coulomb level: no further growth
+        j.derivative(&[0.0, 1.0, 1e-3], &[0.0, 0.0], &mut dx);
+        assert_eq!(dx[2], 0.0);
+        // z opposes motion: with zero cable torque the acceleration is −(friction + z)/J
+        j.derivative(&[0.0, 0.0, 1e-3], &[0.0, 0.0], &mut dx);
+        assert_relative_eq!(dx[1], -1e-3 / j.inertia, max_relative = 1e-12);
+        assert!(j
+            .with_dahl(Some(Dahl {
+                sigma0: -1.0,
+                coulomb: 1.0,
+                exponent: 1.0
+            }))
+            .is_err());
     }
 }

@@ -1,0 +1,794 @@
+//! Grey-box least-squares problem of the antagonistic joint: recorded runs, the nominal model,
+//! a set of candidate effects, and the residual `prediction − measurement` through the RK4
+//! simulator.
+//!
+//! A run holds the recorded motor displacement `x_m` (m), optionally a coupled-axis signal, and
+//! the measured channels. The prediction for parameters `θ` of the active effects is
+//!
+//! 1. input stage: `x = x_m + κ_c·x_c` (coupling), play of half-width `δ` (backlash), delay `d`
+//!    (time delay); `ẋ` by central differences;
+//! 2. plant stage: the augmented [`AntagonisticJoint`] simulated with first-order input hold and
+//!    the problem's substeps from `θ₀ = x(0)/r`, at rest, cables at pretension;
+//! 3. sensor stage, on force-sensor channels only: first-order lag, sample-and-hold, gain and bias.
+//!
+//! Residuals are `w_c·(ŷ_c − y_c)` over samples `start..T` of each run (the first samples are a
+//! warm-up that absorbs the unknown initial state) and channels `c` with weights `w_c` (1/noise).
+
+use crate::cable::{CableLaw, Creep};
+use crate::dynamics::{AntagonisticJoint, Model};
+use crate::error::{check, CableError, Result};
+use crate::friction::Dahl;
+use crate::integrate::{propose_step, simulate_into, InputHold, SimOptions, TrajectoryMut};
+
+use super::effects::{Effect, ParamSpec, Scales};
+use super::lm::{least_squares, LmOptions, LmReport};
+use super::signal;
+
+/// Number of outputs of the antagonistic joint.
+const N_OUT: usize = 6;
+
+/// One measured channel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Channel {
+    /// Index into the model outputs `[T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c]`.
+    pub output: usize,
+    /// Residual weight (1 / noise standard deviation), > 0.
+    pub weight: f64,
+    /// Whether sensor-stage effects (lag, sampling, gain/bias) apply: force sensors yes,
+    /// encoders no.
+    pub sensor: bool,
+}
+
+/// One recorded run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointRun {
+    /// Sample interval (s).
+    pub dt: f64,
+    /// Recorded motor displacement (m), length `T`.
+    pub x_m: Vec<f64>,
+    /// Coupled-axis signal, length `T`, or empty.
+    pub coupled: Vec<f64>,
+    /// Measured channels, row-major `(T, q)`.
+    pub measured: Vec<f64>,
+    /// First sample that counts in the residual.
+    pub start: usize,
+}
+
+impl JointRun {
+    /// Number of samples `T`.
+    pub fn len(&self) -> usize {
+        self.x_m.len()
+    }
+
+    /// Whether the run has no samples.
+    pub fn is_empty(&self) -> bool {
+        self.x_m.is_empty()
+    }
+}
+
+/// The effect-augmented pieces for one parameter vector.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Augmented {
+    /// Plant model.
+    pub model: AntagonisticJoint,
+    /// Coupling gain `κ_c`.
+    pub coupling: f64,
+    /// Play half-width `δ` (m).
+    pub backlash: f64,
+    /// Delay `d` (s).
+    pub delay: f64,
+    /// Sensor lag `τ_s` (s).
+    pub lag: f64,
+    /// Sample-and-hold `(period, phase)` (s); period 0 = continuous.
+    pub sampling: (f64, f64),
+    /// Per sensor channel `(gain error, bias)`.
+    pub gain_bias: Vec<(f64, f64)>,
+}
+
+/// Grey-box problem: nominal model, channels, runs and active effects.
+#[derive(Debug, Clone)]
+pub struct JointProblem {
+    nominal: AntagonisticJoint,
+    channels: Vec<Channel>,
+    runs: Vec<JointRun>,
+    effects: Vec<Effect>,
+    specs: Vec<ParamSpec>,
+    scales: Scales,
+    substeps: usize,
+}
+
+impl JointProblem {
+    /// Validated problem. `effects` may be empty (the nominal model alone).
+    pub fn new(
+        nominal: AntagonisticJoint,
+        channels: Vec<Channel>,
+        runs: Vec<JointRun>,
+        effects: Vec<Effect>,
+        substeps: usize,
+    ) -> Result<Self> {
+        if channels.is_empty() || runs.is_empty() {
+            return Err(CableError::Shape {
+                what: "diagnosis problem".into(),
+                expected: "at least one channel and one run".into(),
+                got: format!("{} channels, {} runs", channels.len(), runs.len()),
+            });
+        }
+        for (i, c) in channels.iter().enumerate() {
+            if c.output >= N_OUT {
+                return Err(CableError::InvalidParameter {
+                    name: format!("channels[{i}].output"),
+                    value: c.output as f64,
+                    requirement: "an output index of the antagonistic joint (0..6)",
+                });
+            }
+            check::positive(&format!("channels[{i}].weight"), c.weight)?;
+        }
+        let q = channels.len();
+        let mut effects = effects;
+        effects.sort_unstable();
+        effects.dedup();
+        for (i, r) in runs.iter().enumerate() {
+            check::positive(&format!("runs[{i}].dt"), r.dt)?;
+            let t = r.len();
+            if t < 4 || r.measured.len() != t * q || !(r.coupled.is_empty() || r.coupled.len() == t)
+            {
+                return Err(CableError::Shape {
+                    what: format!("runs[{i}]"),
+                    expected: format!("x_m (T >= 4), measured (T, {q}), coupled (T) or empty"),
+                    got: format!(
+                        "x_m {t}, measured {} values, coupled {}",
+                        r.measured.len(),
+                        r.coupled.len()
+                    ),
+                });
+            }
+            if r.start >= t {
+                return Err(CableError::InvalidParameter {
+                    name: format!("runs[{i}].start"),
+                    value: r.start as f64,
+                    requirement: "smaller than the run length",
+                });
+            }
+            check::all_finite(&format!("runs[{i}].x_m"), &r.x_m, 1)?;
+            check::all_finite(&format!("runs[{i}].measured"), &r.measured, q)?;
+            check::all_finite(&format!("runs[{i}].coupled"), &r.coupled, 1)?;
+            if effects.contains(&Effect::Coupling) && r.coupled.is_empty() {
+                return Err(CableError::InvalidOption {
+                    name: format!("runs[{i}].coupled"),
+                    value: "missing".into(),
+                    allowed: "a coupled-axis signal, required by the coupling effect".into(),
+                });
+            }
+        }
+        if substeps == 0 {
+            return Err(CableError::InvalidParameter {
+                name: "substeps".into(),
+                value: 0.0,
+                requirement: "an integer >= 1",
+            });
+        }
+        let scales = scales_of(&nominal, &channels, &runs);
+        let specs = effects.iter().flat_map(|e| e.params(&scales)).collect();
+        Ok(Self {
+            nominal,
+            channels,
+            runs,
+            effects,
+            specs,
+            scales,
+            substeps,
+        })
+    }
+
+    /// The same data with another set of effects (and substeps).
+    pub fn with_effects(&self, effects: Vec<Effect>, substeps: usize) -> Result<Self> {
+        Self::new(
+            self.nominal,
+            self.channels.clone(),
+            self.runs.clone(),
+            effects,
+            substeps,
+        )
+    }
+
+    /// Active effects (sorted, unique).
+    pub fn effects(&self) -> &[Effect] {
+        &self.effects
+    }
+
+    /// Parameter specs of the active effects, concatenated in effect order.
+    pub fn specs(&self) -> &[ParamSpec] {
+        &self.specs
+    }
+
+    /// Typical magnitudes of the data.
+    pub fn scales(&self) -> &Scales {
+        &self.scales
+    }
+
+    /// The runs.
+    pub fn runs(&self) -> &[JointRun] {
+        &self.runs
+    }
+
+    /// Number of residuals.
+    pub fn n_residuals(&self) -> usize {
+        self.runs
+            .iter()
+            .map(|r| (r.len() - r.start) * self.channels.len())
+            .sum()
+    }
+
+    /// Reference parameters (every effect off).
+    pub fn reference(&self) -> Vec<f64> {
+        self.specs.iter().map(|s| s.reference).collect()
+    }
+
+    /// Build the augmented model and operators for `theta`.
+    pub fn augment(&self, theta: &[f64]) -> Result<Augmented> {
+        check::len("theta", theta, self.specs.len())?;
+        check::all_finite("theta", theta, 1)?;
+        let nom = &self.nominal;
+        let mut m = *nom;
+        let mut a = Augmented {
+            model: m,
+            coupling: 0.0,
+            backlash: 0.0,
+            delay: 0.0,
+            lag: 0.0,
+            sampling: (0.0, 0.0),
+            gain_bias: vec![(0.0, 0.0); self.n_sensor_channels()],
+        };
+        let mut k = 0;
+        let mu_phi_nominal = nom.capstan_mu * nom.capstan_wrap;
+        m.capstan_mu = mu_phi_nominal;
+        m.capstan_wrap = 1.0;
+        for &e in &self.effects {
+            let n = e.params(&self.scales).len();
+            let p = &theta[k..k + n];
+            k += n;
+            match e {
+                Effect::CoulombFriction => {
+                    m.friction.coulomb += p[0];
+                    m.friction.static_level += p[0];
+                }
+                Effect::ViscousFriction => {
+                    m.friction.viscous = (m.friction.viscous + p[0]).max(0.0)
+                }
+                Effect::StribeckFriction => {
+                    m.friction.coulomb += p[0];
+                    m.friction.static_level += p[0] + p[1];
+                    m.friction.stribeck_velocity = p[2];
+                    m.friction.stribeck_exponent = 2.0;
+                }
+                Effect::DahlHysteresis => {
+                    if p[0] > 0.0 {
+                        m.dahl = Some(Dahl {
+                            sigma0: p[0] / p[1],
+                            coulomb: p[0],
+                            exponent: 1.0,
+                        });
+                    }
+                }
+                Effect::CapstanFriction => m.capstan_mu = mu_phi_nominal + p[0],
+                Effect::NonlinearStiffness => {
+                    if p[0] != 0.0 {
+                        for run in [&mut m.drive, &mut m.ret] {
+                            run.law = CableLaw::Exponential {
+                                stiffness: run.law.stiffness(),
+                                length_scale: 1.0 / p[0],
+                            };
+                        }
+                    }
+                }
+                Effect::CableDamping => {
+                    m.drive.damping = (m.drive.damping + p[0]).max(0.0);
+                    m.ret.damping = (m.ret.damping + p[0]).max(0.0);
+                }
+                Effect::Creep => {
+                    if p[0] > 0.0 {
+                        m.creep = Some(Creep {
+                            fraction: p[0],
+                            time_constant: p[1],
+                        });
+                    }
+                }
+                Effect::Backlash => a.backlash = p[0].max(0.0),
+                Effect::Slack => {
+                    m.drive.pretension = (m.drive.pretension - p[0]).max(0.0);
+                    m.ret.pretension = (m.ret.pretension - p[0]).max(0.0);
+                }
+                Effect::Coupling => a.coupling = p[0],
+                Effect::SensorLag => a.lag = p[0].max(0.0),
+                Effect::SensorSampling => a.sampling = (p[0].max(0.0), p[1].max(0.0)),
+                Effect::TimeDelay => a.delay = p[0].max(0.0),
+                Effect::SensorGainBias => {
+                    for (i, gb) in a.gain_bias.iter_mut().enumerate() {
+                        *gb = (p[2 * i], p[2 * i + 1]);
+                    }
+                }
+                Effect::InertiaError => m.inertia *= 1.0 + p[0],
+            }
+        }
+        a.model = m;
+        Ok(a)
+    }
+
+    fn n_sensor_channels(&self) -> usize {
+        self.channels.iter().filter(|c| c.sensor).count()
+    }
+
+    /// Recorded input after the input stage: `(T, 2)` row-major `[x, ẋ]`.
+    fn inputs(&self, a: &Augmented, run: &JointRun) -> Vec<f64> {
+        let t = run.len();
+        let mut x: Vec<f64> = if a.coupling != 0.0 {
+            run.x_m
+                .iter()
+                .zip(&run.coupled)
+                .map(|(xm, xc)| xm + a.coupling * xc)
+                .collect()
+        } else {
+            run.x_m.clone()
+        };
+        let mut tmp = vec![0.0; t];
+        if a.backlash > 0.0 {
+            signal::play(&x, a.backlash, &mut tmp);
+            std::mem::swap(&mut x, &mut tmp);
+        }
+        if a.delay > 0.0 {
+            signal::delay(&x, a.delay, run.dt, &mut tmp);
+            std::mem::swap(&mut x, &mut tmp);
+        }
+        signal::velocity(&x, run.dt, &mut tmp);
+        x.iter().zip(&tmp).flat_map(|(p, v)| [*p, *v]).collect()
+    }
+
+    /// Plant outputs `(T, 6)` of run `i` for `a` (before the sensor stage).
+    pub fn plant_outputs(&self, a: &Augmented, i: usize) -> Result<Vec<f64>> {
+        let run = &self.runs[i];
+        let u = self.inputs(a, run);
+        let model = &a.model;
+        let mut x0 = vec![0.0; model.n_states()];
+        x0[0] = u[0] / model.radius;
+        let t = run.len();
+        let mut states = vec![0.0; t * model.n_states()];
+        let mut outputs = vec![0.0; t * N_OUT];
+        let opts = SimOptions::new(run.dt, self.substeps, InputHold::Foh)?;
+        simulate_into(
+            model,
+            &u,
+            &x0,
+            &opts,
+            TrajectoryMut {
+                states: &mut states,
+                outputs: &mut outputs,
+            },
+        )?;
+        Ok(outputs)
+    }
+
+    /// Predicted measurements `(T, q)` of run `i` from plant outputs, through the sensor stage.
+    pub fn sensor_stage(&self, a: &Augmented, i: usize, plant: &[f64]) -> Vec<f64> {
+        let run = &self.runs[i];
+        let (t, q) = (run.len(), self.channels.len());
+        let mut pred = vec![0.0; t * q];
+        let mut col = vec![0.0; t];
+        let mut tmp = vec![0.0; t];
+        let mut sensor_i = 0;
+        for (c, ch) in self.channels.iter().enumerate() {
+            for k in 0..t {
+                col[k] = plant[k * N_OUT + ch.output];
+            }
+            if ch.sensor {
+                if a.lag > 0.0 {
+                    signal::first_order_lag(&col, a.lag, run.dt, &mut tmp);
+                    std::mem::swap(&mut col, &mut tmp);
+                }
+                if a.sampling.0 > 0.0 {
+                    signal::sample_hold(&col, a.sampling.0, a.sampling.1, run.dt, &mut tmp);
+                    std::mem::swap(&mut col, &mut tmp);
+                }
+                let (g, b) = a.gain_bias[sensor_i];
+                if g != 0.0 || b != 0.0 {
+                    signal::gain_bias(&col, 1.0 + g, b, &mut tmp);
+                    std::mem::swap(&mut col, &mut tmp);
+                }
+                sensor_i += 1;
+            }
+            for k in 0..t {
+                pred[k * q + c] = col[k];
+            }
+        }
+        pred
+    }
+
+    /// Predicted measurements `(T, q)` of run `i` at `theta`.
+    pub fn predict(&self, theta: &[f64], i: usize) -> Result<Vec<f64>> {
+        if i >= self.runs.len() {
+            return Err(CableError::InvalidParameter {
+                name: "run index".into(),
+                value: i as f64,
+                requirement: "smaller than the number of runs",
+            });
+        }
+        let a = self.augment(theta)?;
+        let plant = self.plant_outputs(&a, i)?;
+        Ok(self.sensor_stage(&a, i, &plant))
+    }
+
+    /// Weighted residuals at `theta` into `r` (length [`Self::n_residuals`]).
+    pub fn residuals(&self, theta: &[f64], r: &mut [f64]) -> Result<()> {
+        check::len("residuals", r, self.n_residuals())?;
+        let a = self.augment(theta)?;
+        let mut off = 0;
+        for i in 0..self.runs.len() {
+            let plant = self.plant_outputs(&a, i)?;
+            let pred = self.sensor_stage(&a, i, &plant);
+            off += self.write_residuals(i, &pred, &mut r[off..]);
+        }
+        Ok(())
+    }
+
+    fn write_residuals(&self, i: usize, pred: &[f64], r: &mut [f64]) -> usize {
+        let run = &self.runs[i];
+        let q = self.channels.len();
+        let mut j = 0;
+        for k in run.start..run.len() {
+            for (c, ch) in self.channels.iter().enumerate() {
+                r[j] = ch.weight * (pred[k * q + c] - run.measured[k * q + c]);
+                j += 1;
+            }
+        }
+        j
+    }
+
+    /// Fit the active effects' parameters from `theta0` (defaults to the specs' initial
+    /// values). Grid parameters (sample-and-hold) are searched on a grid first with the other
+    /// parameters at their start values, then held while the rest is fitted.
+    pub fn fit(&self, theta0: Option<&[f64]>, opts: &LmOptions) -> Result<LmReport> {
+        let mut x0: Vec<f64> = match theta0 {
+            Some(t) => {
+                check::len("theta0", t, self.specs.len())?;
+                t.to_vec()
+            }
+            None => self.specs.iter().map(|s| s.initial).collect(),
+        };
+        if self.effects.contains(&Effect::SensorSampling) {
+            let (period, phase) = self.grid_sample_hold(&x0)?;
+            let k = self.offset_of(Effect::SensorSampling);
+            x0[k] = period;
+            x0[k + 1] = phase;
+        }
+        let (mut lower, mut upper): (Vec<f64>, Vec<f64>) =
+            self.specs.iter().map(|s| (s.lower, s.upper)).unzip();
+        for (j, s) in self.specs.iter().enumerate() {
+            if s.grid {
+                lower[j] = x0[j];
+                upper[j] = x0[j];
+            }
+        }
+        let scale: Vec<f64> = self.specs.iter().map(|s| s.scale).collect();
+        least_squares(
+            |th, r| self.residuals(th, r),
+            &x0,
+            &lower,
+            &upper,
+            &scale,
+            self.n_residuals(),
+            opts,
+        )
+    }
+
+    /// Offset of effect `e`'s parameters in `theta`.
+    fn offset_of(&self, e: Effect) -> usize {
+        self.effects
+            .iter()
+            .take_while(|&&f| f != e)
+            .map(|f| f.params(&self.scales).len())
+            .sum()
+    }
+
+    /// Grid search of the sample-and-hold period and phase with the other parameters at
+    /// `theta`: periods log-spaced from 2·dt to a quarter of the shortest run, 12 phases each.
+    /// The plant is simulated once per run.
+    pub fn grid_sample_hold(&self, theta: &[f64]) -> Result<(f64, f64)> {
+        let k = self.offset_of(Effect::SensorSampling);
+        let mut th = theta.to_vec();
+        th[k] = 0.0;
+        let a0 = self.augment(&th)?;
+        let plants: Vec<Vec<f64>> = (0..self.runs.len())
+            .map(|i| self.plant_outputs(&a0, i))
+            .collect::<Result<_>>()?;
+        let dt = self.scales.dt;
+        let mut r = vec![0.0; self.n_residuals()];
+        let mut cost = |period: f64, phase: f64| -> f64 {
+            let mut a = a0.clone();
+            a.sampling = (period, phase);
+            let mut off = 0;
+            for (i, plant) in plants.iter().enumerate() {
+                let pred = self.sensor_stage(&a, i, plant);
+                off += self.write_residuals(i, &pred, &mut r[off..]);
+            }
+            r.iter().map(|v| v * v).sum::<f64>()
+        };
+        let mut best = (f64::INFINITY, 0.0, 0.0);
+        let consider = |c: f64, period: f64, phase: f64, best: &mut (f64, f64, f64)| {
+            if c < best.0 {
+                *best = (c, period, phase);
+            }
+        };
+        // coarse: log-spaced periods, 12 phases each
+        let (lo, hi) = (2.0 * dt, (0.25 * self.scales.duration).max(4.0 * dt));
+        let n_periods = 60;
+        for ip in 0..n_periods {
+            let period = lo * (hi / lo).powf(ip as f64 / (n_periods - 1) as f64);
+            let n_phase = 12.min((period / dt).round() as usize).max(1);
+            for jp in 0..n_phase {
+                let phase = period * jp as f64 / n_phase as f64;
+                consider(cost(period, phase), period, phase, &mut best);
+            }
+        }
+        // a held signal shows its update instants directly: take them as a further candidate
+        if let Some((period, phase)) = self.hold_from_updates() {
+            consider(cost(period, phase), period, phase, &mut best);
+        }
+        // fine: ±12 % around the best period, phases at the sample resolution
+        let (_, p0, _) = best;
+        for ip in 0..=24 {
+            let period = p0 * (0.88 + 0.01 * ip as f64);
+            let n_phase = ((period / dt).ceil() as usize).max(1);
+            for jp in 0..n_phase {
+                let phase = jp as f64 * dt;
+                consider(cost(period, phase), period, phase, &mut best);
+            }
+        }
+        Ok((best.1, best.2))
+    }
+
+    /// Sample-and-hold period and phase read off the update instants of the measured force
+    /// channels (samples where a held signal changes), when the first sensor channel of the
+    /// first run changes at fewer than half of its samples; `None` otherwise.
+    ///
+    /// The instants `t_j` are fitted by least squares to `phase + n_j·period`, with `n_j` the
+    /// update count from the median interval, so missed updates (a value that did not change)
+    /// do not bias the estimate.
+    pub fn hold_from_updates(&self) -> Option<(f64, f64)> {
+        let c = self.channels.iter().position(|c| c.sensor)?;
+        let run = &self.runs[0];
+        let q = self.channels.len();
+        let y: Vec<f64> = (0..run.len()).map(|k| run.measured[k * q + c]).collect();
+        let events: Vec<f64> = (1..y.len())
+            .filter(|&k| y[k].to_bits() != y[k - 1].to_bits()) // a held value repeats exactly
+            .map(|k| k as f64 * run.dt)
+            .collect();
+        if events.len() < 3 || 2 * events.len() > y.len() {
+            return None;
+        }
+        let mut gaps: Vec<f64> = events.windows(2).map(|w| w[1] - w[0]).collect();
+        gaps.sort_by(f64::total_cmp);
+        let p_est = gaps[gaps.len() / 2];
+        let n: Vec<f64> = events
+            .iter()
+            .map(|t| ((t - events[0]) / p_est).round())
+            .collect();
+        let m = events.len() as f64;
+        let (sn, st) = (n.iter().sum::<f64>(), events.iter().sum::<f64>());
+        let snn: f64 = n.iter().map(|v| v * v).sum();
+        let snt: f64 = n.iter().zip(&events).map(|(a, b)| a * b).sum();
+        let den = m * snn - sn * sn;
+        if den <= 0.0 {
+            return None;
+        }
+        let period = (m * snt - sn * st) / den;
+        let first = (st - period * sn) / m;
+        // an update seen at sample k was taken at the instant in (t_{k−1}, t_k]
+        Some((period, (first - 0.5 * run.dt).rem_euclid(period)))
+    }
+
+    /// RK4 substeps the augmented model at `theta` needs at the run's sample interval, from its
+    /// stiffest mode at rest (see [`propose_step`]).
+    pub fn advised_substeps(&self, theta: &[f64]) -> Result<usize> {
+        let a = self.augment(theta)?;
+        let m = &a.model;
+        let mut worst = 1;
+        for run in &self.runs {
+            let mut x = vec![0.0; m.n_states()];
+            x[0] = run.x_m[0] / m.radius;
+            let u = [run.x_m[0], 0.0];
+            worst = worst.max(propose_step(m, &x, &u, run.dt, 0.9)?.substeps);
+        }
+        Ok(worst)
+    }
+}
+
+fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        (s / n as f64).sqrt()
+    }
+}
+
+fn scales_of(nominal: &AntagonisticJoint, channels: &[Channel], runs: &[JointRun]) -> Scales {
+    let q = channels.len();
+    let dt = runs.iter().map(|r| r.dt).fold(f64::INFINITY, f64::min);
+    let duration = runs
+        .iter()
+        .map(|r| r.dt * r.len() as f64)
+        .fold(f64::INFINITY, f64::min);
+    let sensor_force = rms(runs.iter().flat_map(|r| {
+        channels
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.sensor)
+            .flat_map(move |(c, _)| (0..r.len()).map(move |k| r.measured[k * q + c]))
+    }));
+    let pretension = nominal.drive.pretension.max(nominal.ret.pretension);
+    let force = pretension.max(sensor_force).max(1e-9);
+    let motor_speed = rms(runs.iter().flat_map(|r| {
+        let mut v = vec![0.0; r.len()];
+        signal::velocity(&r.x_m, r.dt, &mut v);
+        v
+    }));
+    let travel = runs
+        .iter()
+        .map(|r| {
+            let (lo, hi) = r
+                .x_m
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
+            0.5 * (hi - lo)
+        })
+        .fold(0.0, f64::max);
+    let coupled = rms(runs.iter().flat_map(|r| r.coupled.iter().copied()));
+    Scales {
+        dt,
+        duration,
+        torque: nominal.radius * force,
+        speed: motor_speed / nominal.radius,
+        force,
+        stretch: force / nominal.drive.law.stiffness(),
+        travel,
+        motor_speed,
+        coupled,
+        pretension,
+        viscous: nominal.friction.viscous,
+        damping: nominal.drive.damping.min(nominal.ret.damping),
+        sensors: channels.iter().filter(|c| c.sensor).count(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::friction::StaticFriction;
+    use approx::assert_relative_eq;
+
+    fn nominal() -> AntagonisticJoint {
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        j.friction = StaticFriction {
+            viscous: 2e-5,
+            ..StaticFriction::NONE
+        };
+        j.friction.smoothing = 0.5;
+        j.inertia = 2e-6;
+        j.capstan_mu = 0.0;
+        j
+    }
+
+    fn run(seconds: f64) -> JointRun {
+        let dt = 1e-3;
+        let t_len = (seconds / dt) as usize;
+        let x_m = (0..t_len)
+            .map(|k| {
+                let t = k as f64 * dt;
+                1e-3 * (2.0 * std::f64::consts::PI * 0.7 * t).sin()
+                    + 3e-4 * (2.0 * std::f64::consts::PI * 2.3 * t).sin()
+            })
+            .collect();
+        JointRun {
+            dt,
+            x_m,
+            coupled: vec![],
+            measured: vec![0.0; t_len * 3],
+            start: 50,
+        }
+    }
+
+    fn channels() -> Vec<Channel> {
+        vec![
+            Channel {
+                output: 0,
+                weight: 1.0,
+                sensor: true,
+            },
+            Channel {
+                output: 1,
+                weight: 1.0,
+                sensor: true,
+            },
+            Channel {
+                output: 4,
+                weight: 100.0,
+                sensor: false,
+            },
+        ]
+    }
+
+    /// Data generated by the problem itself at `truth`, then fitted from the spec start.
+    fn recover(effect: Effect, truth: &[f64], rel: f64) {
+        let base =
+            JointProblem::new(nominal(), channels(), vec![run(3.0)], vec![effect], 4).unwrap();
+        let mut data = base.runs()[0].clone();
+        data.measured = base.predict(truth, 0).unwrap();
+        let p = JointProblem::new(nominal(), channels(), vec![data], vec![effect], 4).unwrap();
+        let fit = p.fit(None, &LmOptions::default()).unwrap();
+        for (got, want) in fit.params.iter().zip(truth) {
+            assert_relative_eq!(*got, *want, max_relative = rel, epsilon = 1e-12);
+        }
+        assert!(
+            fit.cost < 1e-10 * fit.initial_cost.max(1e-30) + 1e-20,
+            "{effect:?} {fit:?}"
+        );
+    }
+
+    #[test]
+    fn injected_effects_are_recovered_exactly_on_noise_free_data() {
+        recover(Effect::CoulombFriction, &[4e-3], 1e-4);
+        recover(Effect::SensorLag, &[0.02], 1e-4);
+        recover(Effect::Backlash, &[1e-4], 1e-3);
+        recover(Effect::Slack, &[3.0], 1e-4);
+        recover(Effect::SensorGainBias, &[0.05, -0.4, -0.02, 0.3], 1e-4);
+    }
+
+    #[test]
+    fn sample_hold_is_found_by_grid_search() {
+        let base = JointProblem::new(
+            nominal(),
+            channels(),
+            vec![run(3.0)],
+            vec![Effect::SensorSampling],
+            4,
+        )
+        .unwrap();
+        let truth = [0.1, 0.04];
+        let mut data = base.runs()[0].clone();
+        data.measured = base.predict(&truth, 0).unwrap();
+        let p = base.with_effects(vec![Effect::SensorSampling], 4).unwrap();
+        let p =
+            JointProblem::new(nominal(), channels(), vec![data], p.effects().to_vec(), 4).unwrap();
+        let (period, phase) = p.grid_sample_hold(&p.reference()).unwrap();
+        assert!((period - 0.1).abs() < 0.01, "period {period}");
+        assert!((phase - 0.04).abs() <= 0.1 / 12.0 + 1e-3, "phase {phase}");
+    }
+
+    #[test]
+    fn bad_problems_are_typed_errors() {
+        let mut r = run(1.0);
+        r.measured.pop();
+        assert!(matches!(
+            JointProblem::new(nominal(), channels(), vec![r], vec![], 1),
+            Err(CableError::Shape { .. })
+        ));
+        assert!(matches!(
+            JointProblem::new(
+                nominal(),
+                channels(),
+                vec![run(1.0)],
+                vec![Effect::Coupling],
+                1
+            ),
+            Err(CableError::InvalidOption { .. })
+        ));
+        let mut r = run(1.0);
+        r.x_m[3] = f64::NAN;
+        assert!(matches!(
+            JointProblem::new(nominal(), channels(), vec![r], vec![], 1),
+            Err(CableError::NotFinite { .. })
+        ));
+    }
+}
