@@ -104,6 +104,20 @@ def antagonistic_params(draw):
     p["pretension_return"] = draw(_f(0.0, 30.0)) if asym else p["pretension"]
     if draw(st.booleans()):
         p.update(
+            static_friction=p["coulomb"] + draw(_f(0.0, 1e-2)),
+            stribeck_velocity=draw(_logf(1e-2, 1.0)),
+            stribeck_exponent=draw(_f(0.5, 2.5)),
+        )
+    if draw(st.booleans()):
+        p.update(
+            dahl_coulomb=draw(_logf(1e-4, 1e-2)),
+            dahl_sigma0=draw(_logf(1e-3, 1.0)),
+            dahl_exponent=draw(_f(0.5, 2.0)),
+        )
+    if draw(st.booleans()):
+        p.update(creep_fraction=draw(_f(0.0, 0.9)), creep_time_constant=draw(_logf(1e-2, 10.0)))
+    if draw(st.booleans()):
+        p.update(
             contact_angle=draw(_f(-0.5, 0.5)),
             contact_stiffness=draw(_logf(1e2, 1e4)),
             contact_damping=draw(_f(0.0, 5.0)),
@@ -116,4 +130,9 @@ def antagonistic_params(draw):
 def antagonistic_point(draw, params):
     theta, omega = draw(_f(-1.0, 1.0)), draw(_f(-10.0, 10.0))
     x_m = params["radius"] * theta + draw(_f(-2e-3, 2e-3))
-    return np.array([theta, omega]), np.array([x_m, draw(_f(-0.1, 0.1))])
+    x = [theta, omega]
+    if "dahl_coulomb" in params:
+        x.append(params["dahl_coulomb"] * draw(_f(-0.99, 0.99)))
+    if "creep_fraction" in params:
+        x += [draw(_f(-20.0, 20.0)), draw(_f(-20.0, 20.0))]
+    return np.array(x), np.array([x_m, draw(_f(-0.1, 0.1))])

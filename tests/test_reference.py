@@ -231,7 +231,8 @@ def test_antagonistic_one_second_trajectory(data):
     ref = ar.AntagonisticRef(p)
     dt = 1e-3
     r = p["radius"]
-    probe = [np.array([a, 0.0]) for a in (-0.5, 0.0, 0.5)]
+    n = ref.n_states
+    probe = [np.r_[a, np.zeros(n - 1)] for a in (-0.5, 0.0, 0.5)]
     substeps = max(
         ck.propose_step(model, dt, x, np.array([r * x[0], 0.0]), safety=0.5).substeps for x in probe
     )
@@ -244,7 +245,7 @@ def test_antagonistic_one_second_trajectory(data):
             [r * amp * np.sin(2 * np.pi * f * t), r * amp * 2 * np.pi * f * np.cos(2 * np.pi * f * t)]
         )
     )
-    x0 = np.array([data.draw(st.floats(-0.5, 0.5)), 0.0])
+    x0 = np.r_[data.draw(st.floats(-0.5, 0.5)), np.zeros(n - 1)]
     assume(conditioning(model, u, dt, x0, substeps, "foh") < 1e-11)
     res = ck.simulate(model, u, dt, x0, substeps=substeps, hold="foh")
     xs, ys = rk4.simulate(ref.derivative, ref.output, u, x0, dt, substeps, "foh")

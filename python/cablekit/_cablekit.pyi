@@ -10,12 +10,14 @@ __all__ = [
     "AntagonisticJoint",
     "CableTransmission",
     "DahlElement",
+    "JointProblem",
     "Model",
     "__version__",
     "cable_tension",
     "capstan_ratio",
     "coulomb_friction",
     "dahl_rate",
+    "effect_catalogue",
     "propose_step_raw",
     "simulate_arrays",
     "simulate_servo_arrays",
@@ -108,7 +110,8 @@ class CableTransmission(Model):
 
 @final
 class AntagonisticJoint(Model):
-    """Antagonistic cable-driven joint: state [theta, dtheta]; inputs [x_m (m), dx_m (m/s)];
+    """Antagonistic cable-driven joint: state [theta, dtheta, (dahl_torque), (creep_drive,
+    creep_return)]; inputs [x_m (m), dx_m (m/s)];
     outputs [tension_motor_drive, tension_motor_return, tension_joint_drive,
     tension_joint_return (N), theta (rad), contact_force (N)].
     """
@@ -129,6 +132,9 @@ class AntagonisticJoint(Model):
         viscous: float = 0.0,
         coulomb: float = 0.0,
         smoothing: float = 0.05,
+        static_friction: float | None = None,
+        stribeck_velocity: float = 1.0,
+        stribeck_exponent: float = 2.0,
         capstan_mu: float = 0.0,
         capstan_wrap: float = 0.0,
         capstan_smoothing: float = 1e-3,
@@ -136,6 +142,11 @@ class AntagonisticJoint(Model):
         contact_stiffness: float | None = None,
         contact_damping: float = 0.0,
         contact_lever_arm: float | None = None,
+        dahl_coulomb: float | None = None,
+        dahl_sigma0: float | None = None,
+        dahl_exponent: float = 1.0,
+        creep_fraction: float | None = None,
+        creep_time_constant: float | None = None,
     ) -> AntagonisticJoint: ...
     @staticmethod
     def forceps_example() -> AntagonisticJoint: ...
@@ -188,3 +199,38 @@ def cable_tension(
     law: str = "linear",
     length_scale: float = 1.0,
 ) -> _F: ...
+def effect_catalogue() -> list[dict[str, Any]]:
+    """The candidate effects of the diagnosis: name, stage, has_state, description."""
+
+@final
+class JointProblem:
+    """Grey-box least-squares problem of the antagonistic joint with candidate effects."""
+
+    def __new__(
+        cls,
+        model: AntagonisticJoint,
+        channels: list[tuple[int, float, bool]],
+        runs: list[dict[str, Any]],
+        effects: list[str],
+        substeps: int = 1,
+    ) -> JointProblem: ...
+    def with_effects(self, effects: list[str], substeps: int | None = None) -> JointProblem: ...
+    @property
+    def effects(self) -> list[str]: ...
+    @property
+    def n_residuals(self) -> int: ...
+    def param_specs(self) -> list[dict[str, Any]]: ...
+    def reference(self) -> _F: ...
+    def predict(self, theta: _F, run: int) -> _F: ...
+    def residuals(self, theta: _F) -> _F: ...
+    def advised_substeps(self, theta: _F) -> int: ...
+    def fit(
+        self,
+        theta0: _F | None = None,
+        *,
+        max_iter: int = 60,
+        threads: int = 1,
+        ftol: float = 1e-8,
+        xtol: float = 1e-8,
+    ) -> dict[str, Any]: ...
+    def hold_from_updates(self) -> tuple[float, float] | None: ...

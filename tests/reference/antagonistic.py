@@ -1,25 +1,41 @@
-"""Antagonistic joint (seed 000 eq. 9 with elastic cables), from the equations."""
+"""Antagonistic joint (seed 000 eq. 9 with elastic cables, optional Stribeck and Dahl joint
+friction, optional cable creep), from the equations in docs/models.md."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from tests.reference.friction import coulomb_viscous, run_tension, smooth_sign
+from tests.reference.friction import dahl_rate, elastic, smooth_sign, stribeck
 
 
 class AntagonisticRef:
     def __init__(self, p: dict):
         self.p = dict(p)
+        self.dahl = "dahl_coulomb" in p
+        self.creep = "creep_fraction" in p
+        self.i_creep = 2 + int(self.dahl)
+
+    @property
+    def n_states(self) -> int:
+        return 2 + int(self.dahl) + 2 * int(self.creep)
+
+    def _elastic(self, x, u):
+        q = self.p
+        s1 = u[0] - q["radius"] * x[0]
+        ell = q["length_scale"]
+        return (
+            s1,
+            float(elastic(s1, q["cable_law"], q["stiffness"], ell)),
+            float(elastic(-s1, q["cable_law"], q["stiffness_return"], ell)),
+        )
 
     def _joint_tensions(self, x, u):
         q = self.p
-        r = q["radius"]
-        s1, sd1 = u[0] - r * x[0], u[1] - r * x[1]
-        ell = q["length_scale"]
-        t1 = run_tension(s1, sd1, q["cable_law"], q["stiffness"], ell, q["damping"], q["pretension"])
-        t2 = run_tension(
-            -s1, -sd1, q["cable_law"], q["stiffness_return"], ell, q["damping_return"], q["pretension_return"]
-        )
+        _, f1, f2 = self._elastic(x, u)
+        sd1 = u[1] - q["radius"] * x[1]
+        w1, w2 = (x[self.i_creep], x[self.i_creep + 1]) if self.creep else (0.0, 0.0)
+        t1 = max(0.0, q["pretension"] + f1 + q["damping"] * sd1 - w1)
+        t2 = max(0.0, q["pretension_return"] + f2 - q["damping_return"] * sd1 - w2)
         return float(t1), float(t2)
 
     def _contact(self, x):
@@ -32,12 +48,30 @@ class AntagonisticRef:
             return 0.0, lever
         return max(0.0, q["contact_stiffness"] * pen + q["contact_damping"] * lever * x[1]), lever
 
+    def _friction(self, v):
+        q = self.p
+        fs = q.get("static_friction", q["coulomb"])
+        vs, delta = q.get("stribeck_velocity", 1.0), q.get("stribeck_exponent", 2.0)
+        return float(stribeck(v, q["coulomb"], fs, vs, delta, q["viscous"], q["smoothing"]))
+
     def derivative(self, x, u):
         q = self.p
         t1, t2 = self._joint_tensions(x, u)
         fc, lever = self._contact(x)
-        fric = coulomb_viscous(x[1], q["coulomb"], q["viscous"], q["smoothing"])
-        return np.array([x[1], (q["radius"] * (t1 - t2) - fric - lever * fc) / q["inertia"]])
+        torque = q["radius"] * (t1 - t2) - self._friction(x[1]) - lever * fc
+        dx = np.zeros(self.n_states)
+        if self.dahl:
+            torque -= x[2]
+            n = q.get("dahl_exponent", 1.0)
+            dx[2] = dahl_rate(x[2], x[1], q["dahl_sigma0"], q["dahl_coulomb"], n)
+        if self.creep:
+            _, f1, f2 = self._elastic(x, u)
+            k, tau, i = q["creep_fraction"], q["creep_time_constant"], self.i_creep
+            dx[i] = (k * f1 - x[i]) / tau
+            dx[i + 1] = (k * f2 - x[i + 1]) / tau
+        dx[0] = x[1]
+        dx[1] = torque / q["inertia"]
+        return dx
 
     def output(self, x, u):
         q = self.p
@@ -47,10 +81,27 @@ class AntagonisticRef:
 
 
 def derivative_scale(ref: AntagonisticRef, x, u):
+    """Sum of the magnitudes of the terms of each derivative component (tolerance scale)."""
     q = ref.p
     t1, t2 = ref._joint_tensions(x, u)
     fc, lever = ref._contact(x)
+    _, f1, f2 = ref._elastic(x, u)
     stretch_terms = q["stiffness"] * np.e * (abs(u[0]) + q["radius"] * abs(x[0]))
     side = abs(t1) + abs(t2) + stretch_terms + q["damping"] * (abs(u[1]) + q["radius"] * abs(x[1]))
-    s = (q["radius"] * side + q["coulomb"] + abs(q["viscous"] * x[1]) + lever * fc) / q["inertia"]
-    return np.array([abs(x[1]), s])
+    creep_terms = abs(x[ref.i_creep]) + abs(x[ref.i_creep + 1]) if ref.creep else 0.0
+    dahl_term = abs(x[2]) if ref.dahl else 0.0
+    fric = max(q["coulomb"], q.get("static_friction", 0.0)) + abs(q["viscous"] * x[1])
+    s = (q["radius"] * (side + creep_terms) + fric + dahl_term + lever * fc) / q["inertia"]
+    out = np.zeros(ref.n_states)
+    out[0], out[1] = abs(x[1]), s
+    if ref.dahl:
+        out[2] = (
+            q["dahl_sigma0"]
+            * (1.0 + abs(x[2]) / q["dahl_coulomb"]) ** q.get("dahl_exponent", 1.0)
+            * abs(x[1])
+        )
+    if ref.creep:
+        i = ref.i_creep
+        for j, f in ((i, f1), (i + 1, f2)):
+            out[j] = (q["creep_fraction"] * (abs(f) + stretch_terms) + abs(x[j])) / q["creep_time_constant"]
+    return out

@@ -1,6 +1,6 @@
 //! Model classes: `Model` (base, shared evaluation methods) and one subclass per core model.
 
-use cable_core::cable::{CableLaw, CableLoop, CableRun};
+use cable_core::cable::{CableLaw, CableLoop, CableRun, Creep};
 use cable_core::dynamics::{self as core, Gravity, JointKind, Model as _, TransmissionLink};
 use cable_core::friction::{Dahl, StaticFriction};
 use cable_core::integrate::{jacobian, Rk4};
@@ -491,8 +491,11 @@ impl AntagonisticJoint {
         stiffness_return = None, damping_return = None, pretension_return = None,
         cable_law = "linear", length_scale = 1.0,
         viscous = 0.0, coulomb = 0.0, smoothing = 0.05,
+        static_friction = None, stribeck_velocity = 1.0, stribeck_exponent = 2.0,
         capstan_mu = 0.0, capstan_wrap = 0.0, capstan_smoothing = 1e-3,
-        contact_angle = None, contact_stiffness = None, contact_damping = 0.0, contact_lever_arm = None
+        contact_angle = None, contact_stiffness = None, contact_damping = 0.0, contact_lever_arm = None,
+        dahl_coulomb = None, dahl_sigma0 = None, dahl_exponent = 1.0,
+        creep_fraction = None, creep_time_constant = None
     ))]
     fn new(
         radius: f64,
@@ -508,6 +511,9 @@ impl AntagonisticJoint {
         viscous: f64,
         coulomb: f64,
         smoothing: f64,
+        static_friction: Option<f64>,
+        stribeck_velocity: f64,
+        stribeck_exponent: f64,
         capstan_mu: f64,
         capstan_wrap: f64,
         capstan_smoothing: f64,
@@ -515,6 +521,11 @@ impl AntagonisticJoint {
         contact_stiffness: Option<f64>,
         contact_damping: f64,
         contact_lever_arm: Option<f64>,
+        dahl_coulomb: Option<f64>,
+        dahl_sigma0: Option<f64>,
+        dahl_exponent: f64,
+        creep_fraction: Option<f64>,
+        creep_time_constant: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let joint = guarded(|| {
             let drive = CableRun::new(
@@ -547,8 +558,21 @@ impl AntagonisticJoint {
                     })
                 }
             };
-            let friction =
-                StaticFriction::coulomb_viscous("friction", coulomb, viscous, smoothing)?;
+            let friction = StaticFriction::stribeck(
+                "friction",
+                coulomb,
+                static_friction.unwrap_or(coulomb),
+                stribeck_velocity,
+                stribeck_exponent,
+                viscous,
+                smoothing,
+            )?;
+            let dahl = both("dahl", dahl_coulomb, dahl_sigma0)?
+                .map(|(c, s)| Dahl::new(s, c, dahl_exponent))
+                .transpose()?;
+            let creep = both("creep", creep_fraction, creep_time_constant)?
+                .map(|(k, t)| Creep::new(k, t))
+                .transpose()?;
             core::AntagonisticJoint::new(
                 radius,
                 drive,
@@ -559,7 +583,9 @@ impl AntagonisticJoint {
                 capstan_wrap,
                 capstan_smoothing,
                 contact,
-            )
+            )?
+            .with_dahl(dahl)?
+            .with_creep(creep)
         })?;
         Ok(wrap(AnyModel::Antagonistic(joint), AntagonisticJoint))
     }
@@ -599,6 +625,9 @@ impl AntagonisticJoint {
         d.set_item("viscous", j.friction.viscous)?;
         d.set_item("coulomb", j.friction.coulomb)?;
         d.set_item("smoothing", j.friction.smoothing)?;
+        d.set_item("static_friction", j.friction.static_level)?;
+        d.set_item("stribeck_velocity", j.friction.stribeck_velocity)?;
+        d.set_item("stribeck_exponent", j.friction.stribeck_exponent)?;
         d.set_item("capstan_mu", j.capstan_mu)?;
         d.set_item("capstan_wrap", j.capstan_wrap)?;
         d.set_item("capstan_smoothing", j.capstan_smoothing)?;
@@ -608,7 +637,29 @@ impl AntagonisticJoint {
             d.set_item("contact_damping", c.damping)?;
             d.set_item("contact_lever_arm", c.lever_arm)?;
         }
+        if let Some(dahl) = j.dahl {
+            d.set_item("dahl_coulomb", dahl.coulomb)?;
+            d.set_item("dahl_sigma0", dahl.sigma0)?;
+            d.set_item("dahl_exponent", dahl.exponent)?;
+        }
+        if let Some(c) = j.creep {
+            d.set_item("creep_fraction", c.fraction)?;
+            d.set_item("creep_time_constant", c.time_constant)?;
+        }
         Ok(d)
+    }
+}
+
+/// Both or neither of two optional keyword arguments.
+fn both(what: &str, a: Option<f64>, b: Option<f64>) -> Result<Option<(f64, f64)>, CableError> {
+    match (a, b) {
+        (None, None) => Ok(None),
+        (Some(a), Some(b)) => Ok(Some((a, b))),
+        _ => Err(CableError::InvalidOption {
+            name: what.into(),
+            value: "partially specified".into(),
+            allowed: format!("both {what} parameters or neither"),
+        }),
     }
 }
 

@@ -7,6 +7,7 @@ mod convert;
 mod dynamics;
 mod errors;
 mod friction;
+mod identify;
 mod integrate;
 
 use pyo3::prelude::*;
@@ -27,5 +28,7 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(friction::capstan_ratio, m)?)?;
     m.add_function(wrap_pyfunction!(friction::dahl_rate, m)?)?;
     m.add_function(wrap_pyfunction!(friction::cable_tension, m)?)?;
+    m.add_class::<identify::JointProblem>()?;
+    m.add_function(wrap_pyfunction!(identify::effect_catalogue, m)?)?;
     Ok(())
 }

@@ -4,7 +4,7 @@
 //!
 //! | effect | acts on | parameters (units) |
 //! |---|---|---|
-//! | `coulomb_friction` | joint | `F_c` (N·m) added Coulomb level |
+//! | `coulomb_friction` | joint | `F_c` (N·m) added Coulomb level, `ε` (rad/s) sign smoothing |
 //! | `viscous_friction` | joint | `Δb` (N·m·s/rad) viscous error |
 //! | `stribeck_friction` | joint | `F_c` (N·m), `F_s − F_c` (N·m), `v_s` (rad/s) |
 //! | `dahl_hysteresis` | joint | `F_d` (N·m), break-away angle `θ_d = F_d/σ₀` (rad) |
@@ -117,6 +117,8 @@ pub struct Scales {
     pub pretension: f64,
     /// Nominal viscous friction (N·m·s/rad).
     pub viscous: f64,
+    /// Nominal smoothing velocity of the joint friction sign (rad/s).
+    pub smoothing: f64,
     /// Nominal cable damping (N·s/m).
     pub damping: f64,
     /// Number of force-sensor channels.
@@ -242,7 +244,23 @@ impl Effect {
         let w = s.speed.max(1e-9);
         match self {
             Effect::CoulombFriction => {
-                vec![p("F_c", "N·m", 0.0, 0.02 * tq, 0.0, 10.0 * tq, 0.1 * tq)]
+                // the sign's smoothing velocity is fitted too: real dry friction is sharper than
+                // any regularised model, and a fixed smoothing would hand the low-speed part of
+                // the gap to Stribeck or Dahl candidates
+                let eps_lo = (2e-3 * w).max(1e-6);
+                let eps0 = s.smoothing.clamp(eps_lo, 10.0 * w);
+                vec![
+                    p("F_c", "N·m", 0.0, 0.02 * tq, 0.0, 10.0 * tq, 0.1 * tq),
+                    p(
+                        "eps",
+                        "rad/s",
+                        eps0,
+                        eps0,
+                        eps_lo,
+                        10.0 * w.max(s.smoothing),
+                        eps0,
+                    ),
+                ]
             }
             Effect::ViscousFriction => {
                 let sc = 0.1 * tq / w;
@@ -403,6 +421,7 @@ mod tests {
             coupled: 0.5,
             pretension: 10.0,
             viscous: 1e-4,
+            smoothing: 0.05,
             damping: 20.0,
             sensors: 2,
         }

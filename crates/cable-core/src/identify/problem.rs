@@ -191,6 +191,11 @@ impl JointProblem {
         )
     }
 
+    /// RK4 substeps per sample interval.
+    pub fn substeps(&self) -> usize {
+        self.substeps
+    }
+
     /// Active effects (sorted, unique).
     pub fn effects(&self) -> &[Effect] {
         &self.effects
@@ -251,6 +256,7 @@ impl JointProblem {
                 Effect::CoulombFriction => {
                     m.friction.coulomb += p[0];
                     m.friction.static_level += p[0];
+                    m.friction.smoothing = p[1];
                 }
                 Effect::ViscousFriction => {
                     m.friction.viscous = (m.friction.viscous + p[0]).max(0.0)
@@ -656,6 +662,7 @@ fn scales_of(nominal: &AntagonisticJoint, channels: &[Channel], runs: &[JointRun
         coupled,
         pretension,
         viscous: nominal.friction.viscous,
+        smoothing: nominal.friction.smoothing,
         damping: nominal.drive.damping.min(nominal.ret.damping),
         sensors: channels.iter().filter(|c| c.sensor).count(),
     }
@@ -738,7 +745,7 @@ mod tests {
 
     #[test]
     fn injected_effects_are_recovered_exactly_on_noise_free_data() {
-        recover(Effect::CoulombFriction, &[4e-3], 1e-4);
+        recover(Effect::CoulombFriction, &[4e-3, 0.2], 1e-4);
         recover(Effect::SensorLag, &[0.02], 1e-4);
         recover(Effect::Backlash, &[1e-4], 1e-3);
         recover(Effect::Slack, &[3.0], 1e-4);

@@ -1,0 +1,271 @@
+//! Grey-box identification for the diagnosis: `JointProblem` and the effect catalogue.
+
+use cable_core::dynamics::AntagonisticJoint as CoreJoint;
+use cable_core::identify::{self as core, Effect, LmOptions};
+use numpy::{PyArray1, PyArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::convert::{any_vector, to_matrix, to_vector};
+use crate::dynamics::{AntagonisticJoint, AnyModel};
+use crate::errors::{guarded, raise};
+
+/// The candidate effects: a list of dicts `name, stage, has_state, description`.
+#[pyfunction]
+pub fn effect_catalogue(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    let out = PyList::empty(py);
+    for e in Effect::ALL {
+        let d = PyDict::new(py);
+        d.set_item("name", e.name())?;
+        d.set_item(
+            "stage",
+            match e.stage() {
+                core::Stage::Input => "input",
+                core::Stage::Plant => "plant",
+                core::Stage::Sensor => "sensor",
+            },
+        )?;
+        d.set_item("has_state", e.has_state())?;
+        d.set_item("description", e.description())?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
+fn joint_of(model: &Bound<'_, AntagonisticJoint>) -> CoreJoint {
+    match &model.as_super().get().inner {
+        AnyModel::Antagonistic(j) => *j,
+        _ => unreachable!("AntagonisticJoint always wraps an antagonistic joint"),
+    }
+}
+
+fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize) -> PyResult<core::JointRun> {
+    let d = obj.cast::<PyDict>().map_err(|_| {
+        raise(
+            "DataError",
+            format!("runs[{i}] must be a dict with keys dt, x_m, measured, coupled, start"),
+            &[],
+        )
+    })?;
+    let get = |k: &str| -> PyResult<Bound<'_, PyAny>> {
+        d.get_item(k)?
+            .ok_or_else(|| raise("DataError", format!("runs[{i}] has no key {k:?}"), &[]))
+    };
+    let dt: f64 = get("dt")?.extract()?;
+    let x_m = any_vector(&get("x_m")?, &format!("runs[{i}].x_m"))?;
+    let measured = any_vector(
+        &get("measured")?.call_method0("ravel")?,
+        &format!("runs[{i}].measured"),
+    )?;
+    if measured.len() != x_m.len() * q {
+        return Err(raise(
+            "ShapeError",
+            format!(
+                "runs[{i}].measured must have shape ({}, {q}), got {} values",
+                x_m.len(),
+                measured.len()
+            ),
+            &[],
+        ));
+    }
+    let coupled = match d.get_item("coupled")? {
+        Some(c) if !c.is_none() => any_vector(&c, &format!("runs[{i}].coupled"))?,
+        _ => vec![],
+    };
+    let start: usize = match d.get_item("start")? {
+        Some(s) => s.extract()?,
+        None => 0,
+    };
+    Ok(core::JointRun {
+        dt,
+        x_m,
+        coupled,
+        measured,
+        start,
+    })
+}
+
+fn effects_from(names: &[String]) -> PyResult<Vec<Effect>> {
+    guarded(|| names.iter().map(|n| Effect::from_name(n)).collect())
+}
+
+/// Grey-box least-squares problem of the antagonistic joint with a set of candidate effects.
+///
+/// `channels` is a list of `(output_index, weight, is_force_sensor)`; `runs` a list of dicts
+/// with `dt` (s), `x_m` (T,) m, `measured` (T, q), optional `coupled` (T,) and `start` (first
+/// sample counted). Immutable; safe to use from several threads (calls release the GIL).
+#[pyclass(frozen, module = "cablekit._cablekit")]
+pub struct JointProblem {
+    inner: core::JointProblem,
+}
+
+#[pymethods]
+impl JointProblem {
+    #[new]
+    #[pyo3(signature = (model, channels, runs, effects, substeps = 1))]
+    fn new(
+        model: &Bound<'_, AntagonisticJoint>,
+        channels: Vec<(usize, f64, bool)>,
+        runs: &Bound<'_, PyList>,
+        effects: Vec<String>,
+        substeps: usize,
+    ) -> PyResult<Self> {
+        let q = channels.len();
+        let runs = runs
+            .iter()
+            .enumerate()
+            .map(|(i, r)| run_from(&r, i, q))
+            .collect::<PyResult<Vec<_>>>()?;
+        let channels = channels
+            .into_iter()
+            .map(|(output, weight, sensor)| core::Channel {
+                output,
+                weight,
+                sensor,
+            })
+            .collect();
+        let effects = effects_from(&effects)?;
+        let joint = joint_of(model);
+        let inner = guarded(|| core::JointProblem::new(joint, channels, runs, effects, substeps))?;
+        Ok(Self { inner })
+    }
+
+    /// The same data with other effects.
+    #[pyo3(signature = (effects, substeps = None))]
+    fn with_effects(&self, effects: Vec<String>, substeps: Option<usize>) -> PyResult<Self> {
+        let effects = effects_from(&effects)?;
+        let sub = substeps.unwrap_or(self.inner_substeps());
+        Ok(Self {
+            inner: guarded(|| self.inner.with_effects(effects, sub))?,
+        })
+    }
+
+    /// Active effect names (sorted in canonical order).
+    #[getter]
+    fn effects(&self) -> Vec<&'static str> {
+        self.inner.effects().iter().map(|e| e.name()).collect()
+    }
+
+    /// Number of residuals.
+    #[getter]
+    fn n_residuals(&self) -> usize {
+        self.inner.n_residuals()
+    }
+
+    /// Parameter specs: list of dicts `effect, name, unit, reference, initial, lower, upper,
+    /// scale, grid`.
+    fn param_specs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let out = PyList::empty(py);
+        let sc = self.inner.scales();
+        for e in self.inner.effects() {
+            for s in e.params(sc) {
+                let d = PyDict::new(py);
+                d.set_item("effect", e.name())?;
+                d.set_item("name", &s.name)?;
+                d.set_item("unit", s.unit)?;
+                d.set_item("reference", s.reference)?;
+                d.set_item("initial", s.initial)?;
+                d.set_item("lower", s.lower)?;
+                d.set_item("upper", s.upper)?;
+                d.set_item("scale", s.scale)?;
+                d.set_item("grid", s.grid)?;
+                out.append(d)?;
+            }
+        }
+        Ok(out)
+    }
+
+    /// Parameters at which every active effect is off.
+    fn reference<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        to_vector(py, self.inner.reference())
+    }
+
+    /// Predicted measurements `(T, q)` of run `run` at `theta`.
+    fn predict<'py>(
+        &self,
+        py: Python<'py>,
+        theta: &Bound<'py, PyAny>,
+        run: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let theta = any_vector(theta, "theta")?;
+        let q = self.n_channels();
+        let pred = py.detach(|| guarded(|| self.inner.predict(&theta, run)))?;
+        let t = pred.len() / q;
+        Ok(to_matrix(py, pred, t, q))
+    }
+
+    /// Weighted residuals at `theta`.
+    fn residuals<'py>(
+        &self,
+        py: Python<'py>,
+        theta: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let theta = any_vector(theta, "theta")?;
+        let r = py.detach(|| {
+            guarded(|| {
+                let mut r = vec![0.0; self.inner.n_residuals()];
+                self.inner.residuals(&theta, &mut r)?;
+                Ok(r)
+            })
+        })?;
+        Ok(to_vector(py, r))
+    }
+
+    /// RK4 substeps the augmented model at `theta` needs.
+    fn advised_substeps(&self, py: Python<'_>, theta: &Bound<'_, PyAny>) -> PyResult<usize> {
+        let theta = any_vector(theta, "theta")?;
+        py.detach(|| guarded(|| self.inner.advised_substeps(&theta)))
+    }
+
+    /// Fit the active effects (bounded Levenberg–Marquardt, GIL released). Returns a dict:
+    /// `params, cost, initial_cost, iterations, evaluations, converged, at_bound, jacobian
+    /// (m, p), residuals (m,)`.
+    #[pyo3(signature = (theta0 = None, *, max_iter = 60, threads = 1, ftol = 1e-8, xtol = 1e-8))]
+    fn fit<'py>(
+        &self,
+        py: Python<'py>,
+        theta0: Option<&Bound<'py, PyAny>>,
+        max_iter: usize,
+        threads: usize,
+        ftol: f64,
+        xtol: f64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let theta0 = theta0.map(|t| any_vector(t, "theta0")).transpose()?;
+        let opts = LmOptions {
+            max_iter,
+            ftol,
+            xtol,
+            threads,
+            ..LmOptions::default()
+        };
+        let rep = py.detach(|| guarded(|| self.inner.fit(theta0.as_deref(), &opts)))?;
+        let d = PyDict::new(py);
+        let (m, p) = (rep.residuals.len(), rep.params.len());
+        d.set_item("params", to_vector(py, rep.params))?;
+        d.set_item("cost", rep.cost)?;
+        d.set_item("initial_cost", rep.initial_cost)?;
+        d.set_item("iterations", rep.iterations)?;
+        d.set_item("evaluations", rep.evaluations)?;
+        d.set_item("converged", rep.converged)?;
+        d.set_item("at_bound", rep.at_bound)?;
+        d.set_item("jacobian", to_matrix(py, rep.jacobian, m, p))?;
+        d.set_item("residuals", to_vector(py, rep.residuals))?;
+        Ok(d)
+    }
+
+    /// Sample-and-hold `(period, phase)` read off the measured update instants, or None.
+    fn hold_from_updates(&self) -> Option<(f64, f64)> {
+        self.inner.hold_from_updates()
+    }
+}
+
+impl JointProblem {
+    fn n_channels(&self) -> usize {
+        let r = &self.inner.runs()[0];
+        r.measured.len() / r.len()
+    }
+
+    fn inner_substeps(&self) -> usize {
+        self.inner.substeps()
+    }
+}

@@ -1,0 +1,206 @@
+"""Recorded runs: loading, validation and the unit checks the diagnosis relies on.
+
+A run is a table with a header row: a time column ``t`` in seconds and signal columns in SI units
+(m, rad, N, N·m). Which columns feed the model and which are measurements is said by the model
+file (see :mod:`cablekit.diagnose.spec`), not by the run.
+
+Handling, all of it explicit (never a silent drop):
+
+* missing values (empty cells, NaN, inf) → :class:`~cablekit.errors.DataError` naming the column
+  and the first row;
+* time not strictly increasing → ``DataError`` with the row; exactly duplicated rows (same time,
+  same values, as logging software sometimes writes) are removed **and counted** in
+  ``Run.notes``; a repeated time with different values is an error;
+* non-uniform sampling (jitter above 1 % of the median interval) → ``DataError`` (resample
+  first: the simulator needs one sample interval);
+* units that are detectably wrong: time in milliseconds (median interval ≥ 0.5 with integer
+  steps), angles in degrees (a ``rad`` column beyond ±4π), displacements in millimetres (an ``m``
+  column beyond ±0.5 m) → ``DataError`` saying which unit it looks like.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cablekit.errors import DataError
+
+__all__ = ["Run", "check_units", "load_run"]
+
+
+@dataclass
+class Run:
+    """One recorded run: uniform time base and named columns (SI units)."""
+
+    name: str
+    t: NDArray[np.float64]
+    columns: dict[str, NDArray[np.float64]]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def dt(self) -> float:
+        return float(np.median(np.diff(self.t)))
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0] + self.dt)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def column(self, name: str) -> NDArray[np.float64]:
+        try:
+            return self.columns[name]
+        except KeyError:
+            raise DataError(
+                f"run {self.name!r} has no column {name!r}; it has {sorted(self.columns)}"
+            ) from None
+
+    def segment(self, start: float, stop: float, name: str | None = None) -> Run:
+        """The samples with ``start <= t < stop`` (s), as a new run."""
+        keep = (self.t >= start) & (self.t < stop)
+        if keep.sum() < 10:
+            raise DataError(f"segment [{start}, {stop}) of run {self.name!r} has fewer than 10 samples")
+        return Run(
+            name or f"{self.name}[{start:g}:{stop:g}]",
+            self.t[keep] - self.t[keep][0],
+            {k: v[keep] for k, v in self.columns.items()},
+            list(self.notes),
+        )
+
+
+def _read_table(path: Path) -> tuple[list[str], NDArray[np.float64]]:
+    suffix = "".join(path.suffixes[-2:]).lower()
+    if path.suffix.lower() == ".parquet":
+        try:
+            import pyarrow.parquet as pq
+        except ImportError:  # pragma: no cover - depends on the environment
+            raise DataError(
+                f"{path}: reading Parquet needs pyarrow (pip install 'cablekit[parquet]')"
+            ) from None
+        table = pq.read_table(path)
+        names = list(table.column_names)
+        cols = []
+        for n in names:
+            col = table.column(n).to_numpy(zero_copy_only=False)
+            try:
+                cols.append(np.asarray(col, dtype=np.float64))
+            except (TypeError, ValueError):
+                raise DataError(f"{path}: column {n!r} is not numeric") from None
+        return names, np.column_stack(cols) if cols else np.empty((0, 0))
+    opener = open
+    if suffix.endswith(".gz"):
+        import gzip
+
+        opener = gzip.open  # type: ignore[assignment]
+    with opener(path, "rt", newline="") as fh:  # type: ignore[operator]
+        reader = csv.reader(fh)
+        header = None
+        rows: list[list[str]] = []
+        for line in reader:
+            if not line or (line[0].startswith("#") and header is None):
+                continue
+            if header is None:
+                header = [h.strip() for h in line]
+                continue
+            rows.append(line)
+    if header is None:
+        raise DataError(f"{path}: no header row")
+    if len(set(header)) != len(header):
+        dup = sorted({h for h in header if header.count(h) > 1})
+        raise DataError(f"{path}: duplicated column names {dup}")
+    data = np.empty((len(rows), len(header)))
+    for i, row in enumerate(rows):
+        if len(row) != len(header):
+            raise DataError(f"{path}: row {i + 2} has {len(row)} fields, the header has {len(header)}")
+        for j, cell in enumerate(row):
+            cell = cell.strip()
+            try:
+                data[i, j] = float(cell) if cell else math.nan
+            except ValueError:
+                raise DataError(
+                    f"{path}: row {i + 2}, column {header[j]!r}: {cell!r} is not a number"
+                ) from None
+    return header, data
+
+
+def load_run(path: str | Path, name: str | None = None) -> Run:
+    """Load a CSV (optionally ``.csv.gz``) or Parquet run with a ``t`` column; see the module."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: no such file")
+    header, data = _read_table(path)
+    return from_arrays(name or path.stem, header, data, source=str(path))
+
+
+def from_arrays(name: str, header: list[str], data: NDArray[np.float64], source: str = "") -> Run:
+    """Validate a table (rows = samples) into a :class:`Run`; see the module for the rules."""
+    where = source or name
+    if "t" not in header:
+        raise DataError(f"{where}: no time column 't' (columns: {header})")
+    if data.ndim != 2 or data.shape[0] < 10:
+        raise DataError(f"{where}: needs at least 10 samples, got {data.shape[0] if data.ndim == 2 else 0}")
+    bad = ~np.isfinite(data)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise DataError(
+            f"{where}: missing or non-finite value in column {header[j]!r} at data row {i + 1} "
+            f"({int(bad[:, j].sum())} such rows in that column); fill or drop them explicitly"
+        )
+    notes = []
+    ti = header.index("t")
+    t = data[:, ti]
+    dt_raw = np.diff(t)
+    dup_rows = np.flatnonzero(dt_raw == 0.0)
+    if dup_rows.size:
+        same = np.all(data[dup_rows] == data[dup_rows + 1], axis=1)
+        if not same.all():
+            k = int(dup_rows[~same][0])
+            raise DataError(
+                f"{where}: time {t[k]} s repeats at data rows {k + 1} and {k + 2} with different values"
+            )
+        data = np.delete(data, dup_rows + 1, axis=0)
+        t = data[:, ti]
+        notes.append(f"removed {dup_rows.size} exactly duplicated rows")
+    dt = np.diff(t)
+    if (dt <= 0).any():
+        k = int(np.flatnonzero(dt <= 0)[0])
+        raise DataError(f"{where}: time goes backwards at data row {k + 2} (t = {t[k]} then {t[k + 1]})")
+    med = float(np.median(dt))
+    if med >= 0.5 and np.allclose(dt, np.round(dt)):
+        raise DataError(
+            f"{where}: t looks like milliseconds or samples (median step {med}); t must be in seconds"
+        )
+    jitter = float(np.max(np.abs(dt - med)))
+    if jitter > 0.01 * med:
+        raise DataError(
+            f"{where}: non-uniform sampling (interval {med:g} s varies by up to {jitter:g} s); resample to a uniform "
+            "time base first"
+        )
+    cols = {h: np.ascontiguousarray(data[:, j]) for j, h in enumerate(header) if h != "t"}
+    return Run(name, t - t[0], cols, notes)
+
+
+_UNIT_LIMITS = {
+    "rad": (4 * math.pi, "degrees"),
+    "m": (0.5, "millimetres"),
+}
+
+
+def check_units(run: Run, units: dict[str, str]) -> None:
+    """Raise :class:`DataError` when a column's values are implausible for its declared unit."""
+    for col, unit in units.items():
+        if unit not in _UNIT_LIMITS:
+            continue
+        limit, other = _UNIT_LIMITS[unit]
+        peak = float(np.max(np.abs(run.column(col))))
+        if peak > limit:
+            raise DataError(
+                f"run {run.name!r}: column {col!r} is declared in {unit} but reaches {peak:g}; it looks like "
+                f"{other}. Convert it to SI units"
+            )

@@ -1,0 +1,716 @@
+"""The diagnosis: localise the gap, attribute it to named effects, quantify how far it closes.
+
+Pipeline (:func:`diagnose`):
+
+1. **Prepare.** Per measured channel, the measurement-noise standard deviation ``σ_c`` from the
+   fit runs' second differences; residuals are weighted by ``1/σ_c`` (noise units), so a model
+   that is right leaves a mean squared residual ``G ≈ 1`` and the **gap** is the excess
+   ``E = G − 1``. The first ``warmup`` seconds of every run absorb the unknown initial state.
+2. **Where.** Open-loop replay of the nominal model on the recorded inputs; residual energy by
+   operating condition, whiteness and residual–input cross-correlation, hysteresis loops.
+3. **Which.** Every applicable candidate effect is fitted alone on the fit runs (grey-box least
+   squares through the Rust simulator, candidates in parallel threads, GIL released) and scored
+   on the held-out runs, which no fit sees: ``closed = (E_before − E_after)/E_before``, with a
+   bootstrap over ~1 s segments of the held-out runs for the interval and the significance of the
+   improvement. Forward selection then adds effects while each adds a significant held-out
+   improvement. Candidates whose residual signatures are collinear get identifiability notes
+   with the experiment that would separate them.
+4. **How far.** Before/after per channel and per condition, fit and held-out, fitted parameters
+   with confidence intervals, and what is left unexplained.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cablekit._cablekit import JointProblem, effect_catalogue
+from cablekit.diagnose import localise
+from cablekit.diagnose.data import Run, check_units
+from cablekit.diagnose.progress import Progress
+from cablekit.diagnose.spec import OUTPUTS, ModelSpec
+from cablekit.errors import CablekitError, DataError
+
+__all__ = ["CandidateFit", "Options", "Prepared", "diagnose", "prepare"]
+
+_F = NDArray[np.float64]
+
+#: held-out mean squared residual (noise units) below which the gap counts as noise
+NOISE_LEVEL = 1.15
+#: smallest held-out share of the gap an effect must close to count
+MIN_CLOSED = 0.05
+
+
+@dataclass
+class Options:
+    """Knobs of the diagnosis (defaults are what the self-test and the docs use)."""
+
+    max_effects: int = 3
+    second_round: int = 5
+    bootstrap: int = 1000
+    segment_s: float = 1.0
+    max_iter: int = 40
+    workers: int = 0
+    seed: int = 0
+    progress: bool = True
+
+
+@dataclass
+class Prepared:
+    """Data and problems shared by every candidate fit."""
+
+    spec: ModelSpec
+    fit_runs: list[Run]
+    hold_runs: list[Run]
+    channel_names: list[str]
+    columns: list[str]
+    sigma: _F
+    substeps: int
+    fit0: JointProblem
+    hold0: JointProblem
+    candidates: list[str]
+    skipped: dict[str, str]
+
+    @property
+    def q(self) -> int:
+        return len(self.channel_names)
+
+
+@dataclass
+class CandidateFit:
+    """One fitted candidate (a set of effects) and its scores."""
+
+    effects: list[str]
+    params: _F
+    specs: list[dict[str, Any]]
+    substeps: int
+    converged: bool
+    fit_resid: list[_F]
+    hold_resid: list[_F]
+    cost: float
+    param_sd: _F
+    iterations: int
+    error: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _run_dict(spec: ModelSpec, run: Run, columns: list[str]) -> dict[str, Any]:
+    measured = np.column_stack([run.column(c) for c in columns])
+    d: dict[str, Any] = {
+        "dt": run.dt,
+        "x_m": np.ascontiguousarray(run.column(spec.x_m)),
+        "measured": np.ascontiguousarray(measured),
+        "start": int(round(spec.warmup / run.dt)),
+    }
+    if spec.coupled:
+        d["coupled"] = np.ascontiguousarray(run.column(spec.coupled))
+    return d
+
+
+def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepared:
+    """Validate runs against the model file, estimate noise, build the base problems."""
+    if not fit_runs:
+        raise DataError("the diagnosis needs at least one fit run")
+    if not hold_runs:
+        raise DataError("the diagnosis needs at least one held-out run (a different trajectory, load or rig)")
+    for run in fit_runs + hold_runs:
+        check_units(run, spec.units())
+        if spec.warmup >= 0.5 * run.duration:
+            raise DataError(
+                f"run {run.name!r} ({run.duration:g} s) is too short for a warm-up of {spec.warmup:g} s"
+            )
+    dts = {round(r.dt, 12) for r in fit_runs + hold_runs}
+    if max(dts) > 1.01 * min(dts):
+        raise DataError(f"runs have different sample intervals {sorted(dts)}; resample them to one")
+    names = [o for o, _ in spec.outputs]
+    columns = [c for _, c in spec.outputs]
+    sigma = np.array(
+        [math.sqrt(np.mean([localise.noise_sigma(r.column(c)) ** 2 for r in fit_runs])) for c in columns]
+    )
+    chans = [(OUTPUTS[o][0], 1.0 / s, OUTPUTS[o][2]) for o, s in zip(names, sigma)]
+    model = spec.model()
+    fit_dicts = [_run_dict(spec, r, columns) for r in fit_runs]
+    hold_dicts = [_run_dict(spec, r, columns) for r in hold_runs]
+    probe = JointProblem(model, chans, fit_dicts, [], 1)
+    substeps = spec.substeps or max(1, probe.advised_substeps(np.zeros(0)))
+    fit0 = JointProblem(model, chans, fit_dicts, [], substeps)
+    hold0 = JointProblem(model, chans, hold_dicts, [], substeps)
+    all_effects = [e["name"] for e in effect_catalogue()]
+    wanted = spec.effects or all_effects
+    skipped: dict[str, str] = {}
+    has_sensor = any(OUTPUTS[o][2] for o in names)
+    motor_tension = any(o.startswith("tension_motor") for o in names)
+    for e in all_effects:
+        if e not in wanted:
+            skipped[e] = "not in the model file's [diagnosis] effects"
+        elif e == "coupling" and not spec.coupled:
+            skipped[e] = "no coupled-axis column in [inputs]"
+        elif e in ("sensor_lag", "sensor_sampling", "sensor_gain_bias") and not has_sensor:
+            skipped[e] = "no force-sensor channel measured"
+        elif e == "capstan_friction" and not motor_tension:
+            skipped[e] = "no motor-side tension measured"
+    candidates = [e for e in all_effects if e not in skipped]
+    return Prepared(
+        spec, fit_runs, hold_runs, names, columns, sigma, substeps, fit0, hold0, candidates, skipped
+    )
+
+
+def _split(prep: Prepared, runs: list[Run], r: _F) -> list[_F]:
+    """Flat weighted residual → per run ``(T − start, q)``."""
+    out, off = [], 0
+    for run in runs:
+        n = (len(run) - int(round(prep.spec.warmup / run.dt))) * prep.q
+        out.append(r[off : off + n].reshape(-1, prep.q))
+        off += n
+    return out
+
+
+def _integrated_time(r: _F) -> float:
+    """Integrated autocorrelation time (samples) of a residual, ≥ 1 (for effective sample size)."""
+    r = r - r.mean()
+    n = min(len(r), 1 << 15)
+    spec = np.fft.rfft(r[:n], 2 * n)
+    ac = np.fft.irfft(spec * np.conj(spec))[:n]
+    if ac[0] <= 0:
+        return 1.0
+    rho = ac / ac[0]
+    neg = np.flatnonzero(rho < 0.05)
+    cut = int(neg[0]) if neg.size else n
+    return max(1.0, 1.0 + 2.0 * float(rho[1:cut].sum()))
+
+
+def fit_candidate(
+    prep: Prepared, effects: list[str], theta0: _F | None = None, max_iter: int = 40
+) -> CandidateFit:
+    """Fit ``effects`` on the fit runs, then evaluate on the held-out runs (never fitted)."""
+    base = prep.fit0.with_effects(effects, prep.substeps)
+    specs = base.param_specs()
+    start = (
+        np.array([s["initial"] for s in specs]) if theta0 is None else np.asarray(theta0, dtype=np.float64)
+    )
+    try:
+        sub = max(prep.substeps, base.advised_substeps(start))
+        problem = base.with_effects(effects, sub)
+        res = problem.fit(start, max_iter=max_iter)
+        theta = res["params"]
+        need = problem.advised_substeps(theta)
+        if need > sub:  # the fitted model is stiffer than the start: refit with enough substeps
+            sub = need
+            problem = base.with_effects(effects, sub)
+            res = problem.fit(theta, max_iter=max_iter)
+            theta = res["params"]
+        hold = prep.hold0.with_effects(effects, sub)
+        r_hold = hold.residuals(theta)
+    except CablekitError as exc:
+        return CandidateFit(
+            effects,
+            start,
+            specs,
+            prep.substeps,
+            False,
+            [],
+            [],
+            math.inf,
+            np.full(len(start), np.nan),
+            0,
+            error=f"{type(exc).__name__}: {exc}",
+        )
+    r_fit = res["residuals"]
+    m, p = len(r_fit), len(theta)
+    jac = res["jacobian"]
+    s2 = 2.0 * res["cost"] / max(1, m - p)
+    tau = _integrated_time(r_fit[:: prep.q]) if m else 1.0
+    try:
+        cov = s2 * tau * np.linalg.pinv(jac.T @ jac)
+        sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        sd = np.full(p, np.nan)
+    for j, s in enumerate(specs):
+        if s["grid"]:
+            sd[j] = np.nan
+    return CandidateFit(
+        effects,
+        theta,
+        specs,
+        sub,
+        bool(res["converged"]),
+        _split(prep, prep.fit_runs, r_fit),
+        _split(prep, prep.hold_runs, r_hold),
+        float(res["cost"]),
+        sd,
+        int(res["iterations"]),
+    )
+
+
+def baseline(prep: Prepared) -> CandidateFit:
+    """The nominal model scored like a candidate with no effects."""
+    theta = np.zeros(0)
+    r_fit = prep.fit0.residuals(theta)
+    r_hold = prep.hold0.residuals(theta)
+    return CandidateFit(
+        [],
+        theta,
+        [],
+        prep.substeps,
+        True,
+        _split(prep, prep.fit_runs, r_fit),
+        _split(prep, prep.hold_runs, r_hold),
+        0.5 * float(r_fit @ r_fit),
+        np.zeros(0),
+        0,
+    )
+
+
+def _segments(resid: list[_F], dt: float, seconds: float) -> tuple[_F, _F]:
+    """Per-segment sum of squared residuals (all channels) and sample counts."""
+    sse, cnt = [], []
+    n_seg = max(1, int(round(seconds / dt)))
+    for r in resid:
+        e = np.sum(r * r, axis=1)
+        for i in range(0, len(e), n_seg):
+            chunk = e[i : i + n_seg]
+            if len(chunk) >= n_seg // 2:
+                sse.append(float(chunk.sum()))
+                cnt.append(float(chunk.size * r.shape[1]))
+    return np.array(sse), np.array(cnt)
+
+
+def gap(resid: list[_F]) -> float:
+    """Mean squared weighted residual (noise units; 1 = noise only)."""
+    num = sum(float(np.sum(r * r)) for r in resid)
+    den = sum(r.size for r in resid)
+    return num / den if den else math.nan
+
+
+def closed_fraction(before: float, after: float) -> float:
+    """Share of the excess gap ``G − 1`` that closed (≤ 1; negative if it grew)."""
+    eb = before - 1.0
+    if eb <= 1e-12:
+        return 0.0
+    return min(1.0, (before - after) / eb)
+
+
+def compare(
+    before: list[_F], after: list[_F], dt: float, opts: Options, rng: np.random.Generator
+) -> dict[str, Any]:
+    """Held-out comparison with a segment bootstrap: closed fraction, interval, significance."""
+    sb, cnt = _segments(before, dt, opts.segment_s)
+    sa, _ = _segments(after, dt, opts.segment_s)
+    g_b, g_a = sb.sum() / cnt.sum(), sa.sum() / cnt.sum()
+    point = closed_fraction(g_b, g_a)
+    idx = rng.integers(0, len(sb), size=(opts.bootstrap, len(sb)))
+    bb = sb[idx].sum(axis=1) / cnt[idx].sum(axis=1)
+    ba = sa[idx].sum(axis=1) / cnt[idx].sum(axis=1)
+    closed = np.array([closed_fraction(x, y) for x, y in zip(bb, ba)])
+    improvement = bb - ba
+    lo, hi = np.quantile(closed, [0.025, 0.975])
+    p_worse = float(np.mean(improvement <= 0.0))
+    return {
+        "gap_before": g_b,
+        "gap_after": g_a,
+        "closed_fraction": point,
+        "interval": [float(lo), float(hi)],
+        "p_no_improvement": p_worse,
+        "significant": bool(p_worse < 0.025 and point >= MIN_CLOSED),
+    }
+
+
+def _bic(c: CandidateFit, n_eff: float) -> float:
+    g = gap(c.fit_resid)
+    return n_eff * math.log(max(g, 1e-300)) + len(c.params) * math.log(n_eff)
+
+
+#: pairs of effects that look alike on some data, and the experiment that separates them
+SEPARATING = {
+    frozenset(
+        {"sensor_lag", "time_delay"}
+    ): "excite at several frequencies (a chirp): a delay's phase grows linearly with frequency, a lag's saturates at 90°",
+    frozenset(
+        {"sensor_lag", "cable_damping"}
+    ): "vary the speed at a fixed frequency content and add a second sensor: damping scales with speed, a sensor lag with the signal's rate of change at every load",
+    frozenset(
+        {"sensor_lag", "viscous_friction"}
+    ): "record the joint angle too: viscous friction changes the motion, a sensor lag does not",
+    frozenset(
+        {"coulomb_friction", "dahl_hysteresis"}
+    ): "add small-amplitude motions (below the break-away angle) and slow reversals: Dahl shows pre-sliding stiffness, Coulomb does not",
+    frozenset(
+        {"coulomb_friction", "stribeck_friction"}
+    ): "add slow reversals (under 10 % of the present speed): Stribeck friction peaks at low speed",
+    frozenset(
+        {"coulomb_friction", "capstan_friction"}
+    ): "add slow reversals at two load levels: capstan loss scales with tension, Coulomb friction does not",
+    frozenset(
+        {"dahl_hysteresis", "backlash"}
+    ): "add slow reversals at two load levels: play gives a fixed dead band, Dahl friction a load-independent rounded loop",
+    frozenset(
+        {"coulomb_friction", "backlash"}
+    ): "add slow reversals at two load levels and record the joint angle: play shows as a dead band in angle, friction does not",
+    frozenset(
+        {"slack", "sensor_gain_bias"}
+    ): "repeat at two pretension levels: a sensor bias stays, lost pretension changes where the cables slacken",
+    frozenset(
+        {"creep", "sensor_gain_bias"}
+    ): "hold still at two tension levels for longer than the creep time constant: creep relaxes, a bias does not",
+    frozenset(
+        {"inertia_error", "cable_damping"}
+    ): "add faster accelerations (higher-frequency content): inertia scales with acceleration, damping with speed",
+    frozenset(
+        {"nonlinear_stiffness", "sensor_gain_bias"}
+    ): "repeat at two pretension levels: a stiffening law changes with the tension level, a gain error does not",
+}
+
+
+def separating_experiment(a: str, b: str) -> str:
+    return SEPARATING.get(
+        frozenset({a, b}),
+        "repeat the run at another frequency and another load level, and add an independent sensor (for example the joint angle)",
+    )
+
+
+def identifiability(
+    prep: Prepared, base: CandidateFit, fits: dict[str, CandidateFit], scores: dict[str, dict[str, Any]]
+) -> dict[str, list[dict[str, Any]]]:
+    """Collinear residual signatures among the candidates that close a real share of the gap."""
+    r0 = np.concatenate([r.ravel() for r in base.fit_resid])
+    sig = {}
+    for name, c in fits.items():
+        if c.error or scores[name]["closed_fraction"] < MIN_CLOSED:
+            continue
+        v = r0 - np.concatenate([r.ravel() for r in c.fit_resid])
+        n = np.linalg.norm(v)
+        if n > 0:
+            sig[name] = v / n
+    notes: dict[str, list[dict[str, Any]]] = {k: [] for k in fits}
+    names = sorted(sig, key=lambda k: -scores[k]["closed_fraction"])
+    for i, a in enumerate(names):
+        for b in names[i + 1 :]:
+            cos = float(sig[a] @ sig[b])
+            ca, cb = scores[a]["closed_fraction"], scores[b]["closed_fraction"]
+            if abs(cos) > 0.9 and cb >= 0.8 * ca:
+                exp = separating_experiment(a, b)
+                notes[a].append({"with": b, "signature_cosine": cos, "experiment": exp})
+                notes[b].append({"with": a, "signature_cosine": cos, "experiment": exp})
+    return notes
+
+
+def _pmap(
+    prep: Prepared, jobs: list[tuple[list[str], _F | None]], opts: Options, label: str
+) -> list[CandidateFit]:
+    workers = opts.workers or min(len(jobs), os.cpu_count() or 1)
+    out: list[CandidateFit | None] = [None] * len(jobs)
+    with Progress(len(jobs), label, enabled=opts.progress) as bar:
+        with ThreadPoolExecutor(max_workers=max(1, workers)) as ex:
+            futs = {
+                ex.submit(fit_candidate, prep, eff, th, opts.max_iter): i for i, (eff, th) in enumerate(jobs)
+            }
+            for f in as_completed(futs):
+                i = futs[f]
+                out[i] = f.result()
+                bar.advance("+".join(jobs[i][0]))
+    return [c for c in out if c is not None]
+
+
+def _params_out(c: CandidateFit) -> list[dict[str, Any]]:
+    rows = []
+    for s, v, sd in zip(c.specs, c.params, c.param_sd):
+        half = 1.96 * sd if np.isfinite(sd) else None
+        rows.append(
+            {
+                "effect": s["effect"],
+                "name": s["name"],
+                "unit": s["unit"],
+                "value": float(v),
+                "ci95": [float(v - half), float(v + half)] if half is not None else None,
+            }
+        )
+    return rows
+
+
+def _per_channel(prep: Prepared, resid: list[_F]) -> dict[str, Any]:
+    out = {}
+    for c, name in enumerate(prep.channel_names):
+        w = np.concatenate([r[:, c] for r in resid])
+        out[name] = {
+            "rmse": float(np.sqrt(np.mean((w * prep.sigma[c]) ** 2))),
+            "gap": float(np.mean(w * w)),
+            "unit": OUTPUTS[name][1],
+        }
+    return out
+
+
+def diagnose(
+    spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run], opts: Options | None = None
+) -> dict[str, Any]:
+    """Run the whole diagnosis; returns the JSON-ready result (see docs/diagnosis.md)."""
+    opts = opts or Options()
+    rng = np.random.default_rng(opts.seed)
+    prep = prepare(spec, fit_runs, hold_runs)
+    base = baseline(prep)
+    dt = prep.fit_runs[0].dt
+    where = localise_all(prep, base)
+    g_hold = gap(base.hold_resid)
+    g_fit = gap(base.fit_resid)
+    sb, cnt = _segments(base.hold_resid, dt, opts.segment_s)
+    idx = rng.integers(0, len(sb), size=(opts.bootstrap, len(sb)))
+    g_lo = float(np.quantile(sb[idx].sum(axis=1) / cnt[idx].sum(axis=1), 0.025))
+    gap_significant = g_hold > NOISE_LEVEL and g_lo > 1.0
+    # every applicable candidate alone
+    singles = _pmap(prep, [([e], None) for e in prep.candidates], opts, "candidates")
+    fits = {c.effects[0]: c for c in singles}
+    scores = {}
+    for name, c in fits.items():
+        if c.error:
+            scores[name] = {
+                "gap_before": g_hold,
+                "gap_after": math.nan,
+                "closed_fraction": -math.inf,
+                "interval": [math.nan, math.nan],
+                "p_no_improvement": 1.0,
+                "significant": False,
+            }
+        else:
+            scores[name] = compare(base.hold_resid, c.hold_resid, dt, opts, rng)
+    n_eff = sum(r.shape[0] for r in base.fit_resid) / _integrated_time(
+        np.concatenate([r[:, 0] for r in base.fit_resid])
+    )
+    notes = identifiability(prep, base, fits, scores)
+    ranked = sorted(
+        fits,
+        key=lambda k: (
+            -scores[k]["closed_fraction"],
+            _bic(fits[k], n_eff) if not fits[k].error else math.inf,
+        ),
+    )
+    ranked = parsimony(ranked, fits, scores)
+    # forward selection
+    chosen: list[str] = []
+    current = base
+    current_fit: CandidateFit = base
+    steps = []
+    if gap_significant:
+        pool = [k for k in ranked if scores[k]["significant"]]
+        for round_ in range(opts.max_effects):
+            if round_ == 0:
+                trials = [fits[k] for k in pool[:1]]
+            else:
+                others = [k for k in ranked if k not in chosen and not fits[k].error][: opts.second_round]
+                jobs = [(chosen + [k], _warm_start(prep, current_fit, chosen + [k], fits[k])) for k in others]
+                trials = _pmap(prep, jobs, opts, f"round {round_ + 1}") if jobs else []
+            best, best_cmp = None, None
+            for t in trials:
+                if t.error:
+                    continue
+                cmp_ = compare(current.hold_resid, t.hold_resid, dt, opts, rng)
+                if best_cmp is None or cmp_["closed_fraction"] > best_cmp["closed_fraction"]:
+                    best, best_cmp = t, cmp_
+            if best is None or best_cmp is None or not best_cmp["significant"]:
+                break
+            # practical significance against the original gap, not the remainder
+            if gap(current.hold_resid) - gap(best.hold_resid) < MIN_CLOSED * (g_hold - 1.0):
+                break
+            added = [e for e in best.effects if e not in chosen]
+            chosen = sorted(set(chosen) | set(added), key=best.effects.index)
+            steps.append({"added": added, "held_out": best_cmp})
+            current = best
+            current_fit = best
+            if gap(current.hold_resid) < NOISE_LEVEL:
+                break
+    total = compare(base.hold_resid, current.hold_resid, dt, opts, rng)
+    total_fit = {
+        "gap_before": g_fit,
+        "gap_after": gap(current.fit_resid),
+        "closed_fraction": closed_fraction(g_fit, gap(current.fit_resid)),
+    }
+    if not gap_significant:
+        verdict = "no_significant_gap"
+    elif chosen and (gap(current.hold_resid) < NOISE_LEVEL or total["closed_fraction"] >= 0.8):
+        verdict = "explained"
+    else:
+        verdict = "partially_explained"
+    effects_out = []
+    for k in ranked:
+        c = fits[k]
+        sc = scores[k]
+        effects_out.append(
+            {
+                "name": k,
+                "selected": k in chosen,
+                "description": next(e["description"] for e in effect_catalogue() if e["name"] == k),
+                "parameters": _params_out(c) if not c.error else [],
+                "fit": {
+                    "gap_before": g_fit,
+                    "gap_after": gap(c.fit_resid) if not c.error else None,
+                    "closed_fraction": closed_fraction(g_fit, gap(c.fit_resid)) if not c.error else None,
+                    "bic": _bic(c, n_eff) if not c.error else None,
+                },
+                "held_out": sc
+                | {
+                    "closed_fraction": sc["closed_fraction"] if math.isfinite(sc["closed_fraction"]) else None
+                },
+                "identifiability": notes.get(k, []),
+                "converged": c.converged,
+                "error": c.error,
+            }
+        )
+    cond_after = localise.conditions_table(
+        [np.sum(r * r, axis=1) for r in current.hold_resid], where["_hold_masks"]
+    )
+    cond_before = {
+        (c.family, c.name): c
+        for c in localise.conditions_table(
+            [np.sum(r * r, axis=1) for r in base.hold_resid], where["_hold_masks"]
+        )
+    }
+    e_total_b = sum(float(np.sum(r * r)) for r in base.hold_resid)
+    e_total_a = sum(float(np.sum(r * r)) for r in current.hold_resid)
+    per_condition = []
+    for c in cond_after:
+        b = cond_before[(c.family, c.name)]
+        eb, ea = b.energy_share * e_total_b, c.energy_share * e_total_a
+        per_condition.append(
+            {
+                "family": c.family,
+                "condition": c.name,
+                "energy_before": eb,
+                "energy_after": ea,
+                "reduction": (eb - ea) / eb if eb > 0 else 0.0,
+            }
+        )
+    result = {
+        "schema": "cablekit.diagnosis/1",
+        "verdict": verdict,
+        "effects": effects_out,
+        "selected": {
+            "effects": chosen,
+            "steps": steps,
+            "parameters": _params_out(current) if chosen else [],
+            "held_out": total,
+            "fit": total_fit,
+            "per_channel": {
+                "held_out_before": _per_channel(prep, base.hold_resid),
+                "held_out_after": _per_channel(prep, current.hold_resid),
+                "fit_before": _per_channel(prep, base.fit_resid),
+                "fit_after": _per_channel(prep, current.fit_resid),
+            },
+            "per_condition_held_out": per_condition,
+            "unexplained_gap": gap(current.hold_resid) - 1.0,
+        },
+        "where": {k: v for k, v in where.items() if not k.startswith("_")},
+        "gap": {
+            "fit": g_fit,
+            "held_out": g_hold,
+            "held_out_lower": g_lo,
+            "noise_level": NOISE_LEVEL,
+            "significant": gap_significant,
+        },
+        "skipped": prep.skipped,
+        "meta": {
+            "model": spec.to_dict(),
+            "fit_runs": [{"name": r.name, "samples": len(r), "dt": r.dt, "notes": r.notes} for r in fit_runs],
+            "held_out_runs": [
+                {"name": r.name, "samples": len(r), "dt": r.dt, "notes": r.notes} for r in hold_runs
+            ],
+            "channels": [
+                {"output": o, "column": c, "noise_sigma": float(s)}
+                for o, c, s in zip(prep.channel_names, prep.columns, prep.sigma)
+            ],
+            "substeps": prep.substeps,
+            "candidates": prep.candidates,
+            "options": {k: v for k, v in vars(opts).items() if k != "progress"},
+        },
+    }
+    result["_internal"] = {"prep": prep, "base": base, "current": current, "fits": fits}
+    return result
+
+
+def parsimony(
+    ranked: list[str], fits: dict[str, CandidateFit], scores: dict[str, dict[str, Any]]
+) -> list[str]:
+    """Reorder so that, at each rank, the candidate with the fewest parameters among those whose
+    held-out remaining gap is equivalent (within 25 % of it plus 5 % of the noise variance) comes
+    first: a nested, richer effect must earn its extra parameters on held-out data."""
+
+    def excess(k: str) -> float:
+        g = scores[k]["gap_after"]
+        return max(float(g) - 1.0, 0.0) if math.isfinite(g) else math.inf
+
+    order = list(ranked)
+    for i in range(len(order)):
+        ref = excess(order[i])
+        if not math.isfinite(ref):
+            break
+        same = [k for k in order[i:] if excess(k) <= 1.25 * ref + 0.05]
+        pick = min(same, key=lambda k: (len(fits[k].params), excess(k)))
+        order.remove(pick)
+        order.insert(i, pick)
+    return order
+
+
+def _warm_start(prep: Prepared, current: CandidateFit, effects: list[str], single: CandidateFit) -> _F | None:
+    """Start a combined fit from the current model's and the single fit's parameters."""
+    specs = prep.fit0.with_effects(effects, prep.substeps).param_specs()
+    have = {}
+    for src in (single, current):
+        for s, v in zip(src.specs, src.params):
+            have[(s["effect"], s["name"])] = v
+    return np.array([have.get((s["effect"], s["name"]), s["initial"]) for s in specs])
+
+
+def localise_all(prep: Prepared, base: CandidateFit) -> dict[str, Any]:
+    """Conditions, whiteness, cross-correlation and loops of the nominal residual."""
+    out: dict[str, Any] = {}
+    for label, runs, resid in (
+        ("fit", prep.fit_runs, base.fit_resid),
+        ("held_out", prep.hold_runs, base.hold_resid),
+    ):
+        masks = []
+        energies = []
+        for run, r in zip(runs, resid):
+            start = int(round(prep.spec.warmup / run.dt))
+            x = run.column(prep.spec.x_m)[start:]
+            t = run.t[start:]
+            sensors = [c for c, n in enumerate(prep.channel_names) if OUTPUTS[n][2]]
+            load = (
+                np.sum(
+                    np.abs(np.column_stack([run.column(prep.columns[c])[start:] for c in sensors])), axis=1
+                )
+                if sensors
+                else np.abs(x)
+            )
+            masks.append(localise.condition_masks(t, x, run.dt, load))
+            energies.append(np.sum(r * r, axis=1))
+        table = localise.conditions_table(energies, masks)
+        out[f"conditions_{label}"] = [c.to_dict() for c in table]
+        if label == "held_out":
+            out["_hold_masks"] = masks
+    r0 = base.fit_resid[0]
+    x0 = prep.fit_runs[0].column(prep.spec.x_m)[int(round(prep.spec.warmup / prep.fit_runs[0].dt)) :]
+    v0 = np.gradient(x0, prep.fit_runs[0].dt)
+    out["residual_tests"] = {
+        name: {
+            "whiteness": {k: v for k, v in localise.whiteness(r0[:, c]).items() if k != "acf"},
+            "input_correlation": {
+                k: v for k, v in localise.cross_correlation(r0[:, c], x0).items() if k != "ccf"
+            },
+            "loop_area_velocity": localise.loop_area(r0[:, c], v0),
+            "loop_area_position": localise.loop_area(r0[:, c], x0),
+        }
+        for c, name in enumerate(prep.channel_names)
+    }
+    for name, t in out["residual_tests"].items():
+        w, x = t["whiteness"]["white"], t["input_correlation"]["independent"]
+        t["reading"] = (
+            "consistent with white measurement noise"
+            if w and x
+            else "coloured but independent of the input: coloured noise or an unmodelled disturbance"
+            if x
+            else "depends on the input: the model is wrong"
+        )
+    return out
