@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cablekit.errors import CablekitError
+from cablekit.errors import CablekitError, DataError
 from cablekit.examples import EXAMPLES, run_example
 
 
@@ -45,6 +45,111 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+EXAMPLE_EFFECTS = ("backlash", "sensor_gain_bias")
+
+
+def _write_example(directory: Path) -> tuple[Path, Path, Path]:
+    """Write the embedded diagnosis example: a forceps-like joint whose drive has play and whose
+    tension sensors are miscalibrated (withheld from the model file)."""
+    from cablekit.diagnose.selftest import make_case
+
+    case = make_case(EXAMPLE_EFFECTS, seed=7, duration=8.0)
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for run, name in ((case.fit[0], "fit.csv"), (case.hold[0], "holdout.csv")):
+        cols = ["t", *run.columns]
+        data = np.column_stack([run.t, *run.columns.values()])
+        np.savetxt(directory / name, data, delimiter=",", header=",".join(cols), comments="", fmt="%.9g")
+        paths.append(directory / name)
+    spec = case.spec.to_dict()
+    lines = [
+        "# cablekit diagnosis example: nominal model of a forceps-like antagonistic joint",
+        f'model = "{spec["model"]}"',
+        "",
+    ]
+    for table in ("parameters", "inputs", "outputs", "diagnosis"):
+        lines.append(f"[{table}]")
+        for k, v in spec[table].items():
+            lines.append(f"{k} = {json.dumps(v)}")
+        lines.append("")
+    model = directory / "model.toml"
+    model.write_text("\n".join(lines))
+    (directory / "TRUTH.json").write_text(
+        json.dumps({"withheld_effects": case.truth["effects"]}, indent=2, default=float)
+    )
+    return paths[0], paths[1], model
+
+
+def _diagnose(args: argparse.Namespace) -> int:
+    from cablekit.diagnose import Options, diagnose, load_model_spec, load_run
+    from cablekit.diagnose.report import write_html, write_json
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if args.self_test:
+        from cablekit.diagnose.selftest import format_confusion, run_self_test
+
+        print("cablekit: diagnosis self-test (effects withheld from the diagnoser) ...", flush=True)
+        res = run_self_test(seed=args.seed, duration=args.duration, progress=not args.quiet)
+        table = format_confusion(res)
+        print(table)
+        (out / "self_test.txt").write_text(table + "\n")
+        (out / "self_test.json").write_text(json.dumps(res, indent=2, default=float))
+        print(f"  wrote {out / 'self_test.txt'} and {out / 'self_test.json'}")
+        return 0 if res["passed"] else 1
+    if args.example:
+        fit_paths, hold_paths, model_path = _write_example(out / "example")
+        fit_paths, hold_paths = [fit_paths], [hold_paths]
+        print(
+            f"cablekit: example written to {out / 'example'} (fit.csv, holdout.csv, model.toml; "
+            f"TRUTH.json holds the withheld effects)"
+        )
+    else:
+        if not args.fit or not args.holdout or not args.model:
+            raise DataError(
+                "give FIT.csv ..., --holdout HOLD.csv ... and --model MODEL.toml (or --example / --self-test)"
+            )
+        fit_paths, hold_paths, model_path = (
+            [Path(p) for p in args.fit],
+            [Path(p) for p in args.holdout],
+            Path(args.model),
+        )
+    spec = load_model_spec(model_path)
+    fit = [load_run(p) for p in fit_paths]
+    hold = [load_run(p) for p in hold_paths]
+    print(
+        f"cablekit: diagnosing {len(fit)} fit run(s) against {len(hold)} held-out run(s), model "
+        f"{model_path} ...",
+        flush=True,
+    )
+    t0 = time.perf_counter()
+    res = diagnose(spec, fit, hold, Options(progress=not args.quiet, workers=args.workers, seed=args.seed))
+    elapsed = time.perf_counter() - t0
+    j = write_json(res, out / "diagnosis.json")
+    print(f"  verdict: {res['verdict']}")
+    for e in res["effects"][:5]:
+        h = e["held_out"]
+        cf = h["closed_fraction"]
+        print(
+            f"  {'*' if e['selected'] else ' '} {e['name']:<20} "
+            f"held-out closed {cf if cf is None else f'{cf:6.1%}'}"
+            f"  significant={h['significant']}"
+            + (f"  (collinear with {e['identifiability'][0]['with']})" if e["identifiability"] else "")
+        )
+    sel = res["selected"]
+    if sel["effects"]:
+        print(
+            f"  selected {' + '.join(sel['effects'])}: held-out gap "
+            f"{sel['held_out']['gap_before']:.3g} -> {sel['held_out']['gap_after']:.3g} (noise = 1)"
+        )
+    print(f"  wrote {j}")
+    if not args.no_html:
+        h = write_html(res, out / "diagnosis.html")
+        print(f"  wrote {h}")
+    print(f"  done in {elapsed:.1f} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="cablekit", description="Cable-driven robot toolkit")
     sub = p.add_subparsers(dest="command", required=True)
@@ -55,6 +160,26 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--dt", type=float, default=1e-3, help="sample interval, s")
     s.add_argument("--no-plot", action="store_true", help="skip the PNG (no matplotlib needed)")
     s.set_defaults(func=_simulate)
+    d = sub.add_parser(
+        "diagnose",
+        help="sim-to-real gap diagnosis: where, which effect, how far it closes on held-out runs",
+        description="Fit candidate effects on FIT runs, score them on --holdout runs, write "
+        "diagnosis.json and .html",
+    )
+    d.add_argument("fit", nargs="*", help="fit run(s): CSV or Parquet with a t column")
+    d.add_argument("--holdout", nargs="+", help="held-out run(s), never fitted")
+    d.add_argument("--model", help="nominal model file (TOML, see docs/diagnosis.md)")
+    d.add_argument("--out", default="out", help="output directory (created)")
+    d.add_argument("--example", action="store_true", help="run on the embedded example")
+    d.add_argument(
+        "--self-test", action="store_true", help="score the diagnoser on generated runs with withheld effects"
+    )
+    d.add_argument("--duration", type=float, default=8.0, help="self-test run length, s")
+    d.add_argument("--seed", type=int, default=2026)
+    d.add_argument("--workers", type=int, default=0, help="parallel candidate fits (0 = all cores)")
+    d.add_argument("--no-html", action="store_true", help="skip the HTML report (no matplotlib needed)")
+    d.add_argument("--quiet", action="store_true", help="no progress bars")
+    d.set_defaults(func=_diagnose)
     return p
 
 

@@ -169,6 +169,7 @@ impl JointProblem {
                 d.set_item("upper", s.upper)?;
                 d.set_item("scale", s.scale)?;
                 d.set_item("grid", s.grid)?;
+                d.set_item("starts", s.starts.clone())?;
                 out.append(d)?;
             }
         }

@@ -179,7 +179,8 @@ def from_arrays(name: str, header: list[str], data: NDArray[np.float64], source:
     jitter = float(np.max(np.abs(dt - med)))
     if jitter > 0.01 * med:
         raise DataError(
-            f"{where}: non-uniform sampling (interval {med:g} s varies by up to {jitter:g} s); resample to a uniform "
+            f"{where}: non-uniform sampling (interval {med:g} s varies by up to {jitter:g} s); "
+            f"resample to a uniform "
             "time base first"
         )
     cols = {h: np.ascontiguousarray(data[:, j]) for j, h in enumerate(header) if h != "t"}

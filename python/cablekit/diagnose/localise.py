@@ -95,7 +95,7 @@ def conditions_table(
     total_e = sum(float(e.sum()) for e in residual_energy)
     total_n = sum(len(e) for e in residual_energy)
     acc: dict[tuple[str, str], list[float]] = {}
-    for e, ms in zip(residual_energy, masks):
+    for e, ms in zip(residual_energy, masks, strict=False):
         for fam, name, m in ms:
             s = acc.setdefault((fam, name), [0.0, 0.0])
             s[0] += float(m.sum())

@@ -37,7 +37,7 @@ class Progress:
         if not self.enabled:
             return
         frac = self.done / self.total
-        filled = int(round(frac * self.width))
+        filled = round(frac * self.width)
         elapsed = time.perf_counter() - self.t0
         bar = "#" * filled + "-" * (self.width - filled)
         sys.stderr.write(

@@ -87,6 +87,11 @@ def _nominal(rng: np.random.Generator) -> dict[str, float]:
     zeta = rng.uniform(0.05, 0.2)
     crit = 2.0 * math.sqrt(kt * j)
     c = zeta * crit / (2.0 * r * r)
+    # the jaw closes on an object part of the time: a contact at 0.15-0.3 rad through a 10 mm
+    # lever, stiff enough to load the cables to about twice the pretension; without a load the
+    # cables of a position-driven free joint barely stretch and stretch-dependent effects hide
+    lever = 0.01
+    k_contact = rng.uniform(0.3, 0.6) * kt / lever**2
     return {
         "radius": r,
         "stiffness": k,
@@ -95,6 +100,10 @@ def _nominal(rng: np.random.Generator) -> dict[str, float]:
         "pretension": t0,
         "viscous": 0.05 * crit,
         "smoothing": 0.05,
+        "contact_angle": rng.uniform(0.15, 0.3),
+        "contact_stiffness": k_contact,
+        "contact_damping": 0.02 * k_contact * 0.01,
+        "contact_lever_arm": lever,
     }
 
 
@@ -153,7 +162,7 @@ def _draw_truth(
     if effect == "nonlinear_stiffness":
         return {"beta": rng.uniform(0.6, 1.5) * nom["stiffness"] / t0}
     if effect == "cable_damping":
-        return {"delta_c": rng.uniform(1.5, 3.0) * c}
+        return {"delta_c": rng.uniform(5.0, 10.0) * c}
     if effect == "creep":
         return {"kappa": rng.uniform(0.1, 0.3), "tau": rng.uniform(0.2, 1.0)}
     if effect == "backlash":
@@ -169,12 +178,13 @@ def _draw_truth(
     if effect == "time_delay":
         return {"d": rng.uniform(0.003, 0.008)}
     if effect == "sensor_gain_bias":
-        s = rng.choice([-1.0, 1.0], 2)
+        # gain and bias errors of one sensor that do not cancel at the pretension
+        s = rng.choice([-1.0, 1.0])
         return {
-            "gain0": s[0] * rng.uniform(0.04, 0.08),
-            "gain1": -s[0] * rng.uniform(0.04, 0.08),
-            "bias0": s[1] * rng.uniform(0.02, 0.05) * t0,
-            "bias1": rng.uniform(-0.05, 0.05) * t0,
+            "gain0": s * rng.uniform(0.04, 0.08),
+            "gain1": -s * rng.uniform(0.04, 0.08),
+            "bias0": s * rng.uniform(0.02, 0.05) * t0,
+            "bias1": -s * rng.uniform(0.02, 0.05) * t0,
         }
     if effect == "inertia_error":
         return {"epsilon": rng.uniform(2.0, 4.0)}
@@ -192,7 +202,7 @@ def _generate_run(
     noise: dict[str, float],
 ) -> Run:
     r = nom["radius"]
-    n = int(round(duration / DT))
+    n = round(duration / DT)
     fine_dt = DT / FINE
     tf = np.arange(n * FINE) * fine_dt
     th, dth = _trajectory(rng, tf, held_out)
@@ -290,16 +300,56 @@ def _sampled_input(t: np.ndarray, tf: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.interp(t, tf, x)
 
 
+#: the parameters that set each effect's size (scaled up when an effect would hide in the noise)
+_MAGNITUDE = {
+    "coulomb_friction": ("F_c",),
+    "viscous_friction": ("delta_b",),
+    "stribeck_friction": ("F_s_minus_F_c",),
+    "dahl_hysteresis": ("F_d",),
+    "capstan_friction": ("mu_phi",),
+    "nonlinear_stiffness": ("beta",),
+    "cable_damping": ("delta_c",),
+    "creep": ("kappa",),
+    "backlash": ("delta",),
+    "slack": ("delta_T0",),
+    "coupling": ("kappa_c",),
+    "sensor_lag": ("tau_s",),
+    "sensor_sampling": (),
+    "time_delay": ("d",),
+    "sensor_gain_bias": ("gain0", "gain1", "bias0", "bias1"),
+    "inertia_error": ("epsilon",),
+}
+_CAPS = {"kappa": 0.6, "delta_T0": 0.95}
+
+
+def _scaled(truth: dict[str, dict[str, float]], factor: float, t0: float) -> dict[str, dict[str, float]]:
+    out = {}
+    for e, params in truth.items():
+        q = dict(params)
+        for k in _MAGNITUDE[e]:
+            q[k] = q[k] * factor
+            if k in _CAPS:
+                q[k] = min(q[k], _CAPS[k] * (t0 if k == "delta_T0" else 1.0))
+        out[e] = q
+    return out
+
+
+#: a non-control case is regenerated with larger effects until its held-out gap (mean squared
+#: residual of the nominal model in noise units) reaches this: an effect smaller than the noise
+#: is not attributable by any method, and would only measure the noise
+MIN_VISIBLE_GAP = 1.5
+
+
 def make_case(effects: tuple[str, ...], seed: int, duration: float = 8.0) -> Case:
-    """Generate one case; ``effects`` empty for a control."""
+    """Generate one case; ``effects`` empty for a control. See the module for the recipe."""
+    from cablekit.diagnose.engine import baseline, gap, prepare
+
     rng = np.random.default_rng(seed)
     nom = _nominal(rng)
     rms_rate = 0.5 * 2 * np.pi * 0.6  # rad/s, order of the slow component's peak rate
     truth = {e: _draw_truth(e, rng, nom, rms_rate) for e in effects}
     measure_theta = bool(rng.uniform() < 0.6)
     noise = {"tension": 0.02 * nom["pretension"] * rng.uniform(0.5, 1.5), "theta": 3e-4}
-    fit = [_generate_run("fit", nom, truth, rng, duration, False, measure_theta, noise)]
-    hold = [_generate_run("held_out", nom, truth, rng, duration, True, measure_theta, noise)]
     outputs = {"tension_motor_drive": "T_drive", "tension_motor_return": "T_return"}
     if measure_theta:
         outputs["theta"] = "theta"
@@ -313,8 +363,21 @@ def make_case(effects: tuple[str, ...], seed: int, duration: float = 8.0) -> Cas
         },
         source=f"self-test case {seed}",
     )
+    run_seed = int(rng.integers(1 << 31))
+    scale = 1.0
+    for attempt in range(5):
+        if attempt:
+            truth = _scaled(truth, 2.0, nom["pretension"])
+            scale *= 2.0
+        gen = np.random.default_rng(run_seed)
+        fit = [_generate_run("fit", nom, truth, gen, duration, False, measure_theta, noise)]
+        hold = [_generate_run("held_out", nom, truth, gen, duration, True, measure_theta, noise)]
+        if not effects or gap(baseline(prepare(spec, fit, hold)).hold_resid) >= MIN_VISIBLE_GAP:
+            break
     label = "+".join(effects) if effects else "control"
-    return Case(label, effects, spec, fit, hold, {"nominal": nom, "effects": truth, "noise": noise})
+    return Case(
+        label, effects, spec, fit, hold, {"nominal": nom, "effects": truth, "noise": noise, "scaled": scale}
+    )
 
 
 def run_self_test(
@@ -356,8 +419,10 @@ def run_self_test(
         if progress:
             mark = "ok " if row["correct"] else "MISS"
             print(
-                f"[{i + 1:>2}/{len(cases)}] {mark} {case.label:<36} verdict={res['verdict']:<20} top1={top!s:<20} "
-                f"selected={','.join(selected) or '-':<34} closed={row['held_out_closed']:.2f} ({elapsed:.1f}s)",
+                f"[{i + 1:>2}/{len(cases)}] {mark} {case.label:<36} verdict={res['verdict']:<20} "
+                f"top1={top!s:<20} "
+                f"selected={','.join(selected) or '-':<34} closed={row['held_out_closed']:.2f} "
+                f"({elapsed:.1f}s)",
                 flush=True,
             )
     singles = [r for r in rows if r["kind"] == "single"]
@@ -391,7 +456,8 @@ def format_confusion(result: dict[str, Any]) -> str:
     for r in result["cases"]:
         inj = "+".join(r["injected"]) or "(control)"
         lines.append(
-            f"{inj:<22} {r['top1']!s:<22} {r['verdict']} / {','.join(r['selected']) or '-'}{'' if r['correct'] else '   <-- miss'}"
+            f"{inj:<22} {r['top1']!s:<22} {r['verdict']} / {','.join(r['selected']) or '-'}"
+            f"{'' if r['correct'] else '   <-- miss'}"
         )
     s = result["scores"]
     lines.append("")

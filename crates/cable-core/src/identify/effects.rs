@@ -6,7 +6,7 @@
 //! |---|---|---|
 //! | `coulomb_friction` | joint | `F_c` (N·m) added Coulomb level, `ε` (rad/s) sign smoothing |
 //! | `viscous_friction` | joint | `Δb` (N·m·s/rad) viscous error |
-//! | `stribeck_friction` | joint | `F_c` (N·m), `F_s − F_c` (N·m), `v_s` (rad/s) |
+//! | `stribeck_friction` | joint | `F_c` (N·m), `F_s − F_c` (N·m), `v_s` (rad/s), shape `δ` (–) |
 //! | `dahl_hysteresis` | joint | `F_d` (N·m), break-away angle `θ_d = F_d/σ₀` (rad) |
 //! | `capstan_friction` | routing | `μφ` (–) capstan exponent at the motor-side sensors |
 //! | `nonlinear_stiffness` | cables | `β` (1/m): `F(s) = k/β·(e^{βs} − 1)` (β < 0 softens) |
@@ -90,6 +90,17 @@ pub struct ParamSpec {
     pub scale: f64,
     /// Fitted by grid search, not by gradient steps (discrete-time effects).
     pub grid: bool,
+    /// Further starting values tried before the local search (non-convex parameters such as
+    /// time constants); the fit starts from the best combination.
+    pub starts: Vec<f64>,
+}
+
+impl ParamSpec {
+    /// The same spec with further starting values (kept inside the bounds).
+    fn starts(mut self, v: &[f64]) -> Self {
+        self.starts = v.iter().map(|x| x.clamp(self.lower, self.upper)).collect();
+        self
+    }
 }
 
 /// Typical magnitudes of a data set, used to scale and bound effect parameters.
@@ -239,6 +250,7 @@ impl Effect {
             upper,
             scale: scale.abs().max(1e-300),
             grid: false,
+            starts: vec![],
         };
         let tq = s.torque;
         let w = s.speed.max(1e-9);
@@ -259,7 +271,8 @@ impl Effect {
                         eps_lo,
                         10.0 * w.max(s.smoothing),
                         eps0,
-                    ),
+                    )
+                    .starts(&[0.2 * eps0]),
                 ]
             }
             Effect::ViscousFriction => {
@@ -284,16 +297,19 @@ impl Effect {
                     0.0,
                     10.0 * tq,
                     0.1 * tq,
-                ),
+                )
+                .starts(&[0.2 * tq]),
                 p(
                     "v_s",
                     "rad/s",
                     0.1 * w,
                     0.1 * w,
-                    1e-3 * w,
+                    1e-2 * w,
                     10.0 * w,
                     0.1 * w,
-                ),
+                )
+                .starts(&[0.03 * w, 0.3 * w]),
+                p("delta", "1", 2.0, 2.0, 0.5, 3.0, 0.5).starts(&[1.0]),
             ],
             Effect::DahlHysteresis => {
                 // break-away displacement θ_d = F_d/σ₀ rather than σ₀: the pre-sliding rate
@@ -303,7 +319,7 @@ impl Effect {
                 let th0 = (0.02 * s.speed).max(20.0 * th_lo);
                 vec![
                     p("F_d", "N·m", 0.0, 0.02 * tq, 0.0, 10.0 * tq, 0.1 * tq),
-                    p("theta_d", "rad", th0, th0, th_lo, 1.0, th0),
+                    p("theta_d", "rad", th0, th0, th_lo, 1.0, th0).starts(&[0.25 * th0, 4.0 * th0]),
                 ]
             }
             Effect::CapstanFriction => vec![p("mu_phi", "1", 0.0, 0.02, 0.0, 3.0, 0.1)],
@@ -317,7 +333,7 @@ impl Effect {
             }
             Effect::Creep => vec![
                 p("kappa", "1", 0.0, 0.05, 0.0, 0.9, 0.1),
-                p("tau", "s", 0.5, 0.5, 5.0 * s.dt, 10.0 * s.duration, 0.5),
+                p("tau", "s", 0.5, 0.5, 5.0 * s.dt, 10.0 * s.duration, 0.5).starts(&[0.1, 2.0]),
             ],
             Effect::Backlash => {
                 let st = s.stretch.max(1e-9);
@@ -364,7 +380,8 @@ impl Effect {
                 0.0,
                 0.2 * s.duration,
                 10.0 * s.dt,
-            )],
+            )
+            .starts(&[10.0 * s.dt, 30.0 * s.dt])],
             Effect::SensorSampling => {
                 let mut v = vec![
                     // period 0 = a continuous sensor (the nominal)
@@ -382,7 +399,8 @@ impl Effect {
                 0.0,
                 0.1 * s.duration,
                 10.0 * s.dt,
-            )],
+            )
+            .starts(&[8.0 * s.dt, 25.0 * s.dt])],
             Effect::SensorGainBias => (0..s.sensors)
                 .flat_map(|i| {
                     [

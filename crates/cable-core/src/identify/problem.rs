@@ -265,7 +265,7 @@ impl JointProblem {
                     m.friction.coulomb += p[0];
                     m.friction.static_level += p[0] + p[1];
                     m.friction.stribeck_velocity = p[2];
-                    m.friction.stribeck_exponent = 2.0;
+                    m.friction.stribeck_exponent = p[3];
                 }
                 Effect::DahlHysteresis => {
                     if p[0] > 0.0 {
@@ -448,17 +448,38 @@ impl JointProblem {
         j
     }
 
-    /// Fit the active effects' parameters from `theta0` (defaults to the specs' initial
-    /// values). Grid parameters (sample-and-hold) are searched on a grid first with the other
-    /// parameters at their start values, then held while the rest is fitted.
+    /// Fit the active effects' parameters from `theta0`, or, by default, from the two best of
+    /// the specs' starting combinations (keeping the better local optimum). Grid parameters
+    /// (sample-and-hold) are searched on a grid first with the other parameters at their start
+    /// values, then held while the rest is fitted.
     pub fn fit(&self, theta0: Option<&[f64]>, opts: &LmOptions) -> Result<LmReport> {
-        let mut x0: Vec<f64> = match theta0 {
+        let starts: Vec<Vec<f64>> = match theta0 {
             Some(t) => {
                 check::len("theta0", t, self.specs.len())?;
-                t.to_vec()
+                vec![t.to_vec()]
             }
-            None => self.specs.iter().map(|s| s.initial).collect(),
+            None => self.best_starts(self.specs.iter().map(|s| s.initial).collect(), 2),
         };
+        let mut best: Option<LmReport> = None;
+        let mut last_err = None;
+        for x0 in starts {
+            match self.fit_from(x0, opts) {
+                Ok(rep) => {
+                    if best.as_ref().is_none_or(|b| rep.cost < b.cost) {
+                        best = Some(rep);
+                    }
+                }
+                Err(e) => last_err = Some(e),
+            }
+        }
+        match (best, last_err) {
+            (Some(b), _) => Ok(b),
+            (None, Some(e)) => Err(e),
+            (None, None) => unreachable!("at least one start"),
+        }
+    }
+
+    fn fit_from(&self, mut x0: Vec<f64>, opts: &LmOptions) -> Result<LmReport> {
         if self.effects.contains(&Effect::SensorSampling) {
             let (period, phase) = self.grid_sample_hold(&x0)?;
             let k = self.offset_of(Effect::SensorSampling);
@@ -483,6 +504,41 @@ impl JointProblem {
             self.n_residuals(),
             opts,
         )
+    }
+
+    /// The `keep` lowest-cost combinations of the specs' starting values (`initial` and
+    /// `starts`, at most 27 combinations); combinations whose simulation fails are skipped.
+    fn best_starts(&self, x0: Vec<f64>, keep: usize) -> Vec<Vec<f64>> {
+        let options: Vec<Vec<f64>> = self
+            .specs
+            .iter()
+            .zip(&x0)
+            .map(|(s, &x)| std::iter::once(x).chain(s.starts.iter().copied()).collect())
+            .collect();
+        let total: usize = options.iter().map(Vec::len).product();
+        if total <= 1 || total > 27 {
+            return vec![x0];
+        }
+        let mut r = vec![0.0; self.n_residuals()];
+        let mut scored: Vec<(f64, Vec<f64>)> = Vec::new();
+        for mut code in 0..total {
+            let x: Vec<f64> = options
+                .iter()
+                .map(|o| {
+                    let v = o[code % o.len()];
+                    code /= o.len();
+                    v
+                })
+                .collect();
+            if self.residuals(&x, &mut r).is_ok() {
+                scored.push((r.iter().map(|v| v * v).sum(), x));
+            }
+        }
+        if scored.is_empty() {
+            return vec![x0];
+        }
+        scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+        scored.into_iter().take(keep).map(|(_, x)| x).collect()
     }
 
     /// Offset of effect `e`'s parameters in `theta`.

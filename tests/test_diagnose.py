@@ -1,0 +1,415 @@
+"""Sim-to-real gap diagnosis: data and model-file handling, the grey-box problem against NumPy
+references, recovery of every candidate effect, controls, JSON schema and the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import cablekit as ck
+from cablekit._cablekit import JointProblem, effect_catalogue
+from cablekit.diagnose import Options, diagnose, load_model_spec, load_run, model_spec_from_dict
+from cablekit.diagnose.data import check_units, from_arrays
+from cablekit.diagnose.report import to_json, validate
+from cablekit.diagnose.selftest import make_case
+from tests.reference import signal as sig
+
+# ---- a small nominal joint and run used throughout ----------------------------------------------
+
+NOMINAL = {
+    "radius": 3e-3,
+    "stiffness": 2e4,
+    "inertia": 4e-6,
+    "damping": 10.0,
+    "pretension": 12.0,
+    "viscous": 5e-5,
+    "smoothing": 0.2,
+    "contact_angle": 0.2,
+    "contact_stiffness": 800.0,
+    "contact_damping": 0.1,
+    "contact_lever_arm": 0.01,
+}
+DT = 1e-3
+CHANNELS = [(0, 1.0, True), (1, 1.0, True), (4, 300.0, False)]
+
+
+def _x_m(seconds: float = 3.0) -> np.ndarray:
+    t = np.arange(int(seconds / DT)) * DT
+    w = 2 * np.pi * np.array([0.6, 3.1, 17.0])
+    return NOMINAL["radius"] * (0.4 * np.sin(w[0] * t) + 0.05 * np.sin(w[1] * t) + 0.01 * np.sin(w[2] * t))
+
+
+def _run(x_m: np.ndarray, measured: np.ndarray | None = None, coupled: np.ndarray | None = None) -> dict:
+    d = {
+        "dt": DT,
+        "x_m": x_m,
+        "measured": measured if measured is not None else np.zeros((len(x_m), 3)),
+        "start": 50,
+    }
+    if coupled is not None:
+        d["coupled"] = coupled
+    return d
+
+
+def _problem(effects: list[str], measured=None, substeps: int = 4, coupled=None) -> JointProblem:
+    model = ck.AntagonisticJoint(**NOMINAL)
+    x = _x_m()
+    if coupled is None and "coupling" in effects:
+        coupled = 0.3 * np.sin(2 * np.pi * 0.2 * np.arange(len(x)) * DT)
+    return JointProblem(model, CHANNELS, [_run(x, measured, coupled)], effects, substeps)
+
+
+# ---- run files --------------------------------------------------------------------------------
+
+
+def _csv(tmp_path, header, rows, name="run.csv"):
+    p = tmp_path / name
+    p.write_text(",".join(header) + "\n" + "\n".join(",".join(str(v) for v in r) for r in rows) + "\n")
+    return p
+
+
+def _rows(n=50, dt=1e-3):
+    return [[k * dt, 1e-4 * k, 10.0 + 0.01 * k] for k in range(n)]
+
+
+def test_csv_round_trip_and_duplicates_are_counted(tmp_path):
+    rows = _rows()
+    rows.insert(10, list(rows[9]))  # an exactly duplicated row, as loggers write
+    run = load_run(_csv(tmp_path, ["t", "x_m", "T"], rows))
+    assert len(run) == 50
+    assert run.notes == ["removed 1 exactly duplicated rows"]
+    np.testing.assert_allclose(run.column("T"), [r[2] for r in _rows()])
+    assert run.dt == pytest.approx(1e-3)
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (lambda r: r[5].__setitem__(2, ""), "missing or non-finite value in column 'T' at data row 6"),
+        (lambda r: r[7].__setitem__(0, r[6][0] - 1e-4), "time goes backwards at data row 8"),
+        (lambda r: r[7].__setitem__(0, r[6][0]), "repeats at data rows 7 and 8 with different values"),
+        (lambda r: r[20].__setitem__(0, r[20][0] + 4e-4), "non-uniform sampling"),
+        (lambda r: r[3].__setitem__(1, "abc"), "'abc' is not a number"),
+    ],
+)
+def test_malformed_runs_raise_data_errors(tmp_path, mutate, message):
+    rows = _rows()
+    mutate(rows)
+    with pytest.raises(ck.DataError, match=message):
+        load_run(_csv(tmp_path, ["t", "x_m", "T"], rows))
+
+
+def test_missing_time_column_and_milliseconds(tmp_path):
+    with pytest.raises(ck.DataError, match="no time column 't'"):
+        load_run(_csv(tmp_path, ["time", "x_m"], [[k, 0.0] for k in range(20)]))
+    with pytest.raises(ck.DataError, match="milliseconds"):
+        load_run(_csv(tmp_path, ["t", "x_m"], [[k, 0.0] for k in range(20)]))
+    with pytest.raises(ck.DataError, match="no such file"):
+        load_run(tmp_path / "nope.csv")
+
+
+def test_unit_checks_catch_degrees_and_millimetres():
+    t = np.arange(100) * 1e-3
+    run = from_arrays("r", ["t", "theta", "x_m"], np.column_stack([t, 30 * np.sin(50 * t), 2.0 + 0 * t]))
+    with pytest.raises(ck.DataError, match="looks like degrees"):
+        check_units(run, {"theta": "rad"})
+    with pytest.raises(ck.DataError, match="looks like millimetres"):
+        check_units(run, {"x_m": "m"})
+    with pytest.raises(ck.DataError, match="has no column 'T'"):
+        run.column("T")
+
+
+def test_parquet_runs_load_like_csv(tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+
+    rows = np.array(_rows())
+    pq.write_table(pa.table({"t": rows[:, 0], "x_m": rows[:, 1], "T": rows[:, 2]}), tmp_path / "r.parquet")
+    run = load_run(tmp_path / "r.parquet")
+    np.testing.assert_array_equal(run.column("T"), rows[:, 2])
+
+
+# ---- model files ------------------------------------------------------------------------------
+
+GOOD = {
+    "model": "antagonistic_joint",
+    "parameters": {"radius": 3e-3, "stiffness": 2e4, "inertia": 4e-6, "pretension": 12.0},
+    "inputs": {"x_m": "x_m"},
+    "outputs": {"tension_motor_drive": "T1", "tension_motor_return": "T2"},
+}
+
+
+def test_model_file_parses(tmp_path):
+    p = tmp_path / "m.toml"
+    p.write_text(
+        'model = "antagonistic_joint"\n[parameters]\nradius = 0.003\nstiffness = 2e4\ninertia = 4e-6\n'
+        '[inputs]\nx_m = "x"\n[outputs]\ntension_motor_drive = "T1"\ntheta = "th"\n'
+        "[diagnosis]\nwarmup = 0.1\n"
+    )
+    spec = load_model_spec(p)
+    assert spec.x_m == "x" and spec.outputs == [("tension_motor_drive", "T1"), ("theta", "th")]
+    assert spec.channels() == [(0, True), (4, False)]
+    assert spec.warmup == 0.1
+
+
+@pytest.mark.parametrize(
+    ("change", "error", "message"),
+    [
+        ({"model": "robot"}, ck.DataError, "'model' must be one of"),
+        ({"inputs": {}}, ck.DataError, "needs x_m"),
+        ({"inputs": {"x_m": "x", "speed": "v"}}, ck.DataError, "unknown keys"),
+        ({"outputs": {"force": "F"}}, ck.DataError, "is not an output"),
+        ({"outputs": {}}, ck.DataError, "maps no measured column"),
+        ({"diagnosis": {"effects": ["friction"]}}, ck.DataError, "unknown"),
+        (
+            {"parameters": {"radius": 3e-3, "stiffness": -2e4, "inertia": 4e-6}},
+            ck.ParameterError,
+            "stiffness",
+        ),
+    ],
+)
+def test_bad_model_files_raise_specific_errors(change, error, message):
+    with pytest.raises(error, match=message):
+        model_spec_from_dict(GOOD | change)
+
+
+def test_bad_toml_is_a_data_error(tmp_path):
+    p = tmp_path / "m.toml"
+    p.write_text("model = \n")
+    with pytest.raises(ck.DataError, match="not valid TOML"):
+        load_model_spec(p)
+
+
+# ---- the grey-box problem against NumPy references ---------------------------------------------
+
+
+def test_effect_catalogue_has_the_canonical_names():
+    names = [e["name"] for e in effect_catalogue()]
+    assert names == [
+        "coulomb_friction", "viscous_friction", "stribeck_friction", "dahl_hysteresis", "capstan_friction",
+        "nonlinear_stiffness", "cable_damping", "creep", "backlash", "slack", "coupling", "sensor_lag",
+        "sensor_sampling", "time_delay", "sensor_gain_bias", "inertia_error",
+    ]  # fmt: skip
+    stages = {e["name"]: e["stage"] for e in effect_catalogue()}
+    assert stages["sensor_lag"] == "sensor" and stages["backlash"] == "input" and stages["creep"] == "plant"
+
+
+def test_nominal_prediction_equals_simulate_with_central_difference_velocity():
+    p = _problem([])
+    x = _x_m()
+    model = ck.AntagonisticJoint(**NOMINAL)
+    u = np.ascontiguousarray(np.column_stack([x, sig.velocity(x, DT)]))
+    x0 = np.array([x[0] / NOMINAL["radius"], 0.0])
+    res = ck.simulate(model, u, DT, x0, substeps=4, hold="foh")
+    want = np.column_stack([res["tension_motor_drive"], res["tension_motor_return"], res["theta"]])
+    np.testing.assert_allclose(p.predict(p.reference(), 0), want, rtol=1e-12, atol=1e-12)
+
+
+@settings(max_examples=25, deadline=None)
+@given(tau=st.floats(1e-4, 0.05), gain=st.floats(-0.3, 0.3), bias=st.floats(-2.0, 2.0))
+def test_sensor_stage_matches_numpy(tau, gain, bias):
+    """Lag then gain/bias on force channels only; encoder untouched (1e-12 relative)."""
+    p = _problem(["sensor_lag", "sensor_gain_bias"])
+    base = _problem([]).predict(np.zeros(0), 0)
+    got = p.predict(np.array([tau, gain, bias, -gain, -bias]), 0)
+    for c, (g, b) in enumerate(((gain, bias), (-gain, -bias))):
+        want = (1 + g) * sig.lag(base[:, c], tau, DT) + b
+        np.testing.assert_allclose(got[:, c], want, rtol=1e-12, atol=1e-10)
+    np.testing.assert_array_equal(got[:, 2], base[:, 2])
+
+
+@settings(max_examples=20, deadline=None)
+@given(period=st.floats(0.013, 0.4), frac=st.floats(0.0, 0.99))
+def test_sample_hold_matches_numpy(period, frac):
+    p = _problem(["sensor_sampling"])
+    base = _problem([]).predict(np.zeros(0), 0)
+    phase = frac * period
+    got = p.predict(np.array([period, phase]), 0)
+    for c in (0, 1):
+        want = sig.sample_hold(base[:, c], period, phase, DT)
+        mismatch = np.flatnonzero(got[:, c] != want)
+        # an instant within 1e-9 dt of a sample boundary may round either way; nothing else differs
+        assert mismatch.size <= 2, mismatch[:5]
+
+
+@settings(max_examples=15, deadline=None)
+@given(delta=st.floats(0.0, 3e-4), d=st.floats(0.0, 0.02), kappa=st.floats(-3e-3, 3e-3))
+def test_input_stage_matches_numpy(delta, d, kappa):
+    """coupling → play → delay on x_m, velocity by central differences, then the plant."""
+    x = _x_m()
+    xc = 0.3 * np.sin(2 * np.pi * 0.2 * np.arange(len(x)) * DT)
+    p = _problem(["backlash", "coupling", "time_delay"], coupled=xc)
+    got = p.predict(np.array([delta, kappa, d]), 0)
+    xe = sig.delay(sig.play(x + kappa * xc, delta), d, DT)
+    u = np.ascontiguousarray(np.column_stack([xe, sig.velocity(xe, DT)]))
+    res = ck.simulate(
+        ck.AntagonisticJoint(**NOMINAL),
+        u,
+        DT,
+        np.array([xe[0] / NOMINAL["radius"], 0.0]),
+        substeps=4,
+        hold="foh",
+    )
+    np.testing.assert_allclose(got[:, 0], res["tension_motor_drive"], rtol=1e-10, atol=1e-9)
+    np.testing.assert_allclose(got[:, 2], res["theta"], rtol=1e-10, atol=1e-12)
+
+
+def test_plant_effects_match_the_model_they_describe():
+    """Dahl, creep, capstan, Stribeck, slack, inertia as parameters of AntagonisticJoint."""
+    p = _problem(["dahl_hysteresis", "creep", "capstan_friction", "slack", "inertia_error"])
+    # canonical order: dahl (F_d, θ_d), capstan (μφ), creep (κ, τ), slack (ΔT0), inertia (ε)
+    theta = np.array([2e-3, 0.02, 0.15, 0.2, 0.3, 3.0, 0.5])
+    got = p.predict(theta, 0)
+    m = dict(NOMINAL)
+    m.update(
+        dahl_coulomb=2e-3, dahl_sigma0=2e-3 / 0.02, creep_fraction=0.2, creep_time_constant=0.3,
+        capstan_mu=0.15, capstan_wrap=1.0, pretension=NOMINAL["pretension"] - 3.0,
+        inertia=NOMINAL["inertia"] * 1.5,
+    )  # fmt: skip
+    model = ck.AntagonisticJoint(**m)
+    x = _x_m()
+    u = np.ascontiguousarray(np.column_stack([x, sig.velocity(x, DT)]))
+    x0 = np.zeros(model.n_states)
+    x0[0] = x[0] / m["radius"]
+    res = ck.simulate(model, u, DT, x0, substeps=4, hold="foh")
+    np.testing.assert_allclose(got[:, 1], res["tension_motor_return"], rtol=1e-12, atol=1e-10)
+
+
+def test_problem_rejects_bad_input_with_typed_errors():
+    model = ck.AntagonisticJoint(**NOMINAL)
+    x = _x_m()
+    with pytest.raises(ck.ShapeError):
+        JointProblem(model, CHANNELS, [_run(x, np.zeros((len(x), 2)))], [])
+    with pytest.raises(ck.ParameterError, match="output"):
+        JointProblem(model, [(9, 1.0, True)], [_run(x, np.zeros((len(x), 1)))], [])
+    with pytest.raises(ck.ParameterError, match="weight"):
+        JointProblem(model, [(0, -1.0, True)], [_run(x, np.zeros((len(x), 1)))], [])
+    bad = x.copy()
+    bad[7] = np.nan
+    with pytest.raises(ck.NotFiniteError):
+        JointProblem(model, CHANNELS, [_run(bad)], [])
+    with pytest.raises(ck.ParameterError, match="coupled"):
+        JointProblem(model, CHANNELS, [_run(x)], ["coupling"])
+    with pytest.raises(ck.ParameterError, match="effect"):
+        JointProblem(model, CHANNELS, [_run(x)], ["friction"])
+    with pytest.raises(ck.DataError, match='no key "x_m"'):
+        JointProblem(model, CHANNELS, [{"dt": DT, "measured": np.zeros((3, 3))}], [])
+    p = _problem(["sensor_lag"])
+    with pytest.raises(ck.ShapeError):
+        p.predict(np.zeros(3), 0)
+    with pytest.raises(ck.ParameterError, match="run index"):
+        p.predict(np.zeros(1), 4)
+
+
+# ---- every candidate effect, injected alone, is recovered ---------------------------------------
+
+#: true parameters per effect (noise-free data from the augmented model itself) and the
+#: relative tolerance of the recovery
+RECOVERY = {
+    "coulomb_friction": ([3e-3, 0.1], 1e-3),
+    "viscous_friction": ([2e-4], 1e-3),
+    "stribeck_friction": ([1e-3, 2e-3, 0.3, 2.0], 2e-2),
+    "dahl_hysteresis": ([2e-3, 0.02], 1e-2),
+    "capstan_friction": ([0.2], 1e-4),
+    "nonlinear_stiffness": ([600.0], 1e-3),
+    "cable_damping": ([40.0], 1e-3),
+    "creep": ([0.2, 0.3], 1e-3),
+    "backlash": ([1e-4], 1e-3),
+    "slack": ([4.0], 1e-4),
+    "coupling": ([1e-3], 1e-4),
+    "sensor_lag": ([0.01], 1e-4),
+    "sensor_sampling": ([0.1, 0.04], 2e-2),
+    "time_delay": ([0.004], 1e-3),
+    "sensor_gain_bias": ([0.05, 0.3, -0.04, -0.2], 1e-4),
+    "inertia_error": ([2.0], 1e-2),
+}
+
+
+@pytest.mark.parametrize("effect", list(RECOVERY))
+def test_each_effect_is_recovered(effect):
+    truth, rtol = RECOVERY[effect]
+    gen = _problem([effect], substeps=8)
+    measured = gen.predict(np.array(truth), 0)
+    p = _problem([effect], measured=np.ascontiguousarray(measured), substeps=8)
+    res = p.fit()
+    got = res["params"]
+    if effect == "sensor_sampling":  # grid search: within a sample of the instants
+        assert abs(got[0] - truth[0]) < 0.02 * truth[0] and abs(got[1] - truth[1]) <= 0.1 / 12 + DT
+        return
+    np.testing.assert_allclose(got, truth, rtol=rtol, atol=1e-12)
+    assert res["cost"] <= 1e-6 * res["initial_cost"]
+
+
+# ---- diagnoses ------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def control_result():
+    case = make_case((), seed=11, duration=5.0)
+    return diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=400))
+
+
+def test_control_run_has_no_significant_gap(control_result):
+    assert control_result["verdict"] == "no_significant_gap"
+    assert control_result["selected"]["effects"] == []
+    assert control_result["gap"]["held_out"] < 1.15
+
+
+@pytest.fixture(scope="module")
+def lag_result():
+    case = make_case(("sensor_lag",), seed=5, duration=5.0)
+    return case, diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=400))
+
+
+def test_withheld_effect_is_named_and_closes_the_held_out_gap(lag_result):
+    case, res = lag_result
+    assert res["effects"][0]["name"] == "sensor_lag"
+    assert res["verdict"] == "explained"
+    assert res["selected"]["held_out"]["closed_fraction"] > 0.8
+    lo, hi = res["selected"]["held_out"]["interval"]
+    assert lo <= res["selected"]["held_out"]["closed_fraction"] <= hi
+    # the one-pole fit of a two-pole sensor (τ, τ/3) lands between τ and 4τ/3
+    tau = case.truth["effects"]["sensor_lag"]["tau_s"]
+    fitted = next(p for p in res["selected"]["parameters"] if p["name"] == "tau_s")["value"]
+    assert tau < fitted < 1.4 * tau
+
+
+def test_json_schema(lag_result, control_result, tmp_path):
+    for res in (lag_result[1], control_result):
+        doc = json.loads(json.dumps(to_json(res)))
+        validate(doc)
+        assert {e["name"] for e in doc["effects"]} <= {e["name"] for e in effect_catalogue()}
+        for e in doc["effects"]:
+            assert e["held_out"]["closed_fraction"] is None or e["held_out"]["closed_fraction"] <= 1.0
+    broken = to_json(control_result)
+    broken["verdict"] = "maybe"
+    with pytest.raises(ValueError, match="verdict"):
+        validate(broken)
+    broken = to_json(control_result)
+    del broken["effects"][0]["held_out"]
+    with pytest.raises(ValueError, match="held_out"):
+        validate(broken)
+
+
+def test_diagnose_needs_held_out_runs():
+    case = make_case((), seed=3, duration=3.0)
+    with pytest.raises(ck.DataError, match="held-out"):
+        diagnose(case.spec, case.fit, [], Options(progress=False))
+
+
+def test_residual_tests_separate_a_wrong_model_from_noise(control_result):
+    """Backlash: tension residuals depend on the input and loop against velocity; the control's
+    are white noise with ~no loop."""
+    case = make_case(("backlash",), seed=21, duration=5.0)
+    res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200, max_effects=1))
+    assert res["effects"][0]["name"] == "backlash"
+    ctrl = control_result["where"]["residual_tests"]
+    for ch in ("tension_motor_drive", "tension_motor_return"):
+        t = res["where"]["residual_tests"][ch]
+        assert t["reading"] == "depends on the input: the model is wrong"
+        assert ctrl[ch]["reading"] == "consistent with white measurement noise"
+        assert t["loop_area_velocity"] > 5 * ctrl[ch]["loop_area_velocity"]
