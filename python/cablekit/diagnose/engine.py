@@ -47,7 +47,7 @@ NOISE_LEVEL = 1.15
 MIN_CLOSED = 0.05
 #: RK4 substeps per sample a candidate may use; beyond, the stiff trial points diverge and the
 #: fit rejects them, which bounds e.g. how sharp a fitted friction sign can get
-MAX_SUBSTEPS = 32
+MAX_SUBSTEPS = 16
 
 
 @dataclass
@@ -55,9 +55,12 @@ class Options:
     """Knobs of the diagnosis (defaults are what the self-test and the docs use)."""
 
     max_effects: int = 3
+    #: iterations of the screening fits of later selection rounds, and how many are refined
+    screen_iter: int = 5
+    refine: int = 3
     bootstrap: int = 1000
     segment_s: float = 1.0
-    max_iter: int = 40
+    max_iter: int = 30
     workers: int = 0
     seed: int = 0
     progress: bool = True
@@ -418,14 +421,15 @@ def identifiability(
 
 
 def _pmap(
-    prep: Prepared, jobs: list[tuple[list[str], _F | None]], opts: Options, label: str
+    prep: Prepared, jobs: list[tuple[list[str], _F | None]], opts: Options, label: str, max_iter: int = 0
 ) -> list[CandidateFit]:
     workers = opts.workers or min(len(jobs), os.cpu_count() or 1)
     out: list[CandidateFit | None] = [None] * len(jobs)
     with Progress(len(jobs), label, enabled=opts.progress) as bar:
         with ThreadPoolExecutor(max_workers=max(1, workers)) as ex:
             futs = {
-                ex.submit(fit_candidate, prep, eff, th, opts.max_iter): i for i, (eff, th) in enumerate(jobs)
+                ex.submit(fit_candidate, prep, eff, th, max_iter or opts.max_iter): i
+                for i, (eff, th) in enumerate(jobs)
             }
             for f in as_completed(futs):
                 i = futs[f]
@@ -517,9 +521,14 @@ def diagnose(
             if round_ == 0:
                 trials = [fits[k] for k in pool[:1]]
             else:
+                # screen every remaining candidate with a few iterations from a warm start, then
+                # refine the most promising ones (by fit cost: held-out data stays for scoring)
                 others = [k for k in ranked if k not in chosen and not fits[k].error]
                 jobs = [([*chosen, k], _warm_start(prep, current_fit, [*chosen, k], fits[k])) for k in others]
-                trials = _pmap(prep, jobs, opts, f"round {round_ + 1}") if jobs else []
+                screened = _pmap(prep, jobs, opts, f"round {round_ + 1}", opts.screen_iter) if jobs else []
+                screened = sorted((c for c in screened if not c.error), key=lambda c: c.cost)[: opts.refine]
+                jobs = [(c.effects, c.params) for c in screened]
+                trials = _pmap(prep, jobs, opts, "  refine", opts.max_iter) if jobs else []
             best, best_cmp = None, None
             for t in trials:
                 if t.error:

@@ -458,7 +458,12 @@ impl JointProblem {
                 check::len("theta0", t, self.specs.len())?;
                 vec![t.to_vec()]
             }
-            None => self.best_starts(self.specs.iter().map(|s| s.initial).collect(), 2),
+            // two local searches for small problems, one for large ones (each LM iteration
+            // costs p + 1 simulations)
+            None => {
+                let keep = if self.specs.len() <= 2 { 2 } else { 1 };
+                self.best_starts(self.specs.iter().map(|s| s.initial).collect(), keep)
+            }
         };
         let mut best: Option<LmReport> = None;
         let mut last_err = None;
@@ -612,8 +617,8 @@ impl JointProblem {
     /// first run changes at fewer than half of its samples; `None` otherwise.
     ///
     /// The instants `t_j` are fitted by least squares to `phase + n_j·period`, with `n_j` the
-    /// update count from the median interval, so missed updates (a value that did not change)
-    /// do not bias the estimate.
+    /// update count accumulated from the intervals in units of the median interval, so missed
+    /// updates (a value that did not change) do not bias the estimate.
     pub fn hold_from_updates(&self) -> Option<(f64, f64)> {
         let c = self.channels.iter().position(|c| c.sensor)?;
         let run = &self.runs[0];
@@ -629,10 +634,12 @@ impl JointProblem {
         let mut gaps: Vec<f64> = events.windows(2).map(|w| w[1] - w[0]).collect();
         gaps.sort_by(f64::total_cmp);
         let p_est = gaps[gaps.len() / 2];
-        let n: Vec<f64> = events
-            .iter()
-            .map(|t| ((t - events[0]) / p_est).round())
-            .collect();
+        // update counts from the local intervals (a global (t − t₀)/p would drift by a whole
+        // period over a long run when p is only known to a sample)
+        let mut n = vec![0.0; events.len()];
+        for j in 1..events.len() {
+            n[j] = n[j - 1] + ((events[j] - events[j - 1]) / p_est).round().max(1.0);
+        }
         let m = events.len() as f64;
         let (sn, st) = (n.iter().sum::<f64>(), events.iter().sum::<f64>());
         let snn: f64 = n.iter().map(|v| v * v).sum();
