@@ -7,10 +7,14 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cablekit.errors import CablekitError, DataError
+
+if TYPE_CHECKING:
+    from cablekit.diagnose import ModelSpec, Run
 from cablekit.examples import EXAMPLES, run_example
 
 
@@ -81,8 +85,7 @@ def _write_example(directory: Path) -> tuple[Path, Path, Path]:
 
 
 def _diagnose(args: argparse.Namespace) -> int:
-    from cablekit.diagnose import Options, diagnose, load_model_spec, load_run
-    from cablekit.diagnose.report import write_html, write_json
+    from cablekit.diagnose import load_model_spec, load_run
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -97,6 +100,15 @@ def _diagnose(args: argparse.Namespace) -> int:
         (out / "self_test.json").write_text(json.dumps(res, indent=2, default=float))
         print(f"  wrote {out / 'self_test.txt'} and {out / 'self_test.json'}")
         return 0 if res["passed"] else 1
+    if args.davinci:
+        from cablekit.diagnose.davinci import CITATION, DEFAULT_SPLIT, describe, prepare_bench
+
+        spec, fit, hold = prepare_bench(args.davinci)
+        print(f"cablekit: da Vinci Maryland bench ({CITATION})")
+        sp = DEFAULT_SPLIT
+        print(f"  calibration runs {sp.calibration}, fit runs {sp.fit}, held out {sp.held_out}")
+        print(f"  {describe(spec)}")
+        return _run_diagnosis(spec, fit, hold, out, args, "da Vinci bench")
     if args.example:
         fit_paths, hold_paths, model_path = _write_example(out / "example")
         fit_paths, hold_paths = [fit_paths], [hold_paths]
@@ -117,9 +129,17 @@ def _diagnose(args: argparse.Namespace) -> int:
     spec = load_model_spec(model_path)
     fit = [load_run(p) for p in fit_paths]
     hold = [load_run(p) for p in hold_paths]
+    return _run_diagnosis(spec, fit, hold, out, args, str(model_path))
+
+
+def _run_diagnosis(
+    spec: ModelSpec, fit: list[Run], hold: list[Run], out: Path, args: argparse.Namespace, what: str
+) -> int:
+    from cablekit.diagnose import Options, diagnose
+    from cablekit.diagnose.report import write_html, write_json
+
     print(
-        f"cablekit: diagnosing {len(fit)} fit run(s) against {len(hold)} held-out run(s), model "
-        f"{model_path} ...",
+        f"cablekit: diagnosing {len(fit)} fit run(s) against {len(hold)} held-out run(s), model {what} ...",
         flush=True,
     )
     t0 = time.perf_counter()
@@ -173,6 +193,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--example", action="store_true", help="run on the embedded example")
     d.add_argument(
         "--self-test", action="store_true", help="score the diagnoser on generated runs with withheld effects"
+    )
+    d.add_argument(
+        "--davinci", metavar="DIR", help="diagnose the da Vinci Maryland bench data in DIR (real data)"
     )
     d.add_argument("--duration", type=float, default=8.0, help="self-test run length, s")
     d.add_argument("--seed", type=int, default=2026)

@@ -43,7 +43,9 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize) -> PyResult<core::JointR
     let d = obj.cast::<PyDict>().map_err(|_| {
         raise(
             "DataError",
-            format!("runs[{i}] must be a dict with keys dt, x_m, measured, coupled, start"),
+            format!(
+                "runs[{i}] must be a dict with keys dt, x_m, measured, coupled, external, start"
+            ),
             &[],
         )
     })?;
@@ -68,10 +70,14 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize) -> PyResult<core::JointR
             &[],
         ));
     }
-    let coupled = match d.get_item("coupled")? {
-        Some(c) if !c.is_none() => any_vector(&c, &format!("runs[{i}].coupled"))?,
-        _ => vec![],
+    let optional = |k: &str| -> PyResult<Vec<f64>> {
+        match d.get_item(k)? {
+            Some(c) if !c.is_none() => any_vector(&c, &format!("runs[{i}].{k}")),
+            _ => Ok(vec![]),
+        }
     };
+    let coupled = optional("coupled")?;
+    let external = optional("external")?;
     let start: usize = match d.get_item("start")? {
         Some(s) => s.extract()?,
         None => 0,
@@ -80,6 +86,7 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize) -> PyResult<core::JointR
         dt,
         x_m,
         coupled,
+        external,
         measured,
         start,
     })
@@ -91,9 +98,10 @@ fn effects_from(names: &[String]) -> PyResult<Vec<Effect>> {
 
 /// Grey-box least-squares problem of the antagonistic joint with a set of candidate effects.
 ///
-/// `channels` is a list of `(output_index, weight, is_force_sensor)`; `runs` a list of dicts
-/// with `dt` (s), `x_m` (T,) m, `measured` (T, q), optional `coupled` (T,) and `start` (first
-/// sample counted). Immutable; safe to use from several threads (calls release the GIL).
+/// `channels` is a list of `(output_index, weight, is_force_sensor)` with output indices of
+/// `[T_m1, T_m2, T_j1, T_j2, theta, contact_force, T_m1 - T_m2]`; `runs` a list of dicts with
+/// `dt` (s), `x_m` (T,) m, `measured` (T, q), optional `coupled` (T,), optional `external` (T,)
+/// joint torque in N·m, and `start` (first sample counted). Immutable; safe to use from several threads (calls release the GIL).
 #[pyclass(frozen, module = "cablekit._cablekit")]
 pub struct JointProblem {
     inner: core::JointProblem,

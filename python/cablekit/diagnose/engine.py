@@ -115,6 +115,8 @@ def _run_dict(spec: ModelSpec, run: Run, columns: list[str]) -> dict[str, Any]:
     }
     if spec.coupled:
         d["coupled"] = np.ascontiguousarray(run.column(spec.coupled))
+    if spec.external:
+        d["external"] = np.ascontiguousarray(run.column(spec.external))
     return d
 
 
@@ -150,7 +152,7 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     wanted = spec.effects or all_effects
     skipped: dict[str, str] = {}
     has_sensor = any(OUTPUTS[o][2] for o in names)
-    motor_tension = any(o.startswith("tension_motor") for o in names)
+    motor_tension = any(o.startswith("tension_motor") or o == "net_motor_force" for o in names)
     for e in all_effects:
         if e not in wanted:
             skipped[e] = "not in the model file's [diagnosis] effects"
@@ -338,6 +340,10 @@ def _bic(c: CandidateFit, n_eff: float) -> float:
 
 #: pairs of effects that look alike on some data, and the experiment that separates them
 SEPARATING = {
+    frozenset({"dahl_hysteresis", "stribeck_friction"}): (
+        "add small-amplitude motions (below the break-away angle) and steady sliding at several speeds: "
+        "Dahl shows pre-sliding stiffness, Stribeck friction falls with speed"
+    ),
     frozenset(
         {"sensor_lag", "time_delay"}
     ): "excite at several frequencies (a chirp): a delay's phase grows linearly with frequency, a "

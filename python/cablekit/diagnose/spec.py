@@ -15,6 +15,7 @@
     [inputs]
     x_m = "x_m"                         # run column: motor displacement at the capstan (m)
     coupled = "x_c"                     # optional: a coupled axis (any unit)
+    external = "tau_load"               # optional: external joint torque (N·m, along θ)
 
     [outputs]                           # model output = run column
     tension_motor_drive = "T_drive"     # N
@@ -28,8 +29,9 @@
 
 Outputs of the antagonistic joint: ``tension_motor_drive``, ``tension_motor_return``,
 ``tension_joint_drive``, ``tension_joint_return`` (N, force sensors), ``theta`` (rad, encoder),
-``contact_force`` (N, force sensor). Sensor-side effects (lag, sampling, gain/bias) act on force
-sensors only.
+``contact_force`` (N, force sensor), ``net_motor_force`` (N, ``T_m,drive − T_m,return``: a
+spindle torque sensor's reading divided by the capstan radius). Sensor-side effects (lag,
+sampling, gain/bias) act on force sensors only.
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ OUTPUTS: dict[str, tuple[int, str, bool]] = {
     "tension_joint_return": (3, "N", True),
     "theta": (4, "rad", False),
     "contact_force": (5, "N", True),
+    "net_motor_force": (6, "N", True),
 }
 
 MODELS = ("antagonistic_joint",)
@@ -65,6 +68,7 @@ class ModelSpec:
     parameters: dict[str, Any]
     x_m: str
     coupled: str | None
+    external: str | None
     outputs: list[tuple[str, str]]
     warmup: float = 0.2
     substeps: int = 0
@@ -94,7 +98,9 @@ class ModelSpec:
         return {
             "model": self.kind,
             "parameters": dict(self.parameters),
-            "inputs": {"x_m": self.x_m, **({"coupled": self.coupled} if self.coupled else {})},
+            "inputs": {"x_m": self.x_m}
+            | ({"coupled": self.coupled} if self.coupled else {})
+            | ({"external": self.external} if self.external else {}),
             "outputs": dict(self.outputs),
             "diagnosis": {"warmup": self.warmup, "substeps": self.substeps}
             | ({"effects": self.effects} if self.effects else {}),
@@ -124,9 +130,11 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
     inputs = doc["inputs"]
     if "x_m" not in inputs:
         raise DataError(f"{source}: [inputs] needs x_m = <column of the motor displacement, m>")
-    unknown = set(inputs) - {"x_m", "coupled"}
+    unknown = set(inputs) - {"x_m", "coupled", "external"}
     if unknown:
-        raise DataError(f"{source}: [inputs] has unknown keys {sorted(unknown)}; allowed: x_m, coupled")
+        raise DataError(
+            f"{source}: [inputs] has unknown keys {sorted(unknown)}; allowed: x_m, coupled, external"
+        )
     outputs = []
     for out, col in doc["outputs"].items():
         if out not in OUTPUTS:
@@ -148,6 +156,7 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
         parameters=dict(doc["parameters"]),
         x_m=inputs["x_m"],
         coupled=inputs.get("coupled"),
+        external=inputs.get("external"),
         outputs=outputs,
         warmup=float(diag.get("warmup", 0.2)),
         substeps=int(diag.get("substeps", 0)),

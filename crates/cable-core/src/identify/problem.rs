@@ -25,12 +25,49 @@ use super::lm::{least_squares, LmOptions, LmReport};
 use super::signal;
 
 /// Number of outputs of the antagonistic joint.
-const N_OUT: usize = 6;
+const N_OUT: usize = 7;
+
+/// The antagonistic joint as the diagnosis simulates it: a recorded external joint torque
+/// `τ_ext` (N·m, positive along `θ`) as a third input, and the net motor-side cable force
+/// `T_m,1 − T_m,2` (N; times the capstan radius it is the drive torque a spindle sensor
+/// measures) as a seventh output.
+struct LoadedJoint<'a>(&'a AntagonisticJoint);
+
+impl Model for LoadedJoint<'_> {
+    fn n_states(&self) -> usize {
+        self.0.n_states()
+    }
+    fn n_inputs(&self) -> usize {
+        3
+    }
+    fn n_outputs(&self) -> usize {
+        N_OUT
+    }
+    fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
+        self.0.derivative(x, &u[..2], dx);
+        dx[1] += u[2] / self.0.inertia;
+    }
+    fn output(&self, x: &[f64], u: &[f64], y: &mut [f64]) {
+        self.0.output(x, &u[..2], &mut y[..6]);
+        y[6] = y[0] - y[1];
+    }
+    fn state_names(&self) -> Vec<String> {
+        self.0.state_names()
+    }
+    fn input_names(&self) -> Vec<String> {
+        vec!["x_m".into(), "dx_m".into(), "tau_ext".into()]
+    }
+    fn output_names(&self) -> Vec<String> {
+        let mut v = self.0.output_names();
+        v.push("net_motor_force".into());
+        v
+    }
+}
 
 /// One measured channel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Channel {
-    /// Index into the model outputs `[T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c]`.
+    /// Index into the outputs `[T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c, T_m,1 − T_m,2]`.
     pub output: usize,
     /// Residual weight (1 / noise standard deviation), > 0.
     pub weight: f64,
@@ -48,6 +85,8 @@ pub struct JointRun {
     pub x_m: Vec<f64>,
     /// Coupled-axis signal, length `T`, or empty.
     pub coupled: Vec<f64>,
+    /// External joint torque (N·m), length `T`, or empty (none).
+    pub external: Vec<f64>,
     /// Measured channels, row-major `(T, q)`.
     pub measured: Vec<f64>,
     /// First sample that counts in the residual.
@@ -118,7 +157,7 @@ impl JointProblem {
                 return Err(CableError::InvalidParameter {
                     name: format!("channels[{i}].output"),
                     value: c.output as f64,
-                    requirement: "an output index of the antagonistic joint (0..6)",
+                    requirement: "an output index of the antagonistic joint (0..7)",
                 });
             }
             check::positive(&format!("channels[{i}].weight"), c.weight)?;
@@ -130,15 +169,22 @@ impl JointProblem {
         for (i, r) in runs.iter().enumerate() {
             check::positive(&format!("runs[{i}].dt"), r.dt)?;
             let t = r.len();
-            if t < 4 || r.measured.len() != t * q || !(r.coupled.is_empty() || r.coupled.len() == t)
+            let optional_ok = |v: &Vec<f64>| v.is_empty() || v.len() == t;
+            if t < 4
+                || r.measured.len() != t * q
+                || !optional_ok(&r.coupled)
+                || !optional_ok(&r.external)
             {
                 return Err(CableError::Shape {
                     what: format!("runs[{i}]"),
-                    expected: format!("x_m (T >= 4), measured (T, {q}), coupled (T) or empty"),
+                    expected: format!(
+                        "x_m (T >= 4), measured (T, {q}), coupled and external (T) or empty"
+                    ),
                     got: format!(
-                        "x_m {t}, measured {} values, coupled {}",
+                        "x_m {t}, measured {} values, coupled {}, external {}",
                         r.measured.len(),
-                        r.coupled.len()
+                        r.coupled.len(),
+                        r.external.len()
                     ),
                 });
             }
@@ -152,6 +198,7 @@ impl JointProblem {
             check::all_finite(&format!("runs[{i}].x_m"), &r.x_m, 1)?;
             check::all_finite(&format!("runs[{i}].measured"), &r.measured, q)?;
             check::all_finite(&format!("runs[{i}].coupled"), &r.coupled, 1)?;
+            check::all_finite(&format!("runs[{i}].external"), &r.external, 1)?;
             if effects.contains(&Effect::Coupling) && r.coupled.is_empty() {
                 return Err(CableError::InvalidOption {
                     name: format!("runs[{i}].coupled"),
@@ -324,7 +371,7 @@ impl JointProblem {
         self.channels.iter().filter(|c| c.sensor).count()
     }
 
-    /// Recorded input after the input stage: `(T, 2)` row-major `[x, ẋ]`.
+    /// Recorded input after the input stage: `(T, 3)` row-major `[x, ẋ, τ_ext]`.
     fn inputs(&self, a: &Augmented, run: &JointRun) -> Vec<f64> {
         let t = run.len();
         let mut x: Vec<f64> = if a.coupling != 0.0 {
@@ -346,16 +393,20 @@ impl JointProblem {
             std::mem::swap(&mut x, &mut tmp);
         }
         signal::velocity(&x, run.dt, &mut tmp);
-        x.iter().zip(&tmp).flat_map(|(p, v)| [*p, *v]).collect()
+        (0..t)
+            .flat_map(|k| [x[k], tmp[k], run.external.get(k).copied().unwrap_or(0.0)])
+            .collect()
     }
 
-    /// Plant outputs `(T, 6)` of run `i` for `a` (before the sensor stage).
+    /// Plant outputs `(T, 7)` of run `i` for `a` (before the sensor stage):
+    /// `[T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c, T_m,1 − T_m,2]`.
     pub fn plant_outputs(&self, a: &Augmented, i: usize) -> Result<Vec<f64>> {
         let run = &self.runs[i];
         let u = self.inputs(a, run);
-        let model = &a.model;
+        let joint = &a.model;
+        let model = &LoadedJoint(joint);
         let mut x0 = vec![0.0; model.n_states()];
-        x0[0] = u[0] / model.radius;
+        x0[0] = u[0] / joint.radius;
         let t = run.len();
         let mut states = vec![0.0; t * model.n_states()];
         let mut outputs = vec![0.0; t * N_OUT];
@@ -764,6 +815,7 @@ mod tests {
             dt,
             x_m,
             coupled: vec![],
+            external: vec![],
             measured: vec![0.0; t_len * 3],
             start: 50,
         }
@@ -834,6 +886,30 @@ mod tests {
         let (period, phase) = p.grid_sample_hold(&p.reference()).unwrap();
         assert!((period - 0.1).abs() < 0.01, "period {period}");
         assert!((phase - 0.04).abs() <= 0.1 / 12.0 + 1e-3, "phase {phase}");
+    }
+
+    #[test]
+    fn external_torque_is_balanced_by_the_net_cable_force() {
+        // held motor, constant load: at rest r·(T_j1 − T_j2) + τ = 0, and without capstan
+        // losses the net motor-side force equals the joint-side one
+        let tau = 2e-3;
+        let t_len = 3000;
+        let chans = vec![Channel {
+            output: 6,
+            weight: 1.0,
+            sensor: true,
+        }];
+        let r = JointRun {
+            dt: 1e-3,
+            x_m: vec![1e-4; t_len],
+            coupled: vec![],
+            external: vec![tau; t_len],
+            measured: vec![0.0; t_len],
+            start: 0,
+        };
+        let p = JointProblem::new(nominal(), chans, vec![r], vec![], 4).unwrap();
+        let y = p.predict(&[], 0).unwrap();
+        assert_relative_eq!(y[t_len - 1], -tau / nominal().radius, max_relative = 1e-6);
     }
 
     #[test]

@@ -1,0 +1,188 @@
+"""The da Vinci Maryland forceps bench (O'Neill, Stephens, Kowalewski, RA-L 2018; data ODbL 1.0,
+contents DbCL 1.0, from github.com/MRDLab/mis-tool-characterization): raw files → SI runs, a
+nominal model calibrated on some conditions, and the diagnosis on others.
+
+The files are **never copied into the project**; they are read from wherever the user keeps
+them (``../shared/data/davinci-maryland-bench`` in our CI).
+
+Bench: a back-end motor drives the instrument's input spindle (a ±30° sine at 0.1–0.5 Hz); the
+spindle's cables close and open one jaw, which a front-end motor loads with a resistive torque
+(10–40 %). Mapping onto the antagonistic joint:
+
+* ``x_m = r_s·(θ_s − θ_s(0))`` with the spindle angle ``θ_s`` (CUI encoder, 8192 counts/rev)
+  and an assumed spindle capstan radius ``r_s`` (only ratios are observable from angles and
+  torques; 4 mm is assumed, which fixes the unit of forces);
+* ``theta = −(θ_j − θ_j,ref)`` with the jaw angle ``θ_j`` (Maxon encoder, 4000 counts/rev; the
+  reference is the calibration run's first sample, for every run): the jaw closes as the spindle
+  turns positive;
+* ``net_motor_force = −τ_s / r_s`` with the spindle torque ``τ_s`` (Futek, 3.9811e-5 N·m/count;
+  its sign convention is opposite to the spindle angle, seen from the direction-dependent
+  friction);
+* ``tau_load = −τ_j`` with the jaw torque ``τ_j`` (Futek): the measured torque between the jaw
+  and the front-end motor enters the joint as an external torque.
+"""
+
+from __future__ import annotations
+
+import gzip
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cablekit.diagnose.data import Run
+from cablekit.diagnose.spec import ModelSpec, model_spec_from_dict
+from cablekit.errors import DataError
+
+__all__ = ["CITATION", "DEFAULT_SPLIT", "BenchSplit", "calibrate", "load_bench_run"]
+
+CITATION = (
+    "J. O'Neill, T. Stephens, T. Kowalewski, 'Evaluation of Torque Measurement Surrogates as Applied to "
+    "Grip Torque and Jaw Angle Estimation of Robotic Surgical Tools', IEEE RA-L 3(4):3027-3034, 2018; "
+    "data: MRDLab/mis-tool-characterization (ODbL 1.0 / DbCL 1.0)"
+)
+
+SPINDLE_RADIUS = 4e-3  # m, assumed (see module docs)
+CUI_COUNTS = 8192.0
+MAXON_COUNTS = 4000.0
+FUTEK_NM = 3.9811e-5
+FREQS = (0.1, 0.2, 0.3, 0.4, 0.5)
+LOADS = (10, 20, 30, 40)
+
+
+def load_bench_run(path: str | Path, jaw_reference: float | None = None) -> Run:
+    """One ``XY.TXT.gz`` file → a run with ``t``, ``x_m`` (m), ``theta`` (rad), ``net_motor_force``
+    (N), ``tau_load`` (N·m) and the raw SI signals ``spindle_angle``, ``spindle_torque``,
+    ``jaw_angle``, ``jaw_torque``. ``jaw_reference`` (rad, raw encoder angle) is the jaw angle
+    taken as ``theta = 0``; by default the run's first sample. The spindle encoder is zeroed at
+    the start of every run by the bench; the jaw encoder is not, so one reference for all runs
+    keeps their jaw angles comparable."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: no such bench file")
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt") as fh:  # type: ignore[operator]
+        d = np.loadtxt(fh, comments="%", delimiter=",")
+    if d.ndim != 2 or d.shape[1] < 6:
+        raise DataError(f"{path}: expected >= 6 comma-separated columns, got shape {d.shape}")
+    t = d[:, 0] - d[0, 0]
+    keep = np.concatenate([[True], np.diff(t) > 0])
+    d, t = d[keep], t[keep]
+    th_s = d[:, 1] * 2 * np.pi / CUI_COUNTS
+    tau_s = d[:, 2] * FUTEK_NM
+    th_j = d[:, 4] * 2 * np.pi / MAXON_COUNTS
+    tau_j = d[:, 5] * FUTEK_NM
+    cols = {
+        "x_m": SPINDLE_RADIUS * (th_s - th_s[0]),
+        "theta": -(th_j - (th_j[0] if jaw_reference is None else jaw_reference)),
+        "net_motor_force": -tau_s / SPINDLE_RADIUS,
+        "tau_load": -tau_j,
+        "spindle_angle": th_s,
+        "spindle_torque": tau_s,
+        "jaw_angle": th_j,
+        "jaw_torque": tau_j,
+    }
+    name = path.name.split(".")[0]
+    notes = [] if keep.all() else [f"removed {int((~keep).sum())} rows with non-increasing time"]
+    if len(name) == 2 and name.isdigit():
+        notes.append(f"{FREQS[int(name[0])]} Hz, {LOADS[int(name[1])]} % resistive torque")
+    return Run(name, t, {k: np.ascontiguousarray(v) for k, v in cols.items()}, notes)
+
+
+def calibrate(runs: list[Run], warmup: float = 1.0) -> dict[str, Any]:
+    """Nominal parameters from calibration runs by linear regressions (the "nominal model a user
+    would build"): transmission ratio from the angles, then a linear elastic cable and viscous
+    joint friction from the quasi-static balance ``ΔT = 2k·s`` and ``r·ΔT = b·θ̇ − τ_load``.
+    No dry friction, hysteresis or losses: finding those is the diagnosis' job."""
+    th = np.concatenate([r.column("theta")[int(warmup / r.dt) :] for r in runs])
+    xm = np.concatenate([r.column("x_m")[int(warmup / r.dt) :] for r in runs])
+    f = np.concatenate([r.column("net_motor_force")[int(warmup / r.dt) :] for r in runs])
+    load = np.concatenate([r.column("tau_load")[int(warmup / r.dt) :] for r in runs])
+    w = np.concatenate([np.gradient(r.column("theta"), r.dt)[int(warmup / r.dt) :] for r in runs])
+    # θ = x_m / r + c: ratio
+    a = np.linalg.lstsq(np.column_stack([xm, np.ones_like(xm)]), th, rcond=None)[0]
+    radius = 1.0 / a[0]
+    # quasi-static joint balance: r·F = b·θ̇ − τ_load + c  → b
+    m = np.column_stack([w / radius, -load / radius, np.ones_like(w)])
+    coef = np.linalg.lstsq(m, f, rcond=None)[0]
+    viscous = max(coef[0], 0.0)
+    # cable: F = 2k·s with s = x_m − r·θ (both cables taut)
+    s = xm - radius * th
+    k2 = np.linalg.lstsq(np.column_stack([s, np.ones_like(s)]), f, rcond=None)[0][0]
+    stiffness = max(k2 / 2.0, 1e3)
+    params = {
+        "radius": float(radius),
+        "stiffness": float(stiffness),
+        "inertia": 1e-5,
+        "damping": 0.0,
+        "pretension": 20.0,
+        "viscous": float(viscous),
+        "smoothing": 0.05,
+    }
+    return params
+
+
+@dataclass
+class BenchSplit:
+    """Which bench files calibrate the nominal, which the diagnosis fits, which it holds out."""
+
+    calibration: tuple[str, ...]
+    fit: tuple[str, ...]
+    held_out: tuple[str, ...]
+
+
+#: calibrate at the slowest, lightest condition; fit at middle frequencies and loads; hold out the
+#: fastest frequency at the heaviest and the lightest load (new frequency and new load)
+DEFAULT_SPLIT = BenchSplit(calibration=("00",), fit=("11", "22"), held_out=("43", "40"))
+
+
+def bench_spec(params: dict[str, Any], warmup: float = 1.0) -> ModelSpec:
+    return model_spec_from_dict(
+        {
+            "model": "antagonistic_joint",
+            "parameters": params,
+            "inputs": {"x_m": "x_m", "external": "tau_load"},
+            "outputs": {"net_motor_force": "net_motor_force", "theta": "theta"},
+            "diagnosis": {"warmup": warmup},
+        },
+        source="da Vinci Maryland bench (calibrated nominal)",
+    )
+
+
+def prepare_bench(
+    directory: str | Path, split: BenchSplit = DEFAULT_SPLIT, decimate: int = 1
+) -> tuple[ModelSpec, list[Run], list[Run]]:
+    """Load the split, calibrate the nominal on its calibration runs, return (spec, fit, held-out)."""
+    directory = Path(directory)
+    sub = directory / "tool4_load_sweep" if (directory / "tool4_load_sweep").is_dir() else directory
+
+    first = load_bench_run(sub / f"{split.calibration[0]}.TXT.gz")
+    jaw_ref = float(first.column("jaw_angle")[0])
+
+    def load(name: str) -> Run:
+        run = load_bench_run(sub / f"{name}.TXT.gz", jaw_reference=jaw_ref)
+        if decimate > 1:
+            run = Run(
+                run.name,
+                run.t[::decimate],
+                {k: v[::decimate].copy() for k, v in run.columns.items()},
+                run.notes,
+            )
+        return run
+
+    cal = [load(n) for n in split.calibration]
+    params = calibrate(cal)
+    spec = bench_spec(params)
+    return spec, [load(n) for n in split.fit], [load(n) for n in split.held_out]
+
+
+def describe(spec: ModelSpec) -> str:
+    p = spec.parameters
+    return (
+        f"nominal (calibrated): joint radius {p['radius'] * 1e3:.3f} mm "
+        f"(spindle {SPINDLE_RADIUS * 1e3:g} mm, "
+        f"ratio {SPINDLE_RADIUS / p['radius']:.3f}), cable stiffness {p['stiffness']:.4g} N/m, "
+        f"viscous {p['viscous']:.3g} N·m·s/rad, pretension {p['pretension']:g} N (assumed), "
+        f"inertia {p['inertia']:g} kg·m² (assumed)"
+    )

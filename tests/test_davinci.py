@@ -1,0 +1,58 @@
+"""The da Vinci Maryland bench loader and calibration on the real files (read from
+``../shared/data/davinci-maryland-bench`` or ``$CABLEKIT_DAVINCI_DATA``; never copied here)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import cablekit as ck
+from cablekit.diagnose.davinci import SPINDLE_RADIUS, calibrate, load_bench_run, prepare_bench
+
+
+def _data_dir() -> Path:
+    env = os.environ.get("CABLEKIT_DAVINCI_DATA")
+    here = Path(__file__).resolve().parents[1]
+    for cand in ([Path(env)] if env else []) + [here.parent / "shared" / "data" / "davinci-maryland-bench"]:
+        if (cand / "tool4_load_sweep").is_dir():
+            return cand
+    pytest.skip("da Vinci bench data not found (set CABLEKIT_DAVINCI_DATA)")
+
+
+def test_bench_file_converts_to_si_units():
+    run = load_bench_run(_data_dir() / "tool4_load_sweep" / "00.TXT.gz")
+    assert run.dt == pytest.approx(1e-3, rel=1e-6)
+    assert 19.0 < run.duration < 20.5
+    # a ±30° spindle sine: 60° peak to peak (8192 counts/rev)
+    assert np.ptp(run.column("spindle_angle")) == pytest.approx(np.deg2rad(60.0), rel=0.05)
+    np.testing.assert_allclose(
+        run.column("x_m"), SPINDLE_RADIUS * (run.column("spindle_angle") - run.column("spindle_angle")[0])
+    )
+    # jaw torque at 10 % load: a few hundredths of a N·m (3.9811e-5 N·m/count)
+    assert 0.005 < np.mean(np.abs(run.column("jaw_torque"))) < 0.05
+    assert run.notes[-1] == "0.1 Hz, 10 % resistive torque"
+
+
+def test_calibrated_nominal_has_the_instrument_ratio():
+    run = load_bench_run(_data_dir() / "tool4_load_sweep" / "00.TXT.gz")
+    p = calibrate([run])
+    ratio = SPINDLE_RADIUS / p["radius"]  # jaw rad per spindle rad
+    assert 0.85 < ratio < 0.93
+    assert p["stiffness"] > 1e3 and p["viscous"] >= 0.0
+    ck.AntagonisticJoint(**p)  # a valid model
+
+
+def test_split_holds_out_new_frequencies_and_loads():
+    spec, fit, hold = prepare_bench(_data_dir(), decimate=10)
+    assert [r.name for r in fit] == ["11", "22"] and [r.name for r in hold] == ["43", "40"]
+    assert spec.external == "tau_load"
+    fit_conditions = {r.notes[-1] for r in fit}
+    assert not fit_conditions & {r.notes[-1] for r in hold}
+
+
+def test_missing_bench_file_is_a_data_error(tmp_path):
+    with pytest.raises(ck.DataError, match="no such bench file"):
+        load_bench_run(tmp_path / "99.TXT.gz")
