@@ -353,6 +353,16 @@ def control_result():
     return diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=400))
 
 
+def test_contact_is_a_localisation_condition(control_result):
+    """The self-test jaw closes on an object: in-contact and free samples split the record."""
+    rows = {
+        c["condition"]: c for c in control_result["where"]["conditions_held_out"] if c["family"] == "contact"
+    }
+    assert set(rows) == {"in contact", "free"}
+    assert rows["in contact"]["time_share"] + rows["free"]["time_share"] == pytest.approx(1.0)
+    assert 0.05 < rows["in contact"]["time_share"] < 0.95
+
+
 def test_control_run_has_no_significant_gap(control_result):
     assert control_result["verdict"] == "no_significant_gap"
     assert control_result["selected"]["effects"] == []

@@ -544,11 +544,11 @@ def diagnose(
                     best, best_cmp = t, cmp_
             if best is None or best_cmp is None or not best_cmp["significant"]:
                 break
-            # practical significance: a real share of the original gap, or of a remainder that
-            # is still well above the noise (a small second effect behind a large first one)
+            # practical significance: a real share of the original gap, or most of a remainder
+            # that is still above the noise (a small second effect behind a large first one)
             g_cur, g_new = gap(current.hold_resid), gap(best.hold_resid)
             big_vs_original = g_cur - g_new >= MIN_CLOSED * (g_hold - 1.0)
-            big_vs_remainder = g_cur > 2.0 * NOISE_LEVEL and g_cur - g_new >= 0.3 * (g_cur - 1.0)
+            big_vs_remainder = g_cur > NOISE_LEVEL and g_cur - g_new >= 0.5 * (g_cur - 1.0)
             if not (big_vs_original or big_vs_remainder):
                 break
             added = [e for e in best.effects if e not in chosen]
@@ -705,6 +705,18 @@ def _warm_start(prep: Prepared, current: CandidateFit, effects: list[str], singl
     return np.array([have.get((s["effect"], s["name"]), s["initial"]) for s in specs])
 
 
+def _nominal_contact(prep: Prepared, runs: list[Run]) -> list[NDArray[np.bool_]] | None:
+    """Per run, where the nominal model is in contact (contact force > 0); None without contact."""
+    if "contact_angle" not in prep.spec.parameters:
+        return None
+    model = prep.spec.model()
+    dicts = [_run_dict(prep.spec, r, prep.columns) for r in runs]
+    for d in dicts:
+        d["measured"] = np.zeros((len(d["x_m"]), 1))
+    probe = JointProblem(model, [(OUTPUTS["contact_force"][0], 1.0, True)], dicts, [], prep.substeps)
+    return [probe.predict(np.zeros(0), i)[:, 0] > 0.0 for i in range(len(runs))]
+
+
 def localise_all(prep: Prepared, base: CandidateFit) -> dict[str, Any]:
     """Conditions, whiteness, cross-correlation and loops of the nominal residual."""
     out: dict[str, Any] = {}
@@ -714,7 +726,8 @@ def localise_all(prep: Prepared, base: CandidateFit) -> dict[str, Any]:
     ):
         masks = []
         energies = []
-        for run, r in zip(runs, resid, strict=False):
+        contact = _nominal_contact(prep, runs)
+        for i, (run, r) in enumerate(zip(runs, resid, strict=False)):
             start = round(prep.spec.warmup / run.dt)
             x = run.column(prep.spec.x_m)[start:]
             t = run.t[start:]
@@ -726,7 +739,9 @@ def localise_all(prep: Prepared, base: CandidateFit) -> dict[str, Any]:
                 if sensors
                 else np.abs(x)
             )
-            masks.append(localise.condition_masks(t, x, run.dt, load))
+            masks.append(
+                localise.condition_masks(t, x, run.dt, load, None if contact is None else contact[i][start:])
+            )
             energies.append(np.sum(r * r, axis=1))
         table = localise.conditions_table(energies, masks)
         out[f"conditions_{label}"] = [c.to_dict() for c in table]
