@@ -4,6 +4,7 @@ references, recovery of every candidate effect, controls, JSON schema and the CL
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -423,3 +424,31 @@ def test_residual_tests_separate_a_wrong_model_from_noise(control_result):
         assert t["reading"] == "depends on the input: the model is wrong"
         assert ctrl[ch]["reading"] == "consistent with white measurement noise"
         assert t["loop_area_velocity"] > 5 * ctrl[ch]["loop_area_velocity"]
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    n=st.integers(10, 60),
+    bad_row=st.integers(0, 59),
+    bad_col=st.sampled_from(["x_m", "T"]),
+    bad=st.sampled_from([math.nan, math.inf, -math.inf]),
+)
+def test_any_non_finite_cell_is_named(n, bad_row, bad_col, bad):
+    """Property: whichever cell holds NaN/inf, the loader names its column and row."""
+    bad_row = bad_row % n
+    data = np.column_stack([np.arange(n) * 1e-3, np.linspace(0, 1e-3, n), np.full(n, 5.0)])
+    data[bad_row, ["t", "x_m", "T"].index(bad_col)] = bad
+    with pytest.raises(ck.DataError, match=f"column '{bad_col}' at data row {bad_row + 1}"):
+        from_arrays("r", ["t", "x_m", "T"], data)
+
+
+@settings(max_examples=25, deadline=None)
+@given(t_len=st.integers(4, 200), q=st.integers(1, 3), extra=st.integers(-2, 2).filter(lambda v: v != 0))
+def test_problem_shapes_are_checked(t_len, q, extra):
+    """Property: measured arrays whose size is not (T, q) are ShapeErrors, never a panic."""
+    model = ck.AntagonisticJoint(**NOMINAL)
+    x = np.zeros(t_len)
+    measured = np.zeros(t_len * q + extra) if t_len * q + extra > 0 else np.zeros(1)
+    chans = CHANNELS[:q]
+    with pytest.raises(ck.ShapeError):
+        JointProblem(model, chans, [{"dt": DT, "x_m": x, "measured": measured}], [])

@@ -12,6 +12,8 @@ Tolerances (stated once, used everywhere):
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
@@ -232,7 +234,10 @@ def test_antagonistic_one_second_trajectory(data):
     dt = 1e-3
     r = p["radius"]
     n = ref.n_states
-    probe = [np.r_[a, np.zeros(n - 1)] for a in (-0.5, 0.0, 0.5)]
+    # probe at rest and at the fastest the joint can swing (released from 1 rad off its cables'
+    # equilibrium): velocity-dependent stiffness (Dahl: σ₀|θ̇|/F_d) is invisible at rest
+    omega = math.sqrt((p["stiffness"] + p["stiffness_return"]) * r * r / p["inertia"])
+    probe = [np.r_[a, v, np.zeros(n - 2)] for a in (-0.5, 0.0, 0.5) for v in (0.0, omega, -omega)]
     substeps = max(
         ck.propose_step(model, dt, x, np.array([r * x[0], 0.0]), safety=0.5).substeps for x in probe
     )
