@@ -234,13 +234,9 @@ def fit_candidate(
             error=f"{type(exc).__name__}: {exc}",
         )
     r_fit = res["residuals"]
-    m, p = len(r_fit), len(theta)
-    jac = res["jacobian"]
-    s2 = 2.0 * res["cost"] / max(1, m - p)
-    tau = _integrated_time(r_fit[:: prep.q]) if m else 1.0
+    p = len(theta)
     try:
-        cov = s2 * tau * np.linalg.pinv(jac.T @ jac)
-        sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        sd = np.sqrt(np.clip(np.diag(_sandwich(prep, res["jacobian"], r_fit)), 0.0, None))
     except np.linalg.LinAlgError:
         sd = np.full(p, np.nan)
     for j, s in enumerate(specs):
@@ -258,6 +254,25 @@ def fit_candidate(
         sd,
         int(res["iterations"]),
     )
+
+
+def _sandwich(prep: Prepared, jac: _F, r: _F, seconds: float = 1.0) -> _F:
+    """Parameter covariance robust to autocorrelation and to a model that is still wrong: the
+    cluster (segment) sandwich ``B·(Σ_s g_s g_sᵀ)·B`` with ``B = (JᵀJ)⁺`` and the score
+    ``g_s = J_sᵀ r_s`` of each ~1 s segment of the fit runs (Huber–White with segments as
+    clusters). With the model right and white residuals it reduces to ``σ²(JᵀJ)⁻¹``."""
+    bread = np.linalg.pinv(jac.T @ jac)
+    meat = np.zeros_like(bread)
+    off = 0
+    for run in prep.fit_runs:
+        rows = (len(run) - round(prep.spec.warmup / run.dt)) * prep.q
+        seg = max(prep.q, round(seconds / run.dt) * prep.q)
+        for a in range(off, off + rows, seg):
+            b = min(a + seg, off + rows)
+            g = jac[a:b].T @ r[a:b]
+            meat += np.outer(g, g)
+        off += rows
+    return bread @ meat @ bread
 
 
 def baseline(prep: Prepared) -> CandidateFit:
