@@ -50,7 +50,7 @@ def test_calibrated_nominal_has_the_instrument_ratio():
 def test_split_holds_out_new_frequencies_and_loads():
     spec, fit, hold = prepare_bench(_data_dir(), decimate=10)
     assert [r.name for r in fit] == ["11", "22"] and [r.name for r in hold] == ["43", "40"]
-    assert spec.external == "tau_load"
+    assert spec.external == ["tau_load"]
     fit_conditions = {r.notes[-1] for r in fit}
     assert not fit_conditions & {r.notes[-1] for r in hold}
 

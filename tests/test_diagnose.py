@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 import cablekit as ck
 from cablekit._cablekit import JointProblem, effect_catalogue
 from cablekit.diagnose import Options, diagnose, load_model_spec, load_run, model_spec_from_dict
-from cablekit.diagnose.data import check_units, from_arrays
+from cablekit.diagnose.data import Run, check_units, from_arrays
 from cablekit.diagnose.report import to_json, validate
 from cablekit.diagnose.selftest import make_case
 from tests.reference import signal as sig
@@ -452,3 +452,69 @@ def test_problem_shapes_are_checked(t_len, q, extra):
     chans = CHANNELS[:q]
     with pytest.raises(ck.ShapeError):
         JointProblem(model, chans, [{"dt": DT, "x_m": x, "measured": measured}], [])
+
+
+# ---- the cable transmission as a diagnosis model ------------------------------------------------
+
+TX_DOC = {
+    "model": "cable_transmission",
+    "parameters": {"preset": "raven2", "links": 2},
+    "inputs": {"tau_m": ["tau1", "tau2"]},
+    "outputs": {"q_m1": "qm1", "q_l1": "ql1", "q_m2": "qm2", "q_l2": "ql2"},
+    "diagnosis": {"warmup": 0.05},
+}
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"inputs": {"tau": ["a"]}}, "needs tau_m"),
+        ({"inputs": {"tau_m": ["a", "b"], "external": ["e"]}}, "one column per link"),
+        ({"outputs": {"q_m3": "x"}}, "is not an output"),
+        ({"parameters": {"preset": "davinci", "links": 2}}, "preset"),
+    ],
+)
+def test_bad_transmission_model_files(change, message):
+    with pytest.raises(ck.DataError, match=message):
+        model_spec_from_dict(TX_DOC | change)
+
+
+def _tx_run(name: str, problem: JointProblem, theta: np.ndarray, tau: np.ndarray) -> Run:
+    y = problem.predict(theta, 0)
+    t = np.arange(len(tau)) * DT
+    cols = {
+        "tau1": tau[:, 0],
+        "tau2": tau[:, 1],
+        "qm1": y[:, 0],
+        "ql1": y[:, 1],
+        "qm2": y[:, 2],
+        "ql2": y[:, 3],
+    }
+    return Run(name, t, {k: np.ascontiguousarray(v) for k, v in cols.items()})
+
+
+def test_transmission_diagnosis_names_a_coupling_error():
+    """Plumbing end to end (model file, torque inputs, initial state from the first angles, per
+    link outputs): noise-free runs from the same simulator with the elbow cable's coupling
+    coefficient off by 0.2. Open-loop torque replay of frictional links is ill-conditioned on
+    noisy data (docs/diagnosis.md), so this checks the mechanics, not robustness."""
+    spec = model_spec_from_dict(TX_DOC)
+    model = spec.model()
+    runs = []
+    for name, f in (("fit", (0.5, 2.0)), ("held_out", (0.8, 3.3))):
+        t = np.arange(3000) * DT
+        tau = np.column_stack([0.06 * np.sin(2 * np.pi * f[0] * t), 0.04 * np.sin(2 * np.pi * f[1] * t)])
+        gen = JointProblem(
+            model,
+            [(0, 1.0, False), (1, 1.0, False), (5, 1.0, False), (6, 1.0, False)],
+            [{"dt": DT, "input": np.ascontiguousarray(tau), "measured": np.zeros((3000, 4))}],
+            ["coupling"],
+            2,
+        )
+        runs.append(_tx_run(name, gen, np.array([0.2]), tau))
+    res = diagnose(spec, [runs[0]], [runs[1]], Options(progress=False, bootstrap=200, max_effects=1))
+    assert res["effects"][0]["name"] == "coupling"
+    assert res["selected"]["held_out"]["closed_fraction"] > 0.9
+    c = next(p for p in res["selected"]["parameters"] if p["name"] == "C[1][0]")["value"]
+    assert c == pytest.approx(0.2, rel=0.05)
+    assert "dahl_hysteresis" in res["skipped"] and "backlash" in res["skipped"]

@@ -204,11 +204,12 @@ def effect_catalogue() -> list[dict[str, Any]]:
 
 @final
 class JointProblem:
-    """Grey-box least-squares problem of the antagonistic joint with candidate effects."""
+    """Grey-box least-squares problem of an AntagonisticJoint or CableTransmission with candidate
+    effects."""
 
     def __new__(
         cls,
-        model: AntagonisticJoint,
+        model: Model,
         channels: list[tuple[int, float, bool]],
         runs: list[dict[str, Any]],
         effects: list[str],

@@ -47,7 +47,8 @@ def sample_hold(x, period, phase, dt):
             y[k] = x[0]
             continue
         j = math.floor((t - phase) / period + 1e-9 * dt / period)
-        y[k] = x[min(round((phase + j * period) / dt), len(x) - 1)]
+        # nearest sample, halves away from zero (Python's round() would go to even)
+        y[k] = x[min(math.floor((phase + j * period) / dt + 0.5), len(x) - 1)]
     return y
 
 

@@ -1,13 +1,12 @@
 //! Grey-box identification for the diagnosis: `JointProblem` and the effect catalogue.
 
-use cable_core::dynamics::AntagonisticJoint as CoreJoint;
 use cable_core::identify::{self as core, Effect, LmOptions};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::convert::{any_vector, to_matrix, to_vector};
-use crate::dynamics::{AntagonisticJoint, AnyModel};
+use crate::dynamics::{AnyModel, Model};
 use crate::errors::{guarded, raise};
 
 /// The candidate effects: a list of dicts `name, stage, has_state, description`.
@@ -32,19 +31,25 @@ pub fn effect_catalogue(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
     Ok(out)
 }
 
-fn joint_of(model: &Bound<'_, AntagonisticJoint>) -> CoreJoint {
-    match &model.as_super().get().inner {
-        AnyModel::Antagonistic(j) => *j,
-        _ => unreachable!("AntagonisticJoint always wraps an antagonistic joint"),
+fn plant_of(model: &Bound<'_, Model>) -> PyResult<core::Plant> {
+    match &model.get().inner {
+        AnyModel::Antagonistic(j) => Ok(core::Plant::Joint(*j)),
+        AnyModel::Transmission(t) => Ok(core::Plant::Transmission(t.clone())),
+        AnyModel::Dahl(_) => Err(raise(
+            "ParameterError",
+            "the diagnosis needs an AntagonisticJoint or a CableTransmission, not a DahlElement"
+                .into(),
+            &[],
+        )),
     }
 }
 
-fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize) -> PyResult<core::JointRun> {
+fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize, width: usize) -> PyResult<core::JointRun> {
     let d = obj.cast::<PyDict>().map_err(|_| {
         raise(
             "DataError",
             format!(
-                "runs[{i}] must be a dict with keys dt, x_m, measured, coupled, external, start"
+                "runs[{i}] must be a dict with keys dt, input (or x_m), measured, coupled, external, x0, start"
             ),
             &[],
         )
@@ -54,17 +59,25 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize) -> PyResult<core::JointR
             .ok_or_else(|| raise("DataError", format!("runs[{i}] has no key {k:?}"), &[]))
     };
     let dt: f64 = get("dt")?.extract()?;
-    let x_m = any_vector(&get("x_m")?, &format!("runs[{i}].x_m"))?;
+    let input_obj = match d.get_item("input")? {
+        Some(v) => v,
+        None => get("x_m")?,
+    };
+    let input = any_vector(
+        &input_obj.call_method0("ravel")?,
+        &format!("runs[{i}].input"),
+    )?;
+    let t = input.len() / width.max(1);
     let measured = any_vector(
         &get("measured")?.call_method0("ravel")?,
         &format!("runs[{i}].measured"),
     )?;
-    if measured.len() != x_m.len() * q {
+    if measured.len() != t * q || input.len() != t * width {
         return Err(raise(
             "ShapeError",
             format!(
-                "runs[{i}].measured must have shape ({}, {q}), got {} values",
-                x_m.len(),
+                "runs[{i}]: input must have shape (T, {width}) and measured (T, {q}); got {} and {} values",
+                input.len(),
                 measured.len()
             ),
             &[],
@@ -72,10 +85,13 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize) -> PyResult<core::JointR
     }
     let optional = |k: &str| -> PyResult<Vec<f64>> {
         match d.get_item(k)? {
-            Some(c) if !c.is_none() => any_vector(&c, &format!("runs[{i}].{k}")),
+            Some(c) if !c.is_none() => {
+                any_vector(&c.call_method0("ravel")?, &format!("runs[{i}].{k}"))
+            }
             _ => Ok(vec![]),
         }
     };
+    let x0 = optional("x0")?;
     let coupled = optional("coupled")?;
     let external = optional("external")?;
     let start: usize = match d.get_item("start")? {
@@ -84,7 +100,9 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize) -> PyResult<core::JointR
     };
     Ok(core::JointRun {
         dt,
-        x_m,
+        input,
+        width,
+        x0,
         coupled,
         external,
         measured,
@@ -96,12 +114,16 @@ fn effects_from(names: &[String]) -> PyResult<Vec<Effect>> {
     guarded(|| names.iter().map(|n| Effect::from_name(n)).collect())
 }
 
-/// Grey-box least-squares problem of the antagonistic joint with a set of candidate effects.
+/// Grey-box least-squares problem of a nominal model (an `AntagonisticJoint` or a
+/// `CableTransmission`) with a set of candidate effects.
 ///
-/// `channels` is a list of `(output_index, weight, is_force_sensor)` with output indices of
-/// `[T_m1, T_m2, T_j1, T_j2, theta, contact_force, T_m1 - T_m2]`; `runs` a list of dicts with
-/// `dt` (s), `x_m` (T,) m, `measured` (T, q), optional `coupled` (T,), optional `external` (T,)
-/// joint torque in N·m, and `start` (first sample counted). Immutable; safe to use from several threads (calls release the GIL).
+/// `channels` is a list of `(output_index, weight, is_force_sensor)`; joint output indices are
+/// `[T_m1, T_m2, T_j1, T_j2, theta, contact_force, T_m1 - T_m2]`, transmission ones the model's
+/// outputs (5 per link). `runs` is a list of dicts with `dt` (s), `input` (joint: `x_m` (T,) in m,
+/// also accepted as key `x_m`; transmission: motor torques (T, n)), `measured` (T, q), optional
+/// `coupled` (T,), optional `external` joint torques (T,) or (T, n), optional `x0` (initial
+/// state) and `start` (first sample counted). Immutable; safe to use from several threads
+/// (calls release the GIL).
 #[pyclass(frozen, module = "cablekit._cablekit")]
 pub struct JointProblem {
     inner: core::JointProblem,
@@ -112,17 +134,19 @@ impl JointProblem {
     #[new]
     #[pyo3(signature = (model, channels, runs, effects, substeps = 1))]
     fn new(
-        model: &Bound<'_, AntagonisticJoint>,
+        model: &Bound<'_, Model>,
         channels: Vec<(usize, f64, bool)>,
         runs: &Bound<'_, PyList>,
         effects: Vec<String>,
         substeps: usize,
     ) -> PyResult<Self> {
         let q = channels.len();
+        let plant = plant_of(model)?;
+        let width = plant.input_width();
         let runs = runs
             .iter()
             .enumerate()
-            .map(|(i, r)| run_from(&r, i, q))
+            .map(|(i, r)| run_from(&r, i, q, width))
             .collect::<PyResult<Vec<_>>>()?;
         let channels = channels
             .into_iter()
@@ -133,8 +157,7 @@ impl JointProblem {
             })
             .collect();
         let effects = effects_from(&effects)?;
-        let joint = joint_of(model);
-        let inner = guarded(|| core::JointProblem::new(joint, channels, runs, effects, substeps))?;
+        let inner = guarded(|| core::JointProblem::new(plant, channels, runs, effects, substeps))?;
         Ok(Self { inner })
     }
 

@@ -34,7 +34,7 @@ from cablekit._cablekit import JointProblem, effect_catalogue
 from cablekit.diagnose import localise
 from cablekit.diagnose.data import Run, check_units
 from cablekit.diagnose.progress import Progress
-from cablekit.diagnose.spec import OUTPUTS, ModelSpec
+from cablekit.diagnose.spec import NOT_IN_TRANSMISSION, OUTPUTS, ModelSpec
 from cablekit.errors import CablekitError, DataError
 
 __all__ = ["CandidateFit", "Options", "Prepared", "diagnose", "prepare"]
@@ -105,19 +105,46 @@ class CandidateFit:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
-def _run_dict(spec: ModelSpec, run: Run, columns: list[str]) -> dict[str, Any]:
+def _run_dict(spec: ModelSpec, run: Run, columns: list[str], model: Any = None) -> dict[str, Any]:
     measured = np.column_stack([run.column(c) for c in columns])
+    cols = [run.column(c) for c in spec.inputs]
     d: dict[str, Any] = {
         "dt": run.dt,
-        "x_m": np.ascontiguousarray(run.column(spec.x_m)),
+        "input": np.ascontiguousarray(cols[0] if len(cols) == 1 else np.column_stack(cols)),
         "measured": np.ascontiguousarray(measured),
         "start": round(spec.warmup / run.dt),
     }
     if spec.coupled:
         d["coupled"] = np.ascontiguousarray(run.column(spec.coupled))
     if spec.external:
-        d["external"] = np.ascontiguousarray(run.column(spec.external))
+        ext = [run.column(c) for c in spec.external]
+        d["external"] = np.ascontiguousarray(ext[0] if len(ext) == 1 else np.column_stack(ext))
+    if spec.kind == "cable_transmission" and model is not None:
+        d["x0"] = _transmission_x0(spec, run, model)
     return d
+
+
+def _transmission_x0(spec: ModelSpec, run: Run, model: Any) -> _F:
+    """Initial state of a transmission run from its first measured angles, at rest: a link's
+    missing motor (joint) angle follows from its joint (motor) angle through the rigid-cable
+    kinematics ``q_m = T·q_l``; unmeasured links start at 0."""
+    n = spec.links
+    q_m = np.full(n, np.nan)
+    q_l = np.full(n, np.nan)
+    for out, col in spec.outputs:
+        base, idx = out.rstrip("0123456789"), out[len(out.rstrip("0123456789")) :]
+        if base == "q_m":
+            q_m[int(idx) - 1] = run.column(col)[0]
+        elif base == "q_l":
+            q_l[int(idx) - 1] = run.column(col)[0]
+    if np.isnan(q_l).any():
+        from_motor = model.motor_to_joint(np.nan_to_num(q_m))
+        q_l = np.where(np.isnan(q_l), np.where(np.isnan(q_m), 0.0, from_motor), q_l)
+    if np.isnan(q_m).any():
+        q_m = np.where(np.isnan(q_m), model.joint_to_motor(q_l), q_m)
+    x0 = np.zeros(4 * n)
+    x0[0::4], x0[2::4] = q_m, q_l
+    return x0
 
 
 def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepared:
@@ -140,10 +167,10 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     sigma = np.array(
         [math.sqrt(np.mean([localise.noise_sigma(r.column(c)) ** 2 for r in fit_runs])) for c in columns]
     )
-    chans = [(OUTPUTS[o][0], 1.0 / s, OUTPUTS[o][2]) for o, s in zip(names, sigma, strict=False)]
+    chans = [(spec.output(o)[0], 1.0 / s, spec.output(o)[2]) for o, s in zip(names, sigma, strict=False)]
     model = spec.model()
-    fit_dicts = [_run_dict(spec, r, columns) for r in fit_runs]
-    hold_dicts = [_run_dict(spec, r, columns) for r in hold_runs]
+    fit_dicts = [_run_dict(spec, r, columns, model) for r in fit_runs]
+    hold_dicts = [_run_dict(spec, r, columns, model) for r in hold_runs]
     probe = JointProblem(model, chans, fit_dicts, [], 1)
     substeps = spec.substeps or max(1, probe.advised_substeps(np.zeros(0)))
     fit0 = JointProblem(model, chans, fit_dicts, [], substeps)
@@ -151,12 +178,16 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     all_effects = [e["name"] for e in effect_catalogue()]
     wanted = spec.effects or all_effects
     skipped: dict[str, str] = {}
-    has_sensor = any(OUTPUTS[o][2] for o in names)
+    has_sensor = any(spec.output(o)[2] for o in names)
     motor_tension = any(o.startswith("tension_motor") or o == "net_motor_force" for o in names)
     for e in all_effects:
         if e not in wanted:
             skipped[e] = "not in the model file's [diagnosis] effects"
-        elif e == "coupling" and not spec.coupled:
+        elif spec.kind == "cable_transmission" and e in NOT_IN_TRANSMISSION:
+            skipped[e] = "no counterpart in the cable transmission model"
+        elif e == "coupling" and spec.kind == "cable_transmission" and spec.links < 2:
+            skipped[e] = "a single link has no coupling"
+        elif e == "coupling" and spec.kind == "antagonistic_joint" and not spec.coupled:
             skipped[e] = "no coupled-axis column in [inputs]"
         elif e in ("sensor_lag", "sensor_sampling", "sensor_gain_bias") and not has_sensor:
             skipped[e] = "no force-sensor channel measured"
@@ -482,7 +513,7 @@ def _per_channel(prep: Prepared, resid: list[_F]) -> dict[str, Any]:
         out[name] = {
             "rmse": float(np.sqrt(np.mean((w * prep.sigma[c]) ** 2))),
             "gap": float(np.mean(w * w)),
-            "unit": OUTPUTS[name][1],
+            "unit": prep.spec.output(name)[1],
         }
     return out
 
@@ -725,9 +756,9 @@ def _nominal_contact(prep: Prepared, runs: list[Run]) -> list[NDArray[np.bool_]]
     if "contact_angle" not in prep.spec.parameters:
         return None
     model = prep.spec.model()
-    dicts = [_run_dict(prep.spec, r, prep.columns) for r in runs]
+    dicts = [_run_dict(prep.spec, r, prep.columns, model) for r in runs]
     for d in dicts:
-        d["measured"] = np.zeros((len(d["x_m"]), 1))
+        d["measured"] = np.zeros((len(d["input"]), 1))
     probe = JointProblem(model, [(OUTPUTS["contact_force"][0], 1.0, True)], dicts, [], prep.substeps)
     return [probe.predict(np.zeros(0), i)[:, 0] > 0.0 for i in range(len(runs))]
 
@@ -744,9 +775,9 @@ def localise_all(prep: Prepared, base: CandidateFit) -> dict[str, Any]:
         contact = _nominal_contact(prep, runs)
         for i, (run, r) in enumerate(zip(runs, resid, strict=False)):
             start = round(prep.spec.warmup / run.dt)
-            x = run.column(prep.spec.x_m)[start:]
+            x = run.column(prep.spec.primary()[0])[start:]
             t = run.t[start:]
-            sensors = [c for c, n in enumerate(prep.channel_names) if OUTPUTS[n][2]]
+            sensors = [c for c, n in enumerate(prep.channel_names) if prep.spec.output(n)[2]]
             load = (
                 np.sum(
                     np.abs(np.column_stack([run.column(prep.columns[c])[start:] for c in sensors])), axis=1
@@ -763,13 +794,15 @@ def localise_all(prep: Prepared, base: CandidateFit) -> dict[str, Any]:
         if label == "held_out":
             out["_hold_masks"] = masks
     r0 = base.fit_resid[0]
-    x0 = prep.fit_runs[0].column(prep.spec.x_m)[round(prep.spec.warmup / prep.fit_runs[0].dt) :]
+    start0 = round(prep.spec.warmup / prep.fit_runs[0].dt)
+    x0 = prep.fit_runs[0].column(prep.spec.primary()[0])[start0:]
+    u0 = prep.fit_runs[0].column(prep.spec.inputs[0])[start0:]
     v0 = np.gradient(x0, prep.fit_runs[0].dt)
     out["residual_tests"] = {
         name: {
             "whiteness": {k: v for k, v in localise.whiteness(r0[:, c]).items() if k != "acf"},
             "input_correlation": {
-                k: v for k, v in localise.cross_correlation(r0[:, c], x0).items() if k != "ccf"
+                k: v for k, v in localise.cross_correlation(r0[:, c], u0).items() if k != "ccf"
             },
             "loop_area_velocity": localise.loop_area(r0[:, c], v0),
             "loop_area_position": localise.loop_area(r0[:, c], x0),

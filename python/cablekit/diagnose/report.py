@@ -195,11 +195,11 @@ def _figures(result: dict[str, Any]) -> dict[str, str]:
     ax.axvline(0, color="k", lw=0.5)
     figs["ranking"] = _png(fig)
     # residual loops
-    x = run.column(prep.spec.x_m)[start:]
+    x = run.column(prep.spec.primary()[0])[start:]
     v = np.gradient(x, run.dt)
     fig, axes = plt.subplots(q, 2, figsize=(10, 3 * q), squeeze=False)
     for c, name in enumerate(prep.channel_names):
-        for j, (sig, lab) in enumerate(((v, "motor velocity (m/s)"), (x, "motor position (m)"))):
+        for j, (sig, lab) in enumerate(((v, "velocity"), (x, "position"))):
             ax = axes[c, j]
             ax.plot(sig, nominal[:, c] - meas[:, c], color="tab:red", lw=0.4, alpha=0.7, label="nominal")
             if current.effects:

@@ -41,12 +41,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cablekit._cablekit import AntagonisticJoint, effect_catalogue
+from cablekit._cablekit import AntagonisticJoint, CableTransmission, Model, effect_catalogue
 from cablekit.errors import CablekitError, DataError
 
-__all__ = ["OUTPUTS", "ModelSpec", "load_model_spec", "model_spec_from_dict"]
+__all__ = ["OUTPUTS", "ModelSpec", "load_model_spec", "model_spec_from_dict", "output_info"]
 
-#: output name → (index in the model outputs, unit, is a force sensor)
+#: antagonistic joint: output name → (index in the model outputs, unit, is a force sensor)
 OUTPUTS: dict[str, tuple[int, str, bool]] = {
     "tension_motor_drive": (0, "N", True),
     "tension_motor_return": (1, "N", True),
@@ -57,7 +57,30 @@ OUTPUTS: dict[str, tuple[int, str, bool]] = {
     "net_motor_force": (6, "N", True),
 }
 
-MODELS = ("antagonistic_joint",)
+#: cable transmission: per-link output base name → (offset in the link's 5 outputs, unit, sensor)
+TRANSMISSION_OUTPUTS: dict[str, tuple[int, str, bool]] = {
+    "q_m": (0, "rad", False),
+    "q_l": (1, "rad", False),
+    "tension_a": (2, "N", True),
+    "tension_b": (3, "N", True),
+    "joint_torque": (4, "N·m", True),
+}
+
+MODELS = ("antagonistic_joint", "cable_transmission")
+
+#: effects with no counterpart in the cable transmission
+NOT_IN_TRANSMISSION = ("stribeck_friction", "dahl_hysteresis", "capstan_friction", "creep", "backlash")
+
+
+def output_info(kind: str, name: str, links: int = 1) -> tuple[int, str, bool]:
+    """``(index, unit, is force sensor)`` of output ``name`` of a model kind; KeyError if none."""
+    if kind == "antagonistic_joint":
+        return OUTPUTS[name]
+    base, _, idx = name.rstrip("0123456789"), None, name[len(name.rstrip("0123456789")) :]
+    if base not in TRANSMISSION_OUTPUTS or not idx or not 1 <= int(idx) <= links:
+        raise KeyError(name)
+    off, unit, sensor = TRANSMISSION_OUTPUTS[base]
+    return 5 * (int(idx) - 1) + off, unit, sensor
 
 
 @dataclass
@@ -66,9 +89,9 @@ class ModelSpec:
 
     kind: str
     parameters: dict[str, Any]
-    x_m: str
+    inputs: list[str]
     coupled: str | None
-    external: str | None
+    external: list[str]
     outputs: list[tuple[str, str]]
     warmup: float = 0.2
     substeps: int = 0
@@ -76,35 +99,86 @@ class ModelSpec:
     source: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
 
-    def model(self) -> AntagonisticJoint:
+    @property
+    def x_m(self) -> str:
+        """The joint's motor-displacement column (the first input column)."""
+        return self.inputs[0]
+
+    @property
+    def links(self) -> int:
+        return len(self.inputs) if self.kind == "cable_transmission" else 1
+
+    def model(self) -> Model:
         """The nominal model (validated by the core)."""
         try:
-            return AntagonisticJoint(**self.parameters)
+            if self.kind == "antagonistic_joint":
+                return AntagonisticJoint(**self.parameters)
+            return _transmission(self.parameters, self.links)
         except TypeError as exc:
             raise DataError(f"{self.source}: [parameters]: {exc}") from None
 
+    def output(self, name: str) -> tuple[int, str, bool]:
+        return output_info(self.kind, name, self.links)
+
     def units(self) -> dict[str, str]:
-        """Run column → declared unit, for the unit checks."""
-        u = {self.x_m: "m"}
+        """Run column → declared unit, for the unit checks (angles of prismatic links are m)."""
+        u = {self.x_m: "m"} if self.kind == "antagonistic_joint" else {}
         for out, col in self.outputs:
-            u[col] = OUTPUTS[out][1]
+            unit = self.output(out)[1]
+            if self.kind == "cable_transmission" and unit == "rad":
+                continue  # revolute (rad) or prismatic (m): not checkable by name
+            u[col] = unit
         return u
 
     def channels(self) -> list[tuple[int, bool]]:
         """``(output index, is force sensor)`` per measured column, in file order."""
-        return [(OUTPUTS[o][0], OUTPUTS[o][2]) for o, _ in self.outputs]
+        return [(self.output(o)[0], self.output(o)[2]) for o, _ in self.outputs]
+
+    def primary(self) -> tuple[str, str]:
+        """``(column, kind)`` of the signal that localisation bins by position and speed: the
+        joint's motor displacement, or the transmission's first measured angle (else its first
+        torque)."""
+        if self.kind == "antagonistic_joint":
+            return self.x_m, "input"
+        for out, col in self.outputs:
+            if out.startswith(("q_l", "q_m")):
+                return col, "measured"
+        return self.inputs[0], "input"
 
     def to_dict(self) -> dict[str, Any]:
+        if self.kind == "antagonistic_joint":
+            inputs: dict[str, Any] = {"x_m": self.x_m}
+            if self.coupled:
+                inputs["coupled"] = self.coupled
+            if self.external:
+                inputs["external"] = self.external[0]
+        else:
+            inputs = {"tau_m": list(self.inputs)}
+            if self.external:
+                inputs["external"] = list(self.external)
         return {
             "model": self.kind,
             "parameters": dict(self.parameters),
-            "inputs": {"x_m": self.x_m}
-            | ({"coupled": self.coupled} if self.coupled else {})
-            | ({"external": self.external} if self.external else {}),
+            "inputs": inputs,
             "outputs": dict(self.outputs),
             "diagnosis": {"warmup": self.warmup, "substeps": self.substeps}
             | ({"effects": self.effects} if self.effects else {}),
         }
+
+
+def _transmission(params: dict[str, Any], links: int) -> CableTransmission:
+    """``preset = "raven2"`` (the first ``links`` axes) overridden by any keyword of
+    ``cablekit.CableTransmission``, or the keywords alone."""
+    p = dict(params)
+    preset = p.pop("preset", None)
+    p.pop("links", None)
+    if preset is None:
+        return CableTransmission(**p)
+    if preset != "raven2":
+        raise DataError(f'[parameters] preset must be "raven2", got {preset!r}')
+    base = CableTransmission.raven2(links).params()
+    base.update(p)
+    return CableTransmission(**base)
 
 
 def load_model_spec(path: str | Path) -> ModelSpec:
@@ -128,17 +202,38 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
         if not isinstance(doc.get(key), dict):
             raise DataError(f"{source}: missing table [{key}]")
     inputs = doc["inputs"]
-    if "x_m" not in inputs:
-        raise DataError(f"{source}: [inputs] needs x_m = <column of the motor displacement, m>")
-    unknown = set(inputs) - {"x_m", "coupled", "external"}
+    if kind == "antagonistic_joint":
+        if "x_m" not in inputs:
+            raise DataError(f"{source}: [inputs] needs x_m = <column of the motor displacement, m>")
+        allowed = {"x_m", "coupled", "external"}
+        in_cols = [inputs["x_m"]]
+        external = [inputs["external"]] if inputs.get("external") else []
+    else:
+        tau = inputs.get("tau_m")
+        if not isinstance(tau, list) or not tau or not all(isinstance(c, str) for c in tau) or len(tau) > 3:
+            raise DataError(
+                f"{source}: [inputs] needs tau_m = [<motor torque column per link>] (1 to 3 links)"
+            )
+        allowed = {"tau_m", "external"}
+        in_cols = list(tau)
+        external = list(inputs.get("external") or [])
+        if external and len(external) != len(tau):
+            raise DataError(f"{source}: [inputs] external must name one column per link ({len(tau)})")
+    unknown = set(inputs) - allowed
     if unknown:
         raise DataError(
-            f"{source}: [inputs] has unknown keys {sorted(unknown)}; allowed: x_m, coupled, external"
+            f"{source}: [inputs] has unknown keys {sorted(unknown)}; allowed: {', '.join(sorted(allowed))}"
         )
+    links = len(in_cols) if kind == "cable_transmission" else 1
     outputs = []
+    names = (
+        list(OUTPUTS)
+        if kind == "antagonistic_joint"
+        else [f"{b}{i}" for i in range(1, links + 1) for b in TRANSMISSION_OUTPUTS]
+    )
     for out, col in doc["outputs"].items():
-        if out not in OUTPUTS:
-            raise DataError(f"{source}: [outputs] {out!r} is not an output; choose from {list(OUTPUTS)}")
+        if out not in names:
+            raise DataError(f"{source}: [outputs] {out!r} is not an output; choose from {names}")
         if not isinstance(col, str):
             raise DataError(f"{source}: [outputs] {out} must name a run column (a string)")
         outputs.append((out, col))
@@ -154,9 +249,9 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
     spec = ModelSpec(
         kind=kind,
         parameters=dict(doc["parameters"]),
-        x_m=inputs["x_m"],
-        coupled=inputs.get("coupled"),
-        external=inputs.get("external"),
+        inputs=in_cols,
+        coupled=inputs.get("coupled") if kind == "antagonistic_joint" else None,
+        external=external,
         outputs=outputs,
         warmup=float(diag.get("warmup", 0.2)),
         substeps=int(diag.get("substeps", 0)),

@@ -95,6 +95,9 @@ pub struct ParamSpec {
     pub starts: Vec<f64>,
 }
 
+/// Builds a spec from `(name, unit, reference, initial, lower, upper, scale)`.
+type SpecFn<'a> = dyn Fn(&str, &'static str, f64, f64, f64, f64, f64) -> ParamSpec + 'a;
+
 impl ParamSpec {
     /// The same spec with further starting values (kept inside the bounds).
     fn starts(mut self, v: &[f64]) -> Self {
@@ -134,6 +137,11 @@ pub struct Scales {
     pub damping: f64,
     /// Number of force-sensor channels.
     pub sensors: usize,
+    /// Number of links (1 for the antagonistic joint).
+    pub links: usize,
+    /// Whether the plant is the cable transmission (per-link joint effects, no friction
+    /// smoothing parameter, pretension loss as a fraction, coupling coefficients `C_ij`).
+    pub transmission: bool,
 }
 
 impl Effect {
@@ -239,6 +247,55 @@ impl Effect {
         }
     }
 
+    /// Whether the effect applies to the cable transmission (torque in, angles out).
+    pub fn applies_to_transmission(self, links: usize) -> bool {
+        match self {
+            Effect::StribeckFriction
+            | Effect::DahlHysteresis
+            | Effect::CapstanFriction
+            | Effect::Creep
+            | Effect::Backlash => false,
+            Effect::Coupling => links >= 2,
+            _ => true,
+        }
+    }
+
+    /// Transmission-specific parameter layouts (per link or per coupling coefficient); `None`
+    /// where the joint's layout applies unchanged.
+    fn transmission_params(self, s: &Scales, p: &SpecFn<'_>) -> Option<Vec<ParamSpec>> {
+        let tq = s.torque;
+        let w = s.speed.max(1e-9);
+        let per_link = |name: &str, unit: &'static str, init: f64, lo: f64, hi: f64, sc: f64| {
+            (0..s.links)
+                .map(|i| p(&format!("{name}[{i}]"), unit, 0.0, init, lo, hi, sc))
+                .collect::<Vec<_>>()
+        };
+        Some(match self {
+            Effect::CoulombFriction => per_link("F_c", "N·m", 0.02 * tq, 0.0, 10.0 * tq, 0.1 * tq),
+            Effect::ViscousFriction => {
+                let sc = 0.1 * tq / w;
+                per_link("delta_b", "N·m·s/rad", 0.0, -s.viscous, 100.0 * sc, sc)
+            }
+            Effect::InertiaError => per_link("epsilon", "1", 0.0, -0.95, 1e3, 0.5),
+            Effect::Slack => vec![p("delta_T0_frac", "1", 0.0, 0.05, 0.0, 0.95, 0.1)],
+            Effect::NonlinearStiffness => {
+                // the transmission's exponential law needs a positive length scale: stiffening only
+                let st = s.stretch.max(1e-12);
+                vec![p("beta", "1/m", 0.0, 0.0, 0.0, 30.0 / st, 0.3 / st)]
+            }
+            Effect::Coupling => {
+                let mut v = Vec::new();
+                for i in 1..s.links {
+                    for j in 0..i {
+                        v.push(p(&format!("C[{i}][{j}]"), "1", 0.0, 0.0, -2.0, 2.0, 0.1));
+                    }
+                }
+                v
+            }
+            _ => return None,
+        })
+    }
+
     /// Parameters with bounds and scales for data of typical magnitudes `s`.
     pub fn params(self, s: &Scales) -> Vec<ParamSpec> {
         let p = |name: &str, unit, reference, initial, lower, upper, scale: f64| ParamSpec {
@@ -254,6 +311,11 @@ impl Effect {
         };
         let tq = s.torque;
         let w = s.speed.max(1e-9);
+        if s.transmission {
+            if let Some(v) = self.transmission_params(s, &p) {
+                return v;
+            }
+        }
         match self {
             Effect::CoulombFriction => {
                 // the sign's smoothing velocity is fitted too: real dry friction is sharper than
@@ -442,6 +504,8 @@ mod tests {
             smoothing: 0.05,
             damping: 20.0,
             sensors: 2,
+            links: 1,
+            transmission: false,
         }
     }
 

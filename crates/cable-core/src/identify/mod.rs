@@ -13,4 +13,4 @@ pub mod signal;
 
 pub use effects::{Effect, ParamSpec, Scales, Stage};
 pub use lm::{least_squares, LmOptions, LmReport};
-pub use problem::{Augmented, Channel, JointProblem, JointRun};
+pub use problem::{Augmented, Channel, JointProblem, JointRun, Plant};

@@ -1,21 +1,24 @@
-//! Grey-box least-squares problem of the antagonistic joint: recorded runs, the nominal model,
-//! a set of candidate effects, and the residual `prediction − measurement` through the RK4
-//! simulator.
+//! Grey-box least-squares problem of a nominal [`Plant`] — the antagonistic joint or the cable
+//! transmission: recorded runs, the nominal model, a set of candidate effects, and the residual
+//! `prediction − measurement` through the RK4 simulator.
 //!
-//! A run holds the recorded motor displacement `x_m` (m), optionally a coupled-axis signal, and
-//! the measured channels. The prediction for parameters `θ` of the active effects is
+//! A run holds the recorded input (joint: the motor displacement `x_m` in m; transmission: the
+//! motor torques `(T, n)` in the model's torque convention), optionally a coupled-axis signal
+//! (joint), an external joint torque (`(T, 1)` joint, `(T, n)` transmission), an initial state,
+//! and the measured channels. The prediction for parameters `θ` of the active effects is
 //!
-//! 1. input stage: `x = x_m + κ_c·x_c` (coupling), play of half-width `δ` (backlash), delay `d`
-//!    (time delay); `ẋ` by central differences;
-//! 2. plant stage: the augmented [`AntagonisticJoint`] simulated with first-order input hold and
-//!    the problem's substeps from `θ₀ = x(0)/r`, at rest, cables at pretension;
+//! 1. input stage: joint: `x = x_m + κ_c·x_c` (coupling), play of half-width `δ` (backlash),
+//!    delay `d` (time delay), `ẋ` by central differences; transmission: the torques delayed by `d`;
+//! 2. plant stage: the augmented plant simulated with the problem's substeps — joint: first-order
+//!    input hold from `θ₀ = x(0)/r`, at rest, cables at pretension; transmission: zero-order hold
+//!    (torques from a digital controller) from the run's initial state, or rest;
 //! 3. sensor stage, on force-sensor channels only: first-order lag, sample-and-hold, gain and bias.
 //!
 //! Residuals are `w_c·(ŷ_c − y_c)` over samples `start..T` of each run (the first samples are a
 //! warm-up that absorbs the unknown initial state) and channels `c` with weights `w_c` (1/noise).
 
 use crate::cable::{CableLaw, Creep};
-use crate::dynamics::{AntagonisticJoint, Model};
+use crate::dynamics::{AntagonisticJoint, CableTransmission, Model};
 use crate::error::{check, CableError, Result};
 use crate::friction::Dahl;
 use crate::integrate::{propose_step, simulate_into, InputHold, SimOptions, TrajectoryMut};
@@ -24,8 +27,65 @@ use super::effects::{Effect, ParamSpec, Scales};
 use super::lm::{least_squares, LmOptions, LmReport};
 use super::signal;
 
-/// Number of outputs of the antagonistic joint.
+/// Number of outputs of the antagonistic joint as the diagnosis simulates it.
 const N_OUT: usize = 7;
+
+/// The nominal model of a diagnosis.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Plant {
+    /// Antagonistic joint, position-driven (outputs `[T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c,
+    /// T_m,1 − T_m,2]`).
+    Joint(AntagonisticJoint),
+    /// Cable transmission of 1–3 links, torque-driven (outputs per link `[q_m, q_l, T_a, T_b,
+    /// joint torque]`).
+    Transmission(CableTransmission),
+}
+
+impl From<AntagonisticJoint> for Plant {
+    fn from(j: AntagonisticJoint) -> Self {
+        Plant::Joint(j)
+    }
+}
+
+impl From<CableTransmission> for Plant {
+    fn from(t: CableTransmission) -> Self {
+        Plant::Transmission(t)
+    }
+}
+
+impl Plant {
+    /// Number of outputs a channel may index.
+    pub fn n_outputs(&self) -> usize {
+        match self {
+            Plant::Joint(_) => N_OUT,
+            Plant::Transmission(t) => t.n_outputs(),
+        }
+    }
+
+    /// Columns of the recorded input (joint: 1; transmission: one torque per link).
+    pub fn input_width(&self) -> usize {
+        match self {
+            Plant::Joint(_) => 1,
+            Plant::Transmission(t) => t.n_links(),
+        }
+    }
+
+    /// Whether effect `e` applies to this plant.
+    pub fn supports(&self, e: Effect) -> bool {
+        match self {
+            Plant::Joint(_) => true,
+            Plant::Transmission(t) => e.applies_to_transmission(t.n_links()),
+        }
+    }
+
+    /// `"antagonistic joint"` or `"cable transmission"`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Plant::Joint(_) => "antagonistic joint",
+            Plant::Transmission(_) => "cable transmission",
+        }
+    }
+}
 
 /// The antagonistic joint as the diagnosis simulates it: a recorded external joint torque
 /// `τ_ext` (N·m, positive along `θ`) as a third input, and the net motor-side cable force
@@ -81,11 +141,16 @@ pub struct Channel {
 pub struct JointRun {
     /// Sample interval (s).
     pub dt: f64,
-    /// Recorded motor displacement (m), length `T`.
-    pub x_m: Vec<f64>,
+    /// Recorded input, row-major `(T, width)`: joint `x_m` (m); transmission motor torques.
+    pub input: Vec<f64>,
+    /// Columns of `input` (joint 1, transmission `n`).
+    pub width: usize,
+    /// Initial state (the plant's layout), or empty for the default.
+    pub x0: Vec<f64>,
     /// Coupled-axis signal, length `T`, or empty.
     pub coupled: Vec<f64>,
-    /// External joint torque (N·m), length `T`, or empty (none).
+    /// External joint torque(s), row-major `(T, width)` (N·m, or N on a prismatic link), or
+    /// empty (none).
     pub external: Vec<f64>,
     /// Measured channels, row-major `(T, q)`.
     pub measured: Vec<f64>,
@@ -96,12 +161,22 @@ pub struct JointRun {
 impl JointRun {
     /// Number of samples `T`.
     pub fn len(&self) -> usize {
-        self.x_m.len()
+        self.input.len() / self.width.max(1)
     }
 
     /// Whether the run has no samples.
     pub fn is_empty(&self) -> bool {
-        self.x_m.is_empty()
+        self.input.is_empty()
+    }
+
+    /// Column `c` of the input.
+    fn input_column(&self, c: usize) -> Vec<f64> {
+        self.input
+            .iter()
+            .skip(c)
+            .step_by(self.width.max(1))
+            .copied()
+            .collect()
     }
 }
 
@@ -109,7 +184,7 @@ impl JointRun {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Augmented {
     /// Plant model.
-    pub model: AntagonisticJoint,
+    pub model: Plant,
     /// Coupling gain `κ_c`.
     pub coupling: f64,
     /// Play half-width `δ` (m).
@@ -127,7 +202,7 @@ pub struct Augmented {
 /// Grey-box problem: nominal model, channels, runs and active effects.
 #[derive(Debug, Clone)]
 pub struct JointProblem {
-    nominal: AntagonisticJoint,
+    nominal: Plant,
     channels: Vec<Channel>,
     runs: Vec<JointRun>,
     effects: Vec<Effect>,
@@ -139,12 +214,13 @@ pub struct JointProblem {
 impl JointProblem {
     /// Validated problem. `effects` may be empty (the nominal model alone).
     pub fn new(
-        nominal: AntagonisticJoint,
+        nominal: impl Into<Plant>,
         channels: Vec<Channel>,
         runs: Vec<JointRun>,
         effects: Vec<Effect>,
         substeps: usize,
     ) -> Result<Self> {
+        let nominal: Plant = nominal.into();
         if channels.is_empty() || runs.is_empty() {
             return Err(CableError::Shape {
                 what: "diagnosis problem".into(),
@@ -153,11 +229,11 @@ impl JointProblem {
             });
         }
         for (i, c) in channels.iter().enumerate() {
-            if c.output >= N_OUT {
+            if c.output >= nominal.n_outputs() {
                 return Err(CableError::InvalidParameter {
                     name: format!("channels[{i}].output"),
                     value: c.output as f64,
-                    requirement: "an output index of the antagonistic joint (0..7)",
+                    requirement: "an output index of the plant (joint 0..7, transmission 0..5n)",
                 });
             }
             check::positive(&format!("channels[{i}].weight"), c.weight)?;
@@ -166,22 +242,35 @@ impl JointProblem {
         let mut effects = effects;
         effects.sort_unstable();
         effects.dedup();
+        if let Some(e) = effects.iter().find(|e| !nominal.supports(**e)) {
+            return Err(CableError::InvalidOption {
+                name: "effect".into(),
+                value: e.name().into(),
+                allowed: format!("an effect that applies to the {}", nominal.name()),
+            });
+        }
+        let width = nominal.input_width();
         for (i, r) in runs.iter().enumerate() {
             check::positive(&format!("runs[{i}].dt"), r.dt)?;
             let t = r.len();
-            let optional_ok = |v: &Vec<f64>| v.is_empty() || v.len() == t;
+            let optional_ok = |v: &Vec<f64>, w: usize| v.is_empty() || v.len() == t * w;
             if t < 4
+                || r.width != width
+                || r.input.len() != t * width
                 || r.measured.len() != t * q
-                || !optional_ok(&r.coupled)
-                || !optional_ok(&r.external)
+                || !optional_ok(&r.coupled, 1)
+                || !optional_ok(&r.external, width)
             {
                 return Err(CableError::Shape {
                     what: format!("runs[{i}]"),
                     expected: format!(
-                        "x_m (T >= 4), measured (T, {q}), coupled and external (T) or empty"
+                        "input (T >= 4, {width}), measured (T, {q}), coupled (T,) and external \
+                         (T, {width}) or empty"
                     ),
                     got: format!(
-                        "x_m {t}, measured {} values, coupled {}, external {}",
+                        "input {} values in {} columns, measured {} values, coupled {}, external {}",
+                        r.input.len(),
+                        r.width,
                         r.measured.len(),
                         r.coupled.len(),
                         r.external.len()
@@ -195,11 +284,13 @@ impl JointProblem {
                     requirement: "smaller than the run length",
                 });
             }
-            check::all_finite(&format!("runs[{i}].x_m"), &r.x_m, 1)?;
+            check::all_finite(&format!("runs[{i}].input"), &r.input, width)?;
+            check::all_finite(&format!("runs[{i}].x0"), &r.x0, 1)?;
             check::all_finite(&format!("runs[{i}].measured"), &r.measured, q)?;
             check::all_finite(&format!("runs[{i}].coupled"), &r.coupled, 1)?;
-            check::all_finite(&format!("runs[{i}].external"), &r.external, 1)?;
-            if effects.contains(&Effect::Coupling) && r.coupled.is_empty() {
+            check::all_finite(&format!("runs[{i}].external"), &r.external, width)?;
+            let joint = matches!(nominal, Plant::Joint(_));
+            if joint && effects.contains(&Effect::Coupling) && r.coupled.is_empty() {
                 return Err(CableError::InvalidOption {
                     name: format!("runs[{i}].coupled"),
                     value: "missing".into(),
@@ -230,7 +321,7 @@ impl JointProblem {
     /// The same data with another set of effects (and substeps).
     pub fn with_effects(&self, effects: Vec<Effect>, substeps: usize) -> Result<Self> {
         Self::new(
-            self.nominal,
+            self.nominal.clone(),
             self.channels.clone(),
             self.runs.clone(),
             effects,
@@ -280,10 +371,8 @@ impl JointProblem {
     pub fn augment(&self, theta: &[f64]) -> Result<Augmented> {
         check::len("theta", theta, self.specs.len())?;
         check::all_finite("theta", theta, 1)?;
-        let nom = &self.nominal;
-        let mut m = *nom;
         let mut a = Augmented {
-            model: m,
+            model: self.nominal.clone(),
             coupling: 0.0,
             backlash: 0.0,
             delay: 0.0,
@@ -291,67 +380,15 @@ impl JointProblem {
             sampling: (0.0, 0.0),
             gain_bias: vec![(0.0, 0.0); self.n_sensor_channels()],
         };
+        // (effect, its parameters) in order; operators are plant-independent
+        let mut plant_effects = Vec::new();
         let mut k = 0;
-        let mu_phi_nominal = nom.capstan_mu * nom.capstan_wrap;
-        m.capstan_mu = mu_phi_nominal;
-        m.capstan_wrap = 1.0;
         for &e in &self.effects {
             let n = e.params(&self.scales).len();
             let p = &theta[k..k + n];
             k += n;
             match e {
-                Effect::CoulombFriction => {
-                    m.friction.coulomb += p[0];
-                    m.friction.static_level += p[0];
-                    m.friction.smoothing = p[1];
-                }
-                Effect::ViscousFriction => {
-                    m.friction.viscous = (m.friction.viscous + p[0]).max(0.0)
-                }
-                Effect::StribeckFriction => {
-                    m.friction.coulomb += p[0];
-                    m.friction.static_level += p[0] + p[1];
-                    m.friction.stribeck_velocity = p[2];
-                    m.friction.stribeck_exponent = p[3];
-                }
-                Effect::DahlHysteresis => {
-                    if p[0] > 0.0 {
-                        m.dahl = Some(Dahl {
-                            sigma0: p[0] / p[1],
-                            coulomb: p[0],
-                            exponent: 1.0,
-                        });
-                    }
-                }
-                Effect::CapstanFriction => m.capstan_mu = mu_phi_nominal + p[0],
-                Effect::NonlinearStiffness => {
-                    if p[0] != 0.0 {
-                        for run in [&mut m.drive, &mut m.ret] {
-                            run.law = CableLaw::Exponential {
-                                stiffness: run.law.stiffness(),
-                                length_scale: 1.0 / p[0],
-                            };
-                        }
-                    }
-                }
-                Effect::CableDamping => {
-                    m.drive.damping = (m.drive.damping + p[0]).max(0.0);
-                    m.ret.damping = (m.ret.damping + p[0]).max(0.0);
-                }
-                Effect::Creep => {
-                    if p[0] > 0.0 {
-                        m.creep = Some(Creep {
-                            fraction: p[0],
-                            time_constant: p[1],
-                        });
-                    }
-                }
                 Effect::Backlash => a.backlash = p[0].max(0.0),
-                Effect::Slack => {
-                    m.drive.pretension = (m.drive.pretension - p[0]).max(0.0);
-                    m.ret.pretension = (m.ret.pretension - p[0]).max(0.0);
-                }
-                Effect::Coupling => a.coupling = p[0],
                 Effect::SensorLag => a.lag = p[0].max(0.0),
                 Effect::SensorSampling => a.sampling = (p[0].max(0.0), p[1].max(0.0)),
                 Effect::TimeDelay => a.delay = p[0].max(0.0),
@@ -360,10 +397,16 @@ impl JointProblem {
                         *gb = (p[2 * i], p[2 * i + 1]);
                     }
                 }
-                Effect::InertiaError => m.inertia *= 1.0 + p[0],
+                Effect::Coupling if matches!(self.nominal, Plant::Joint(_)) => a.coupling = p[0],
+                _ => plant_effects.push((e, p)),
             }
         }
-        a.model = m;
+        a.model = match &self.nominal {
+            Plant::Joint(nom) => Plant::Joint(augment_joint(nom, &plant_effects)),
+            Plant::Transmission(nom) => {
+                Plant::Transmission(augment_transmission(nom, &plant_effects)?)
+            }
+        };
         Ok(a)
     }
 
@@ -371,17 +414,17 @@ impl JointProblem {
         self.channels.iter().filter(|c| c.sensor).count()
     }
 
-    /// Recorded input after the input stage: `(T, 3)` row-major `[x, ẋ, τ_ext]`.
-    fn inputs(&self, a: &Augmented, run: &JointRun) -> Vec<f64> {
+    /// Joint input after the input stage: `(T, 3)` row-major `[x, ẋ, τ_ext]`.
+    fn joint_inputs(&self, a: &Augmented, run: &JointRun) -> Vec<f64> {
         let t = run.len();
         let mut x: Vec<f64> = if a.coupling != 0.0 {
-            run.x_m
+            run.input
                 .iter()
                 .zip(&run.coupled)
                 .map(|(xm, xc)| xm + a.coupling * xc)
                 .collect()
         } else {
-            run.x_m.clone()
+            run.input.clone()
         };
         let mut tmp = vec![0.0; t];
         if a.backlash > 0.0 {
@@ -398,30 +441,58 @@ impl JointProblem {
             .collect()
     }
 
-    /// Plant outputs `(T, 7)` of run `i` for `a` (before the sensor stage):
-    /// `[T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c, T_m,1 − T_m,2]`.
+    /// Transmission input after the input stage: `(T, 2n)` row-major `[τ_m (n), τ_ext (n)]`,
+    /// the motor torques delayed by `d`.
+    fn transmission_inputs(&self, a: &Augmented, run: &JointRun) -> Vec<f64> {
+        let (t, n) = (run.len(), run.width);
+        let mut cols: Vec<Vec<f64>> = (0..n).map(|c| run.input_column(c)).collect();
+        if a.delay > 0.0 {
+            let mut tmp = vec![0.0; t];
+            for col in &mut cols {
+                signal::delay(col, a.delay, run.dt, &mut tmp);
+                col.copy_from_slice(&tmp);
+            }
+        }
+        let mut u = vec![0.0; t * 2 * n];
+        for k in 0..t {
+            for c in 0..n {
+                u[k * 2 * n + c] = cols[c][k];
+                u[k * 2 * n + n + c] = run.external.get(k * n + c).copied().unwrap_or(0.0);
+            }
+        }
+        u
+    }
+
+    /// Plant outputs of run `i` for `a` (before the sensor stage): joint `(T, 7)`
+    /// `[T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c, T_m,1 − T_m,2]`; transmission `(T, 5n)`.
     pub fn plant_outputs(&self, a: &Augmented, i: usize) -> Result<Vec<f64>> {
         let run = &self.runs[i];
-        let u = self.inputs(a, run);
-        let joint = &a.model;
-        let model = &LoadedJoint(joint);
-        let mut x0 = vec![0.0; model.n_states()];
-        x0[0] = u[0] / joint.radius;
         let t = run.len();
-        let mut states = vec![0.0; t * model.n_states()];
-        let mut outputs = vec![0.0; t * N_OUT];
-        let opts = SimOptions::new(run.dt, self.substeps, InputHold::Foh)?;
-        simulate_into(
-            model,
-            &u,
-            &x0,
-            &opts,
-            TrajectoryMut {
-                states: &mut states,
-                outputs: &mut outputs,
-            },
-        )?;
-        Ok(outputs)
+        match &a.model {
+            Plant::Joint(joint) => {
+                let u = self.joint_inputs(a, run);
+                let mut x0 = vec![0.0; joint.n_states()];
+                x0[0] = u[0] / joint.radius;
+                run_into(
+                    &LoadedJoint(joint),
+                    &u,
+                    &x0,
+                    run,
+                    self.substeps,
+                    InputHold::Foh,
+                )
+            }
+            Plant::Transmission(tr) => {
+                let u = self.transmission_inputs(a, run);
+                let x0 = if run.x0.len() == tr.n_states() {
+                    run.x0.clone()
+                } else {
+                    tr.rest_state()
+                };
+                debug_assert_eq!(u.len(), t * tr.n_inputs());
+                run_into(tr, &u, &x0, run, self.substeps, InputHold::Zoh)
+            }
+        }
     }
 
     /// Predicted measurements `(T, q)` of run `i` from plant outputs, through the sensor stage.
@@ -432,9 +503,10 @@ impl JointProblem {
         let mut col = vec![0.0; t];
         let mut tmp = vec![0.0; t];
         let mut sensor_i = 0;
+        let n_out = self.nominal.n_outputs();
         for (c, ch) in self.channels.iter().enumerate() {
             for k in 0..t {
-                col[k] = plant[k * N_OUT + ch.output];
+                col[k] = plant[k * n_out + ch.output];
             }
             if ch.sensor {
                 if a.lag > 0.0 {
@@ -709,16 +781,172 @@ impl JointProblem {
     /// stiffest mode at rest (see [`propose_step`]).
     pub fn advised_substeps(&self, theta: &[f64]) -> Result<usize> {
         let a = self.augment(theta)?;
-        let m = &a.model;
         let mut worst = 1;
         for run in &self.runs {
-            let mut x = vec![0.0; m.n_states()];
-            x[0] = run.x_m[0] / m.radius;
-            let u = [run.x_m[0], 0.0];
-            worst = worst.max(propose_step(m, &x, &u, run.dt, 0.9)?.substeps);
+            let advice = match &a.model {
+                Plant::Joint(m) => {
+                    let mut x = vec![0.0; m.n_states()];
+                    x[0] = run.input[0] / m.radius;
+                    propose_step(m, &x, &[run.input[0], 0.0], run.dt, 0.9)?
+                }
+                Plant::Transmission(m) => {
+                    let x = if run.x0.len() == m.n_states() {
+                        run.x0.clone()
+                    } else {
+                        m.rest_state()
+                    };
+                    propose_step(m, &x, &vec![0.0; m.n_inputs()], run.dt, 0.9)?
+                }
+            };
+            worst = worst.max(advice.substeps);
         }
         Ok(worst)
     }
+}
+
+/// Simulate `model` over a run into fresh output buffers; returns the outputs `(T, p)`.
+fn run_into<M: Model>(
+    model: &M,
+    u: &[f64],
+    x0: &[f64],
+    run: &JointRun,
+    substeps: usize,
+    hold: InputHold,
+) -> Result<Vec<f64>> {
+    let t = run.len();
+    let mut states = vec![0.0; t * model.n_states()];
+    let mut outputs = vec![0.0; t * model.n_outputs()];
+    let opts = SimOptions::new(run.dt, substeps, hold)?;
+    simulate_into(
+        model,
+        u,
+        x0,
+        &opts,
+        TrajectoryMut {
+            states: &mut states,
+            outputs: &mut outputs,
+        },
+    )?;
+    Ok(outputs)
+}
+
+/// The antagonistic joint with its plant effects applied.
+fn augment_joint(nom: &AntagonisticJoint, effects: &[(Effect, &[f64])]) -> AntagonisticJoint {
+    let mut m = *nom;
+    let mu_phi_nominal = nom.capstan_mu * nom.capstan_wrap;
+    m.capstan_mu = mu_phi_nominal;
+    m.capstan_wrap = 1.0;
+    for &(e, p) in effects {
+        match e {
+            Effect::CoulombFriction => {
+                m.friction.coulomb += p[0];
+                m.friction.static_level += p[0];
+                m.friction.smoothing = p[1];
+            }
+            Effect::ViscousFriction => m.friction.viscous = (m.friction.viscous + p[0]).max(0.0),
+            Effect::StribeckFriction => {
+                m.friction.coulomb += p[0];
+                m.friction.static_level += p[0] + p[1];
+                m.friction.stribeck_velocity = p[2];
+                m.friction.stribeck_exponent = p[3];
+            }
+            Effect::DahlHysteresis if p[0] > 0.0 => {
+                m.dahl = Some(Dahl {
+                    sigma0: p[0] / p[1],
+                    coulomb: p[0],
+                    exponent: 1.0,
+                });
+            }
+            Effect::CapstanFriction => m.capstan_mu = mu_phi_nominal + p[0],
+            Effect::NonlinearStiffness if p[0] != 0.0 => {
+                for run in [&mut m.drive, &mut m.ret] {
+                    run.law = CableLaw::Exponential {
+                        stiffness: run.law.stiffness(),
+                        length_scale: 1.0 / p[0],
+                    };
+                }
+            }
+            Effect::CableDamping => {
+                m.drive.damping = (m.drive.damping + p[0]).max(0.0);
+                m.ret.damping = (m.ret.damping + p[0]).max(0.0);
+            }
+            Effect::Creep if p[0] > 0.0 => {
+                m.creep = Some(Creep {
+                    fraction: p[0],
+                    time_constant: p[1],
+                });
+            }
+            Effect::Slack => {
+                m.drive.pretension = (m.drive.pretension - p[0]).max(0.0);
+                m.ret.pretension = (m.ret.pretension - p[0]).max(0.0);
+            }
+            Effect::InertiaError => m.inertia *= 1.0 + p[0],
+            // operators, handled by the caller
+            _ => {}
+        }
+    }
+    m
+}
+
+/// The cable transmission with its plant effects applied (per-link joint effects, shared cable
+/// effects, coupling coefficients added to the nominal `C_ij`). Errors when a trial value makes
+/// the transmission invalid (the fit rejects that step).
+fn augment_transmission(
+    nom: &CableTransmission,
+    effects: &[(Effect, &[f64])],
+) -> Result<CableTransmission> {
+    let n = nom.n_links();
+    let mut links = nom.links().to_vec();
+    let mut coupling = nom.coupling();
+    for &(e, p) in effects {
+        match e {
+            Effect::CoulombFriction => {
+                for (l, f) in links.iter_mut().zip(p) {
+                    l.link_friction.coulomb += f;
+                    l.link_friction.static_level += f;
+                }
+            }
+            Effect::ViscousFriction => {
+                for (l, b) in links.iter_mut().zip(p) {
+                    l.link_friction.viscous = (l.link_friction.viscous + b).max(0.0);
+                }
+            }
+            Effect::InertiaError => {
+                for (l, eps) in links.iter_mut().zip(p) {
+                    l.link_inertia *= 1.0 + eps;
+                }
+            }
+            Effect::NonlinearStiffness if p[0] > 0.0 => {
+                for l in &mut links {
+                    l.cable.run.law = CableLaw::Exponential {
+                        stiffness: l.cable.run.law.stiffness(),
+                        length_scale: 1.0 / p[0],
+                    };
+                }
+            }
+            Effect::CableDamping => {
+                for l in &mut links {
+                    l.cable.run.damping = (l.cable.run.damping + p[0]).max(0.0);
+                }
+            }
+            Effect::Slack => {
+                for l in &mut links {
+                    l.cable.run.pretension *= 1.0 - p[0];
+                }
+            }
+            Effect::Coupling => {
+                let mut c = 0;
+                for i in 1..n {
+                    for j in 0..i {
+                        coupling[i * n + j] += p[c];
+                        c += 1;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    CableTransmission::new(links, &coupling)
 }
 
 fn rms(v: impl Iterator<Item = f64>) -> f64 {
@@ -730,32 +958,112 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
     }
 }
 
-fn scales_of(nominal: &AntagonisticJoint, channels: &[Channel], runs: &[JointRun]) -> Scales {
+fn scales_of(nominal: &Plant, channels: &[Channel], runs: &[JointRun]) -> Scales {
+    match nominal {
+        Plant::Joint(j) => joint_scales(j, channels, runs),
+        Plant::Transmission(t) => transmission_scales(t, channels, runs),
+    }
+}
+
+/// RMS of the force-sensor channels of all runs (N).
+fn sensor_force(channels: &[Channel], runs: &[JointRun]) -> f64 {
     let q = channels.len();
-    let dt = runs.iter().map(|r| r.dt).fold(f64::INFINITY, f64::min);
-    let duration = runs
-        .iter()
-        .map(|r| r.dt * r.len() as f64)
-        .fold(f64::INFINITY, f64::min);
-    let sensor_force = rms(runs.iter().flat_map(|r| {
+    rms(runs.iter().flat_map(|r| {
         channels
             .iter()
             .enumerate()
             .filter(|(_, c)| c.sensor)
             .flat_map(move |(c, _)| (0..r.len()).map(move |k| r.measured[k * q + c]))
-    }));
+    }))
+}
+
+/// Shortest sample interval and shortest run duration (s).
+fn time_scales(runs: &[JointRun]) -> (f64, f64) {
+    let dt = runs.iter().map(|r| r.dt).fold(f64::INFINITY, f64::min);
+    let duration = runs
+        .iter()
+        .map(|r| r.dt * r.len() as f64)
+        .fold(f64::INFINITY, f64::min);
+    (dt, duration)
+}
+
+/// Scales of the transmission: joint torques from the motor torques through the transmission
+/// ratio, speeds from a replay of the nominal on the first run.
+fn transmission_scales(t: &CableTransmission, channels: &[Channel], runs: &[JointRun]) -> Scales {
+    let (dt, duration) = time_scales(runs);
+    let n = t.n_links();
+    let ratio: f64 = t.links().iter().map(|l| l.ratio()).sum::<f64>() / n as f64;
+    let torque = (rms(runs.iter().flat_map(|r| r.input.iter().copied())) * ratio).max(1e-9);
+    let run = &runs[0];
+    let x0 = if run.x0.len() == t.n_states() {
+        run.x0.clone()
+    } else {
+        t.rest_state()
+    };
+    let u: Vec<f64> = (0..run.len())
+        .flat_map(|k| (0..2 * n).map(move |c| if c < n { run.input[k * n + c] } else { 0.0 }))
+        .collect();
+    // a replay that fails (stiff nominal, too few substeps) falls back to 1 rad/s
+    let speed = run_into(t, &u, &x0, run, 4, InputHold::Zoh)
+        .ok()
+        .map(|y| {
+            let p = 5 * n;
+            let mut v = vec![0.0; run.len()];
+            let mut acc = 0.0;
+            for i in 0..n {
+                let q: Vec<f64> = (0..run.len()).map(|k| y[k * p + 5 * i + 1]).collect();
+                signal::velocity(&q, run.dt, &mut v);
+                acc += rms(v.iter().copied()).powi(2);
+            }
+            (acc / n as f64).sqrt()
+        })
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .unwrap_or(1.0);
+    let l0 = &t.links()[0];
+    let pretension = l0.cable.run.pretension;
+    let force = pretension.max(sensor_force(channels, runs)).max(1e-9);
+    Scales {
+        dt,
+        duration,
+        torque,
+        speed,
+        force,
+        stretch: force / l0.cable.run.law.stiffness(),
+        travel: 0.0,
+        motor_speed: speed * l0.joint_radius,
+        coupled: 0.0,
+        pretension,
+        viscous: t
+            .links()
+            .iter()
+            .map(|l| l.link_friction.viscous)
+            .fold(f64::INFINITY, f64::min),
+        smoothing: l0.link_friction.smoothing,
+        damping: t
+            .links()
+            .iter()
+            .map(|l| l.cable.run.damping)
+            .fold(f64::INFINITY, f64::min),
+        sensors: channels.iter().filter(|c| c.sensor).count(),
+        links: n,
+        transmission: true,
+    }
+}
+
+fn joint_scales(nominal: &AntagonisticJoint, channels: &[Channel], runs: &[JointRun]) -> Scales {
+    let (dt, duration) = time_scales(runs);
     let pretension = nominal.drive.pretension.max(nominal.ret.pretension);
-    let force = pretension.max(sensor_force).max(1e-9);
+    let force = pretension.max(sensor_force(channels, runs)).max(1e-9);
     let motor_speed = rms(runs.iter().flat_map(|r| {
         let mut v = vec![0.0; r.len()];
-        signal::velocity(&r.x_m, r.dt, &mut v);
+        signal::velocity(&r.input, r.dt, &mut v);
         v
     }));
     let travel = runs
         .iter()
         .map(|r| {
             let (lo, hi) = r
-                .x_m
+                .input
                 .iter()
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
                     (a.min(x), b.max(x))
@@ -779,6 +1087,8 @@ fn scales_of(nominal: &AntagonisticJoint, channels: &[Channel], runs: &[JointRun
         smoothing: nominal.friction.smoothing,
         damping: nominal.drive.damping.min(nominal.ret.damping),
         sensors: channels.iter().filter(|c| c.sensor).count(),
+        links: 1,
+        transmission: false,
     }
 }
 
@@ -804,7 +1114,7 @@ mod tests {
     fn run(seconds: f64) -> JointRun {
         let dt = 1e-3;
         let t_len = (seconds / dt) as usize;
-        let x_m = (0..t_len)
+        let input = (0..t_len)
             .map(|k| {
                 let t = k as f64 * dt;
                 1e-3 * (2.0 * std::f64::consts::PI * 0.7 * t).sin()
@@ -813,7 +1123,9 @@ mod tests {
             .collect();
         JointRun {
             dt,
-            x_m,
+            input,
+            width: 1,
+            x0: vec![],
             coupled: vec![],
             external: vec![],
             measured: vec![0.0; t_len * 3],
@@ -901,7 +1213,9 @@ mod tests {
         }];
         let r = JointRun {
             dt: 1e-3,
-            x_m: vec![1e-4; t_len],
+            input: vec![1e-4; t_len],
+            width: 1,
+            x0: vec![],
             coupled: vec![],
             external: vec![tau; t_len],
             measured: vec![0.0; t_len],
@@ -910,6 +1224,87 @@ mod tests {
         let p = JointProblem::new(nominal(), chans, vec![r], vec![], 4).unwrap();
         let y = p.predict(&[], 0).unwrap();
         assert_relative_eq!(y[t_len - 1], -tau / nominal().radius, max_relative = 1e-6);
+    }
+
+    fn raven_run(seconds: f64) -> JointRun {
+        let dt = 1e-3;
+        let t_len = (seconds / dt) as usize;
+        let input = (0..t_len)
+            .flat_map(|k| {
+                let t = k as f64 * dt;
+                let w = 2.0 * std::f64::consts::PI;
+                [
+                    0.05 * (w * 0.8 * t).sin() + 0.02 * (w * 3.1 * t).sin(),
+                    0.04 * (w * 1.1 * t).cos() + 0.01 * (w * 4.3 * t).sin(),
+                ]
+            })
+            .collect();
+        JointRun {
+            dt,
+            input,
+            width: 2,
+            x0: vec![],
+            coupled: vec![],
+            external: vec![],
+            measured: vec![0.0; t_len * 4],
+            start: 20,
+        }
+    }
+
+    fn encoder_channels() -> Vec<Channel> {
+        [0, 1, 5, 6]
+            .iter()
+            .map(|&output| Channel {
+                output,
+                weight: 1e3,
+                sensor: false,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn transmission_effects_are_recovered() {
+        let raven = crate::dynamics::raven2(2).unwrap();
+        for (effect, truth) in [
+            (Effect::CoulombFriction, vec![0.05, 0.02]),
+            (Effect::Coupling, vec![-0.3]),
+            (Effect::InertiaError, vec![0.5, -0.3]),
+            (Effect::TimeDelay, vec![0.004]),
+        ] {
+            let base = JointProblem::new(
+                raven.clone(),
+                encoder_channels(),
+                vec![raven_run(2.0)],
+                vec![effect],
+                4,
+            )
+            .unwrap();
+            let mut data = base.runs()[0].clone();
+            data.measured = base.predict(&truth, 0).unwrap();
+            let p = JointProblem::new(
+                raven.clone(),
+                encoder_channels(),
+                vec![data],
+                vec![effect],
+                4,
+            )
+            .unwrap();
+            let fit = p.fit(None, &LmOptions::default()).unwrap();
+            for (got, want) in fit.params.iter().zip(&truth) {
+                assert_relative_eq!(*got, *want, max_relative = 1e-3);
+            }
+        }
+        // effects without a transmission counterpart are refused by name
+        assert!(matches!(
+            JointProblem::new(
+                raven,
+                encoder_channels(),
+                vec![raven_run(1.0)],
+                vec![Effect::Creep],
+                1
+            ),
+            Err(CableError::InvalidOption { .. })
+        ));
     }
 
     #[test]
@@ -931,7 +1326,7 @@ mod tests {
             Err(CableError::InvalidOption { .. })
         ));
         let mut r = run(1.0);
-        r.x_m[3] = f64::NAN;
+        r.input[3] = f64::NAN;
         assert!(matches!(
             JointProblem::new(nominal(), channels(), vec![r], vec![], 1),
             Err(CableError::NotFinite { .. })

@@ -63,13 +63,14 @@ pub fn first_order_lag(x: &[f64], tau: f64, dt: f64, y: &mut [f64]) {
 /// nearest sample; before the first instant it shows `x_0`.
 pub fn sample_hold(x: &[f64], period: f64, phase: f64, dt: f64, y: &mut [f64]) {
     let mut held = x.first().copied().unwrap_or(0.0);
-    let mut next = phase;
+    // instants phase + j·period computed directly, not accumulated (no drift over long runs)
+    let mut j = 0.0;
     for k in 0..y.len() {
         let t = k as f64 * dt;
-        while next <= t + 1e-9 * dt {
-            let i = ((next / dt).round() as usize).min(x.len() - 1);
+        while phase + j * period <= t + 1e-9 * dt {
+            let i = (((phase + j * period) / dt).round() as usize).min(x.len() - 1);
             held = x[i];
-            next += period;
+            j += 1.0;
         }
         y[k] = held;
     }
