@@ -518,3 +518,57 @@ def test_transmission_diagnosis_names_a_coupling_error():
     c = next(p for p in res["selected"]["parameters"] if p["name"] == "C[1][0]")["value"]
     assert c == pytest.approx(0.2, rel=0.05)
     assert "dahl_hysteresis" in res["skipped"] and "backlash" in res["skipped"]
+
+
+def test_servo_replay_diagnosis_names_link_friction():
+    """Closed-loop replay under Raven-II's servo: references in, encoders and applied torques
+    out; noise-free runs with extra link Coulomb friction are attributed to it."""
+    doc = {
+        "model": "cable_transmission",
+        "parameters": {"preset": "raven2", "links": 2},
+        "inputs": {"q_m_ref": ["r1", "r2"]},
+        "servo": {"preset": "raven2"},
+        "outputs": {
+            "q_m1": "qm1",
+            "q_l1": "ql1",
+            "q_m2": "qm2",
+            "q_l2": "ql2",
+            "tau_m1": "u1",
+            "tau_m2": "u2",
+        },
+        "diagnosis": {"warmup": 0.05},
+    }
+    spec = model_spec_from_dict(doc)
+    assert spec.servo() == ([0.3, 0.3], [0.008, 0.008], [0.68, 0.68])
+    model = spec.model()
+    tmat = model.transmission_matrix
+    runs = []
+    for name, f in (("fit", (0.4, 0.7)), ("held_out", (0.9, 1.3))):
+        t = np.arange(3000) * DT
+        ql = np.column_stack([0.4 * np.sin(2 * np.pi * f[0] * t), 0.3 * np.sin(2 * np.pi * f[1] * t)])
+        qm = ql @ tmat.T
+        refs = np.ascontiguousarray(np.column_stack([qm, np.gradient(qm, DT, axis=0)]))
+        gen = JointProblem(
+            model,
+            [
+                (0, 1.0, False),
+                (1, 1.0, False),
+                (5, 1.0, False),
+                (6, 1.0, False),
+                (10, 1.0, False),
+                (11, 1.0, False),
+            ],
+            [{"dt": DT, "input": refs, "measured": np.zeros((3000, 6))}],
+            ["coulomb_friction"],
+            2,
+            spec.servo(),
+        )
+        y = gen.predict(np.array([0.3, 0.2]), 0)
+        cols = dict(zip(["qm1", "ql1", "qm2", "ql2", "u1", "u2"], y.T, strict=True))
+        cols |= {"r1": qm[:, 0], "r2": qm[:, 1]}
+        runs.append(Run(name, t, {k: np.ascontiguousarray(v) for k, v in cols.items()}))
+    res = diagnose(spec, [runs[0]], [runs[1]], Options(progress=False, bootstrap=200, max_effects=1))
+    assert res["effects"][0]["name"] == "coulomb_friction"
+    assert res["selected"]["held_out"]["closed_fraction"] > 0.9
+    with pytest.raises(ck.DataError, match=r"\[servo\]"):
+        model_spec_from_dict({k: v for k, v in doc.items() if k != "servo"})

@@ -214,6 +214,7 @@ class JointProblem:
         runs: list[dict[str, Any]],
         effects: list[str],
         substeps: int = 1,
+        servo: tuple[list[float], list[float], list[float]] | None = None,
     ) -> JointProblem: ...
     def with_effects(self, effects: list[str], substeps: int | None = None) -> JointProblem: ...
     @property

@@ -1,5 +1,6 @@
 //! Grey-box identification for the diagnosis: `JointProblem` and the effect catalogue.
 
+use cable_core::control::MotorPd;
 use cable_core::identify::{self as core, Effect, LmOptions};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -31,10 +32,18 @@ pub fn effect_catalogue(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
     Ok(out)
 }
 
-fn plant_of(model: &Bound<'_, Model>) -> PyResult<core::Plant> {
+type Gains = (Vec<f64>, Vec<f64>, Vec<f64>);
+
+fn plant_of(model: &Bound<'_, Model>, servo: Option<Gains>) -> PyResult<core::Plant> {
     match &model.get().inner {
         AnyModel::Antagonistic(j) => Ok(core::Plant::Joint(*j)),
-        AnyModel::Transmission(t) => Ok(core::Plant::Transmission(t.clone())),
+        AnyModel::Transmission(t) => match servo {
+            None => Ok(core::Plant::Transmission(t.clone())),
+            Some((kp, kd, lim)) => {
+                let pd = guarded(|| MotorPd::new(kp, kd, lim))?;
+                Ok(core::Plant::Servo(t.clone(), pd))
+            }
+        },
         AnyModel::Dahl(_) => Err(raise(
             "ParameterError",
             "the diagnosis needs an AntagonisticJoint or a CableTransmission, not a DahlElement"
@@ -122,7 +131,9 @@ fn effects_from(names: &[String]) -> PyResult<Vec<Effect>> {
 /// outputs (5 per link). `runs` is a list of dicts with `dt` (s), `input` (joint: `x_m` (T,) in m,
 /// also accepted as key `x_m`; transmission: motor torques (T, n)), `measured` (T, q), optional
 /// `coupled` (T,), optional `external` joint torques (T,) or (T, n), optional `x0` (initial
-/// state) and `start` (first sample counted). Immutable; safe to use from several threads
+/// state) and `start` (first sample counted). With `servo = (kp, kd, torque_limit)` a transmission
+/// is replayed in closed loop under its motor PD servo: `input` is then the recorded references
+/// `[q_m_ref (n), dq_m_ref (n)]` and the outputs gain the applied motor torques (n) at the end. Immutable; safe to use from several threads
 /// (calls release the GIL).
 #[pyclass(frozen, module = "cablekit._cablekit")]
 pub struct JointProblem {
@@ -132,16 +143,17 @@ pub struct JointProblem {
 #[pymethods]
 impl JointProblem {
     #[new]
-    #[pyo3(signature = (model, channels, runs, effects, substeps = 1))]
+    #[pyo3(signature = (model, channels, runs, effects, substeps = 1, servo = None))]
     fn new(
         model: &Bound<'_, Model>,
         channels: Vec<(usize, f64, bool)>,
         runs: &Bound<'_, PyList>,
         effects: Vec<String>,
         substeps: usize,
+        servo: Option<Gains>,
     ) -> PyResult<Self> {
         let q = channels.len();
-        let plant = plant_of(model)?;
+        let plant = plant_of(model, servo)?;
         let width = plant.input_width();
         let runs = runs
             .iter()

@@ -108,6 +108,9 @@ class CandidateFit:
 def _run_dict(spec: ModelSpec, run: Run, columns: list[str], model: Any = None) -> dict[str, Any]:
     measured = np.column_stack([run.column(c) for c in columns])
     cols = [run.column(c) for c in spec.inputs]
+    if spec.servo():  # references: angles then rates (given, or the angles' derivative)
+        rates = spec.extra.get("dq_m_ref")
+        cols += [run.column(c) for c in rates] if rates else [np.gradient(c, run.dt) for c in cols]
     d: dict[str, Any] = {
         "dt": run.dt,
         "input": np.ascontiguousarray(cols[0] if len(cols) == 1 else np.column_stack(cols)),
@@ -137,10 +140,12 @@ def _transmission_x0(spec: ModelSpec, run: Run, model: Any) -> _F:
             q_m[int(idx) - 1] = run.column(col)[0]
         elif base == "q_l":
             q_l[int(idx) - 1] = run.column(col)[0]
-    if np.isnan(q_l).any():
-        from_motor = model.motor_to_joint(np.nan_to_num(q_m))
-        q_l = np.where(np.isnan(q_l), np.where(np.isnan(q_m), 0.0, from_motor), q_l)
-    if np.isnan(q_m).any():
+    if not np.isnan(q_m).any():
+        # motor encoders resolve the cable stretch ~100x better than joint encoders: start
+        # from the motor angles with the cables at rest length
+        q_l = model.motor_to_joint(q_m)
+    else:
+        q_l = np.where(np.isnan(q_l), 0.0, q_l)
         q_m = np.where(np.isnan(q_m), model.joint_to_motor(q_l), q_m)
     x0 = np.zeros(4 * n)
     x0[0::4], x0[2::4] = q_m, q_l
@@ -171,10 +176,11 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     model = spec.model()
     fit_dicts = [_run_dict(spec, r, columns, model) for r in fit_runs]
     hold_dicts = [_run_dict(spec, r, columns, model) for r in hold_runs]
-    probe = JointProblem(model, chans, fit_dicts, [], 1)
+    servo = spec.servo()
+    probe = JointProblem(model, chans, fit_dicts, [], 1, servo)
     substeps = spec.substeps or max(1, probe.advised_substeps(np.zeros(0)))
-    fit0 = JointProblem(model, chans, fit_dicts, [], substeps)
-    hold0 = JointProblem(model, chans, hold_dicts, [], substeps)
+    fit0 = JointProblem(model, chans, fit_dicts, [], substeps, servo)
+    hold0 = JointProblem(model, chans, hold_dicts, [], substeps, servo)
     all_effects = [e["name"] for e in effect_catalogue()]
     wanted = spec.effects or all_effects
     skipped: dict[str, str] = {}

@@ -77,6 +77,8 @@ def output_info(kind: str, name: str, links: int = 1) -> tuple[int, str, bool]:
     if kind == "antagonistic_joint":
         return OUTPUTS[name]
     base, _, idx = name.rstrip("0123456789"), None, name[len(name.rstrip("0123456789")) :]
+    if base == "tau_m" and idx and 1 <= int(idx) <= links:
+        return 5 * links + int(idx) - 1, "N·m", False  # applied motor torque (servo replay)
     if base not in TRANSMISSION_OUTPUTS or not idx or not 1 <= int(idx) <= links:
         raise KeyError(name)
     off, unit, sensor = TRANSMISSION_OUTPUTS[base]
@@ -145,6 +147,10 @@ class ModelSpec:
                 return col, "measured"
         return self.inputs[0], "input"
 
+    def servo(self) -> tuple[list[float], list[float], list[float]] | None:
+        """Servo gains ``(kp, kd, torque_limit)`` of a closed-loop replay, else None."""
+        return self.extra.get("servo")
+
     def to_dict(self) -> dict[str, Any]:
         if self.kind == "antagonistic_joint":
             inputs: dict[str, Any] = {"x_m": self.x_m}
@@ -152,6 +158,10 @@ class ModelSpec:
                 inputs["coupled"] = self.coupled
             if self.external:
                 inputs["external"] = self.external[0]
+        elif self.servo():
+            inputs = {"q_m_ref": list(self.inputs)}
+            if self.extra.get("dq_m_ref"):
+                inputs["dq_m_ref"] = list(self.extra["dq_m_ref"])
         else:
             inputs = {"tau_m": list(self.inputs)}
             if self.external:
@@ -164,6 +174,26 @@ class ModelSpec:
             "diagnosis": {"warmup": self.warmup, "substeps": self.substeps}
             | ({"effects": self.effects} if self.effects else {}),
         }
+
+
+def _servo_gains(
+    table: dict[str, Any], links: int, source: str
+) -> tuple[list[float], list[float], list[float]]:
+    """``(kp, kd, torque_limit)`` of a ``[servo]`` table: ``preset = "raven2"`` or the three lists."""
+    from cablekit.simulation import MotorPD
+
+    if table.get("preset") == "raven2":
+        pd = MotorPD.raven2(links)
+        return list(pd.kp), list(pd.kd), list(pd.torque_limit)
+    try:
+        kp, kd, lim = ([float(v) for v in table[k]] for k in ("kp", "kd", "torque_limit"))
+    except (KeyError, TypeError, ValueError):
+        raise DataError(
+            f'{source}: [servo] needs preset = "raven2" or kp, kd, torque_limit lists (one value per link)'
+        ) from None
+    if not len(kp) == len(kd) == len(lim) == links:
+        raise DataError(f"{source}: [servo] gains need one value per link ({links})")
+    return kp, kd, lim
 
 
 def _transmission(params: dict[str, Any], links: int) -> CableTransmission:
@@ -202,6 +232,7 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
         if not isinstance(doc.get(key), dict):
             raise DataError(f"{source}: missing table [{key}]")
     inputs = doc["inputs"]
+    extra: dict[str, Any] = {}
     if kind == "antagonistic_joint":
         if "x_m" not in inputs:
             raise DataError(f"{source}: [inputs] needs x_m = <column of the motor displacement, m>")
@@ -209,13 +240,23 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
         in_cols = [inputs["x_m"]]
         external = [inputs["external"]] if inputs.get("external") else []
     else:
-        tau = inputs.get("tau_m")
+        servo = "q_m_ref" in inputs
+        tau = inputs.get("q_m_ref" if servo else "tau_m")
         if not isinstance(tau, list) or not tau or not all(isinstance(c, str) for c in tau) or len(tau) > 3:
             raise DataError(
-                f"{source}: [inputs] needs tau_m = [<motor torque column per link>] (1 to 3 links)"
+                f"{source}: [inputs] needs tau_m = [<motor torque column per link>], or q_m_ref = "
+                "[<motor-angle reference column per link>] for a servo replay (1 to 3 links)"
             )
-        allowed = {"tau_m", "external"}
+        allowed = {"q_m_ref", "dq_m_ref", "external"} if servo else {"tau_m", "external"}
         in_cols = list(tau)
+        if servo:
+            dref = inputs.get("dq_m_ref")
+            if dref is not None and (not isinstance(dref, list) or len(dref) != len(tau)):
+                raise DataError(f"{source}: [inputs] dq_m_ref must name one column per link ({len(tau)})")
+            if not isinstance(doc.get("servo"), dict):
+                raise DataError(f"{source}: a servo replay (q_m_ref) needs a [servo] table")
+            extra["servo"] = _servo_gains(doc["servo"], len(tau), source)
+            extra["dq_m_ref"] = list(dref) if dref else None
         external = list(inputs.get("external") or [])
         if external and len(external) != len(tau):
             raise DataError(f"{source}: [inputs] external must name one column per link ({len(tau)})")
@@ -230,6 +271,7 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
         list(OUTPUTS)
         if kind == "antagonistic_joint"
         else [f"{b}{i}" for i in range(1, links + 1) for b in TRANSMISSION_OUTPUTS]
+        + ([f"tau_m{i}" for i in range(1, links + 1)] if "servo" in extra else [])
     )
     for out, col in doc["outputs"].items():
         if out not in names:
@@ -257,6 +299,7 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
         substeps=int(diag.get("substeps", 0)),
         effects=list(effects) if effects is not None else None,
         source=source,
+        extra=extra,
     )
     if spec.warmup < 0 or spec.substeps < 0:
         raise DataError(f"{source}: [diagnosis] warmup and substeps must be >= 0")

@@ -18,6 +18,7 @@
 //! warm-up that absorbs the unknown initial state) and channels `c` with weights `w_c` (1/noise).
 
 use crate::cable::{CableLaw, Creep};
+use crate::control::{simulate_closed_loop_into, ClosedLoopMut, MotorPd};
 use crate::dynamics::{AntagonisticJoint, CableTransmission, Model};
 use crate::error::{check, CableError, Result};
 use crate::friction::Dahl;
@@ -39,6 +40,11 @@ pub enum Plant {
     /// Cable transmission of 1–3 links, torque-driven (outputs per link `[q_m, q_l, T_a, T_b,
     /// joint torque]`).
     Transmission(CableTransmission),
+    /// Cable transmission replayed in closed loop under its motor-space PD servo: inputs the
+    /// recorded references `[q_m,ref (n), q̇_m,ref (n)]`; outputs per link as `Transmission`,
+    /// then the applied motor torques `(n)`. The loop keeps the replay near the measurement, where
+    /// an open-loop torque replay of frictional links drifts.
+    Servo(CableTransmission, MotorPd),
 }
 
 impl From<AntagonisticJoint> for Plant {
@@ -59,6 +65,7 @@ impl Plant {
         match self {
             Plant::Joint(_) => N_OUT,
             Plant::Transmission(t) => t.n_outputs(),
+            Plant::Servo(t, _) => t.n_outputs() + t.n_links(),
         }
     }
 
@@ -67,6 +74,7 @@ impl Plant {
         match self {
             Plant::Joint(_) => 1,
             Plant::Transmission(t) => t.n_links(),
+            Plant::Servo(t, _) => 2 * t.n_links(),
         }
     }
 
@@ -74,7 +82,7 @@ impl Plant {
     pub fn supports(&self, e: Effect) -> bool {
         match self {
             Plant::Joint(_) => true,
-            Plant::Transmission(t) => e.applies_to_transmission(t.n_links()),
+            Plant::Transmission(t) | Plant::Servo(t, _) => e.applies_to_transmission(t.n_links()),
         }
     }
 
@@ -83,6 +91,7 @@ impl Plant {
         match self {
             Plant::Joint(_) => "antagonistic joint",
             Plant::Transmission(_) => "cable transmission",
+            Plant::Servo(..) => "cable transmission (servo replay)",
         }
     }
 }
@@ -406,6 +415,9 @@ impl JointProblem {
             Plant::Transmission(nom) => {
                 Plant::Transmission(augment_transmission(nom, &plant_effects)?)
             }
+            Plant::Servo(nom, pd) => {
+                Plant::Servo(augment_transmission(nom, &plant_effects)?, pd.clone())
+            }
         };
         Ok(a)
     }
@@ -491,6 +503,42 @@ impl JointProblem {
                 };
                 debug_assert_eq!(u.len(), t * tr.n_inputs());
                 run_into(tr, &u, &x0, run, self.substeps, InputHold::Zoh)
+            }
+            Plant::Servo(tr, pd) => {
+                let n = tr.n_links();
+                let mut cols: Vec<Vec<f64>> = (0..2 * n).map(|c| run.input_column(c)).collect();
+                if a.delay > 0.0 {
+                    let mut tmp = vec![0.0; t];
+                    for col in &mut cols {
+                        signal::delay(col, a.delay, run.dt, &mut tmp);
+                        col.copy_from_slice(&tmp);
+                    }
+                }
+                let refs: Vec<f64> = (0..t)
+                    .flat_map(|k| cols.iter().map(move |c| c[k]))
+                    .collect();
+                let ext = if run.external.is_empty() {
+                    vec![0.0; t * n]
+                } else {
+                    run.external.clone()
+                };
+                let x0 = if run.x0.len() == tr.n_states() {
+                    run.x0.clone()
+                } else {
+                    tr.rest_state()
+                };
+                let (p, m) = (tr.n_outputs(), tr.n_inputs());
+                let (outputs, applied) =
+                    servo_into(tr, pd, &refs, &ext, &x0, run.dt, self.substeps)?;
+                Ok((0..t)
+                    .flat_map(|k| {
+                        outputs[k * p..(k + 1) * p]
+                            .iter()
+                            .chain(&applied[k * m..k * m + n])
+                            .copied()
+                            .collect::<Vec<_>>()
+                    })
+                    .collect())
             }
         }
     }
@@ -789,7 +837,7 @@ impl JointProblem {
                     x[0] = run.input[0] / m.radius;
                     propose_step(m, &x, &[run.input[0], 0.0], run.dt, 0.9)?
                 }
-                Plant::Transmission(m) => {
+                Plant::Transmission(m) | Plant::Servo(m, _) => {
                     let x = if run.x0.len() == m.n_states() {
                         run.x0.clone()
                     } else {
@@ -828,6 +876,40 @@ fn run_into<M: Model>(
         },
     )?;
     Ok(outputs)
+}
+
+/// Closed-loop replay of `model` under `pd` on references `(T, 2n)` with external loads
+/// `(T, n)`; returns the outputs `(T, p)` and the applied inputs `(T, 2n)`.
+fn servo_into(
+    model: &CableTransmission,
+    pd: &MotorPd,
+    refs: &[f64],
+    ext: &[f64],
+    x0: &[f64],
+    dt: f64,
+    substeps: usize,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let t = refs.len() / (2 * model.n_links());
+    let mut states = vec![0.0; t * model.n_states()];
+    let mut outputs = vec![0.0; t * model.n_outputs()];
+    let mut applied = vec![0.0; t * model.n_inputs()];
+    let opts = SimOptions::new(dt, substeps, InputHold::Zoh)?;
+    simulate_closed_loop_into(
+        model,
+        pd,
+        refs,
+        ext,
+        x0,
+        &opts,
+        ClosedLoopMut {
+            trajectory: TrajectoryMut {
+                states: &mut states,
+                outputs: &mut outputs,
+            },
+            inputs: &mut applied,
+        },
+    )?;
+    Ok((outputs, applied))
 }
 
 /// The antagonistic joint with its plant effects applied.
@@ -961,7 +1043,8 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 fn scales_of(nominal: &Plant, channels: &[Channel], runs: &[JointRun]) -> Scales {
     match nominal {
         Plant::Joint(j) => joint_scales(j, channels, runs),
-        Plant::Transmission(t) => transmission_scales(t, channels, runs),
+        Plant::Transmission(t) => transmission_scales(t, None, channels, runs),
+        Plant::Servo(t, pd) => transmission_scales(t, Some(pd), channels, runs),
     }
 }
 
@@ -989,29 +1072,56 @@ fn time_scales(runs: &[JointRun]) -> (f64, f64) {
 
 /// Scales of the transmission: joint torques from the motor torques through the transmission
 /// ratio, speeds from a replay of the nominal on the first run.
-fn transmission_scales(t: &CableTransmission, channels: &[Channel], runs: &[JointRun]) -> Scales {
+fn transmission_scales(
+    t: &CableTransmission,
+    servo: Option<&MotorPd>,
+    channels: &[Channel],
+    runs: &[JointRun],
+) -> Scales {
     let (dt, duration) = time_scales(runs);
     let n = t.n_links();
     let ratio: f64 = t.links().iter().map(|l| l.ratio()).sum::<f64>() / n as f64;
-    let torque = (rms(runs.iter().flat_map(|r| r.input.iter().copied())) * ratio).max(1e-9);
     let run = &runs[0];
     let x0 = if run.x0.len() == t.n_states() {
         run.x0.clone()
     } else {
         t.rest_state()
     };
-    let u: Vec<f64> = (0..run.len())
-        .flat_map(|k| (0..2 * n).map(move |c| if c < n { run.input[k * n + c] } else { 0.0 }))
-        .collect();
-    // a replay that fails (stiff nominal, too few substeps) falls back to 1 rad/s
-    let speed = run_into(t, &u, &x0, run, 4, InputHold::Zoh)
-        .ok()
-        .map(|y| {
-            let p = 5 * n;
-            let mut v = vec![0.0; run.len()];
+    let (tl, p) = (run.len(), t.n_outputs());
+    // a nominal replay of the first run gives the joint speeds (and, under the servo, the
+    // applied torques); a replay that fails falls back to 1 rad/s and the recorded inputs
+    let replay: Option<(Vec<f64>, Vec<f64>)> = match servo {
+        None => {
+            let u: Vec<f64> = (0..tl)
+                .flat_map(|k| {
+                    (0..2 * n).map(move |c| if c < n { run.input[k * n + c] } else { 0.0 })
+                })
+                .collect();
+            run_into(t, &u, &x0, run, 4, InputHold::Zoh)
+                .ok()
+                .map(|y| (y, run.input.clone()))
+        }
+        Some(pd) => {
+            let ext = vec![0.0; tl * n];
+            servo_into(t, pd, &run.input, &ext, &x0, run.dt, 4)
+                .ok()
+                .map(|(y, applied)| {
+                    let tau = (0..tl)
+                        .flat_map(|k| applied[k * 2 * n..k * 2 * n + n].to_vec())
+                        .collect();
+                    (y, tau)
+                })
+        }
+    };
+    let torque_in = replay.as_ref().map_or(&run.input, |r| &r.1);
+    let torque = (rms(torque_in.iter().copied()) * ratio).max(1e-9);
+    let speed = replay
+        .as_ref()
+        .map(|(y, _)| {
+            let mut v = vec![0.0; tl];
             let mut acc = 0.0;
             for i in 0..n {
-                let q: Vec<f64> = (0..run.len()).map(|k| y[k * p + 5 * i + 1]).collect();
+                let q: Vec<f64> = (0..tl).map(|k| y[k * p + 5 * i + 1]).collect();
                 signal::velocity(&q, run.dt, &mut v);
                 acc += rms(v.iter().copied()).powi(2);
             }
@@ -1305,6 +1415,76 @@ mod tests {
             ),
             Err(CableError::InvalidOption { .. })
         ));
+    }
+
+    #[test]
+    fn servo_replay_recovers_effects_and_reports_applied_torques() {
+        let raven = crate::dynamics::raven2(2).unwrap();
+        let pd = MotorPd::raven2(2);
+        let tr = raven.transmission_matrix();
+        let dt = 1e-3;
+        let t_len = 2000;
+        // motor references for smooth joint sines, q_m = T·q_l
+        let input: Vec<f64> = (0..t_len)
+            .flat_map(|k| {
+                let t = k as f64 * dt;
+                let w = 2.0 * std::f64::consts::PI;
+                let ql = [0.4 * (w * 0.5 * t).sin(), 0.3 * (w * 0.8 * t).sin()];
+                let dql = [
+                    0.4 * w * 0.5 * (w * 0.5 * t).cos(),
+                    0.3 * w * 0.8 * (w * 0.8 * t).cos(),
+                ];
+                let qm = [tr[0] * ql[0], tr[2] * ql[0] + tr[3] * ql[1]];
+                let dqm = [tr[0] * dql[0], tr[2] * dql[0] + tr[3] * dql[1]];
+                [qm[0], qm[1], dqm[0], dqm[1]]
+            })
+            .collect();
+        let chans: Vec<Channel> = [0, 1, 5, 6, 10, 11]
+            .iter()
+            .map(|&output| Channel {
+                output,
+                weight: 1e3,
+                sensor: output >= 10,
+            })
+            .collect();
+        let run = JointRun {
+            dt,
+            input,
+            width: 4,
+            x0: vec![],
+            coupled: vec![],
+            external: vec![],
+            measured: vec![0.0; t_len * 6],
+            start: 10,
+        };
+        let plant = Plant::Servo(raven, pd);
+        assert_eq!(plant.n_outputs(), 12);
+        for (effect, truth) in [
+            (Effect::Coupling, vec![-0.2]),
+            (Effect::CoulombFriction, vec![0.2, 0.3]),
+        ] {
+            let base = JointProblem::new(
+                plant.clone(),
+                chans.clone(),
+                vec![run.clone()],
+                vec![effect],
+                2,
+            )
+            .unwrap();
+            let mut data = run.clone();
+            data.measured = base.predict(&truth, 0).unwrap();
+            // the applied torques stay within the servo's limits
+            assert!(data
+                .measured
+                .chunks(6)
+                .all(|r| r[4].abs() <= 0.68 && r[5].abs() <= 0.68));
+            let p = JointProblem::new(plant.clone(), chans.clone(), vec![data], vec![effect], 2)
+                .unwrap();
+            let fit = p.fit(None, &LmOptions::default()).unwrap();
+            for (got, want) in fit.params.iter().zip(&truth) {
+                assert_relative_eq!(*got, *want, max_relative = 1e-3);
+            }
+        }
     }
 
     #[test]
