@@ -127,7 +127,7 @@ def _figures(result: dict[str, Any]) -> dict[str, str]:
     inner = result.get("_internal")
     if not inner:
         return {}
-    prep, _base, current, fits = inner["prep"], inner["base"], inner["current"], inner["fits"]
+    prep, current = inner["prep"], inner["current"]
     figs: dict[str, str] = {}
     run = prep.hold_runs[0]
     start = round(prep.spec.warmup / run.dt)
@@ -208,7 +208,6 @@ def _figures(result: dict[str, Any]) -> dict[str, str]:
             ax.set_ylabel(f"residual {name}")
             ax.legend(fontsize=7)
     figs["loops"] = _png(fig)
-    del fits
     return figs
 
 
