@@ -572,3 +572,90 @@ def test_servo_replay_diagnosis_names_link_friction():
     assert res["selected"]["held_out"]["closed_fraction"] > 0.9
     with pytest.raises(ck.DataError, match=r"\[servo\]"):
         model_spec_from_dict({k: v for k, v in doc.items() if k != "servo"})
+
+
+# ---- noise level of geared encoders and the servo-replay self-test cases ------------------------
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    turns=st.floats(1.0, 200.0),
+    f=st.floats(0.1, 2.0),
+    sigma=st.floats(1e-5, 1e-3),
+    seed=st.integers(0, 2**16),
+)
+def test_noise_level_of_a_geared_encoder(turns, f, sigma, seed):
+    """A motor angle sweeping up to 200 rad at 1 kHz with white noise: the noise estimate is
+    within 15 % of the truth (a smooth signal must not leak in, a wide range must not floor it)."""
+    from cablekit.diagnose.localise import noise_sigma
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(8000) * DT
+    y = turns * np.sin(2 * np.pi * f * t) + rng.normal(0.0, sigma, t.size)
+    assert noise_sigma(y) == pytest.approx(sigma, rel=0.15)
+
+
+def test_noise_level_of_held_and_noise_free_signals_is_finite_and_small():
+    from cablekit.diagnose.localise import noise_sigma
+
+    t = np.arange(4000) * DT
+    held = np.repeat(np.sin(2 * np.pi * 0.5 * t[::100]), 100)  # a 10 Hz sample-and-hold
+    s = noise_sigma(held)
+    assert 0 < s < 0.05 * np.std(held)
+    assert 0 < noise_sigma(np.zeros(100)) <= 1e-12
+
+
+@pytest.fixture(scope="module")
+def raven_cases():
+    from cablekit.diagnose.selftest_transmission import make_transmission_case
+
+    which = (("control", (), 11), ("slack", ("slack",), 12), ("delay", ("time_delay",), 13))
+    return {name: make_transmission_case(effects, seed, duration=6.0) for name, effects, seed in which}
+
+
+def test_servo_replay_control_with_encoder_noise_has_no_gap(raven_cases):
+    """A varied Raven-II 2-link under its servo, 0.1 mrad encoder noise, nothing withheld: the
+    replay from the first noisy motor angles stays at the noise level on the held-out run."""
+    case = raven_cases["control"]
+    res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200))
+    assert res["verdict"] == "no_significant_gap"
+    assert res["gap"]["held_out"] < 1.15
+
+
+def test_servo_replay_finds_a_pretension_loss_from_a_flat_start(raven_cases):
+    """Slack is invisible at the default start (no cable slackens at a 5 % loss): the fit
+    falls back to the start grid and recovers the lost share of the pretension."""
+    case = raven_cases["slack"]
+    res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200, max_effects=1))
+    assert res["effects"][0]["name"] == "slack"
+    frac = next(p for p in res["selected"]["parameters"] if p["name"] == "delta_T0_frac")["value"]
+    assert frac == pytest.approx(case.truth["effects"]["slack"]["fraction"], abs=0.03)
+    assert res["selected"]["held_out"]["closed_fraction"] > 0.9
+
+
+def test_servo_replay_measures_a_reference_delay(raven_cases):
+    case = raven_cases["delay"]
+    res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200, max_effects=1))
+    assert res["effects"][0]["name"] == "time_delay"
+    d = next(p for p in res["selected"]["parameters"] if p["name"] == "d")["value"]
+    assert d == pytest.approx(case.truth["effects"]["time_delay"]["d"], rel=0.02)
+
+
+def test_a_saturating_servo_replay_is_flagged():
+    """References whose accelerations need more than the current limit: the nominal replay sits
+    at the limit, and the diagnosis says so (no warning for the feasible control)."""
+    from cablekit.diagnose.engine import prepare
+    from cablekit.diagnose.selftest_transmission import make_transmission_case
+
+    case = make_transmission_case((), 21, duration=3.0)
+    assert prepare(case.spec, case.fit, case.hold).warnings == []
+    fast = []
+    for run in case.fit:
+        cols = dict(run.columns)
+        t = run.t
+        for i in (1, 2):  # 40 rad of motor travel at 3 Hz: ~14000 rad/s² against ~0.68 N·m
+            cols[f"ref{i}"] = 40.0 * np.sin(2 * np.pi * 3.0 * t)
+            cols[f"dref{i}"] = 40.0 * 2 * np.pi * 3.0 * np.cos(2 * np.pi * 3.0 * t)
+        fast.append(Run("fast", t, cols))
+    warnings = prepare(case.spec, fast, case.hold).warnings
+    assert len(warnings) == 2 and all("torque limit" in w and "'fast'" in w for w in warnings)

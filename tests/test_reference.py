@@ -35,9 +35,12 @@ TRAJ_RTOL = 1e-9
 
 
 def conditioning(model, u, dt, x0, substeps, hold):
-    """Relative change of the Rust trajectory when x0 moves by ~1e-15 relative."""
+    """Relative change of the Rust trajectory when x0 and every input sample move by ~1e-15
+    relative: rounding enters at every step, and a locally unstable segment (Stribeck friction's
+    negative slope is negative damping) amplifies it whatever the initial state."""
     a = ck.simulate(model, u, dt, x0, substeps=substeps, hold=hold).states
-    b = ck.simulate(model, u, dt, x0 * (1 + 1e-15) + 1e-300, substeps=substeps, hold=hold).states
+    u2 = np.ascontiguousarray(u * (1 + 1e-15 * np.cos(np.arange(u.size)).reshape(u.shape)))
+    b = ck.simulate(model, u2, dt, x0 * (1 + 1e-15) + 1e-300, substeps=substeps, hold=hold).states
     return float(np.max(np.max(np.abs(a - b), axis=0) / (np.max(np.abs(a), axis=0) + 1e-300)))
 
 

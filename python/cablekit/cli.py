@@ -146,6 +146,8 @@ def _run_diagnosis(
     res = diagnose(spec, fit, hold, Options(progress=not args.quiet, workers=args.workers, seed=args.seed))
     elapsed = time.perf_counter() - t0
     j = write_json(res, out / "diagnosis.json")
+    for w in res["meta"].get("warnings", []):
+        print(f"  warning: {w}")
     print(f"  verdict: {res['verdict']}")
     for e in res["effects"][:5]:
         h = e["held_out"]

@@ -19,9 +19,22 @@ def play(x, d):
 
 
 def delay(x, d, dt):
-    """y(t) = x(t − d), linear interpolation, first sample held before the start."""
-    t = np.arange(len(x)) * dt
-    return np.interp(t - d, t, x, left=x[0])
+    """y(t) = x(t − d): the Catmull–Rom cubic through the four samples around t − d (the
+    spline with tangents (x[j+1] − x[j−1])/2), indices clamped to the record."""
+    n = len(x)
+    s = np.arange(n) - d / dt  # fractional sample index of t − d
+    j = np.floor(s).astype(int)
+    u = s - j
+
+    def at(i):
+        return x[np.clip(i, 0, n - 1)]
+
+    p0, p1, p2, p3 = at(j - 1), at(j), at(j + 1), at(j + 2)
+    # Hermite basis with the Catmull–Rom tangents
+    m1, m2 = (p2 - p0) / 2, (p3 - p1) / 2
+    h00, h10 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u
+    h01, h11 = -2 * u**3 + 3 * u**2, u**3 - u**2
+    return h00 * p1 + h10 * m1 + h01 * p2 + h11 * m2
 
 
 def lag(x, tau, dt):

@@ -81,6 +81,7 @@ class Prepared:
     hold0: JointProblem
     candidates: list[str]
     skipped: dict[str, str]
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def q(self) -> int:
@@ -200,9 +201,40 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
         elif e == "capstan_friction" and not motor_tension:
             skipped[e] = "no motor-side tension measured"
     candidates = [e for e in all_effects if e not in skipped]
+    warnings = _servo_saturation(spec, model, fit_runs + hold_runs, fit_dicts + hold_dicts, substeps)
     return Prepared(
-        spec, fit_runs, hold_runs, names, columns, sigma, substeps, fit0, hold0, candidates, skipped
+        spec, fit_runs, hold_runs, names, columns, sigma, substeps, fit0, hold0, candidates, skipped, warnings
     )
+
+
+#: share of a run's samples at the servo's torque limit above which the replay is flagged
+SATURATION_WARN = 0.02
+
+
+def _servo_saturation(
+    spec: ModelSpec, model: Any, runs: list[Run], dicts: list[dict[str, Any]], substeps: int
+) -> list[str]:
+    """Warnings for runs whose nominal servo replay sits at the torque limit: a saturated servo
+    is open loop, and an open-loop replay of a frictional transmission amplifies any initial
+    error (docs/diagnosis.md)."""
+    servo = spec.servo()
+    if not servo:
+        return []
+    n = spec.links
+    limit = np.asarray(servo[2])
+    chans = [(5 * n + i, 1.0, False) for i in range(n)]
+    out = []
+    for run, d in zip(runs, dicts, strict=True):
+        probe = JointProblem(model, chans, [{**d, "measured": np.zeros((len(run), n))}], [], substeps, servo)
+        tau = probe.predict(np.zeros(0), 0)
+        share = np.mean(np.abs(tau) >= 0.99 * limit, axis=0)
+        for i in np.flatnonzero(share > SATURATION_WARN):
+            out.append(
+                f"run {run.name!r}: the nominal servo replay holds axis {i + 1} at its torque limit "
+                f"{100 * share[i]:.0f} % of the time; a saturated servo is open loop and its replay "
+                "is sensitive to the initial state: slow the references or raise the limit"
+            )
+    return out
 
 
 def _split(prep: Prepared, runs: list[Run], r: _F) -> list[_F]:
@@ -229,6 +261,10 @@ def _integrated_time(r: _F) -> float:
     return max(1.0, 1.0 + 2.0 * float(rho[1:cut].sum()))
 
 
+#: a fit whose cost fell by less than this share from its start made no progress
+STUCK = 1.0 - 1e-6
+
+
 def fit_candidate(
     prep: Prepared, effects: list[str], theta0: _F | None = None, max_iter: int = 40
 ) -> CandidateFit:
@@ -247,6 +283,10 @@ def fit_candidate(
         )
         problem = base.with_effects(effects, sub)
         res = problem.fit(start, max_iter=max_iter)
+        if theta0 is None and res["cost"] >= STUCK * res["initial_cost"] and any(s["starts"] for s in specs):
+            # the cost is flat at the default start (a pretension loss before any cable
+            # slackens): search the parameters' start grid, refine the best start
+            res = problem.fit(None, max_iter=max_iter)
         theta = res["params"]
         need = min(MAX_SUBSTEPS, problem.advised_substeps(theta))
         if need > sub:  # the fitted model is stiffer than the start: refit with enough substeps
@@ -711,6 +751,7 @@ def diagnose(
             ],
             "substeps": prep.substeps,
             "candidates": prep.candidates,
+            "warnings": prep.warnings,
             "options": {k: v for k, v in vars(opts).items() if k != "progress"},
         },
     }

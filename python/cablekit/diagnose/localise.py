@@ -7,6 +7,7 @@ channel), so channels of different units add up.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,15 +20,27 @@ _F = NDArray[np.float64]
 
 
 def noise_sigma(y: _F) -> float:
-    """Measurement-noise standard deviation of a sampled signal from its second differences:
-    for white noise ``Var(Δ²y) = 6σ²``, estimated robustly (median absolute deviation), so the
-    smooth signal and rare jumps do not count. Floored at 1e-3 of the signal's spread, and at
-    a tiny absolute value, so a held or noise-free signal does not get an infinite weight."""
-    d2 = np.diff(y, 2)
-    mad = float(np.median(np.abs(d2 - np.median(d2))))
-    sigma = 1.4826 * mad / np.sqrt(6.0)
+    """Measurement-noise standard deviation of a sampled signal from its differences of order
+    ``k = 2…5``: for white noise ``Var(Δᵏy) = C(2k, k)·σ²``, each estimated robustly (median
+    absolute deviation, so rare jumps do not count). A smooth signal leaks into ``Δᵏ`` as
+    ``(ω·dt)ᵏ``, so the smallest of the four estimates is the one the signal spoils least —
+    this matters for encoders whose range is 10⁶ times their noise (a geared motor turning tens of
+    radians). A held or quantised signal whose differences are mostly zero falls back to their
+    root mean square; the floor (1e-10 of the spread) keeps a noise-free signal from an infinite
+    weight."""
     spread = float(np.std(y))
-    return max(sigma, 1e-3 * spread, 1e-12)
+    estimates = []
+    for k in range(2, 6):
+        dk = np.diff(y, k)
+        if dk.size == 0:
+            continue
+        mad = float(np.median(np.abs(dk - np.median(dk))))
+        s = 1.4826 * mad / math.sqrt(math.comb(2 * k, k))
+        if s <= 1e-12 * spread:
+            s = float(np.sqrt(np.mean(dk * dk) / math.comb(2 * k, k)))
+        estimates.append(s)
+    sigma = min(estimates) if estimates else 0.0
+    return max(sigma, 1e-10 * spread, 1e-12)
 
 
 @dataclass

@@ -277,7 +277,11 @@ impl Effect {
                 per_link("delta_b", "N·m·s/rad", 0.0, -s.viscous, 100.0 * sc, sc)
             }
             Effect::InertiaError => per_link("epsilon", "1", 0.0, -0.95, 1e3, 0.5),
-            Effect::Slack => vec![p("delta_T0_frac", "1", 0.0, 0.05, 0.0, 0.95, 0.1)],
+            // with a linear cable law the pretension matters only once a cable slackens: the
+            // cost is flat near zero loss, so the fit also starts from large losses
+            Effect::Slack => {
+                vec![p("delta_T0_frac", "1", 0.0, 0.05, 0.0, 0.95, 0.1).starts(&[0.3, 0.6, 0.85])]
+            }
             Effect::NonlinearStiffness => {
                 // the transmission's exponential law needs a positive length scale: stiffening only
                 let st = s.stretch.max(1e-12);
