@@ -1,5 +1,6 @@
 """Type stub of the compiled core (checked against the built module by mypy.stubtest in .ci/run)."""
 
+from collections.abc import Sequence
 from typing import Any, final
 
 import numpy as np
@@ -12,6 +13,7 @@ __all__ = [
     "DahlElement",
     "JointProblem",
     "Model",
+    "SrUkf",
     "__version__",
     "cable_tension",
     "capstan_ratio",
@@ -236,3 +238,60 @@ class JointProblem:
         xtol: float = 1e-8,
     ) -> dict[str, Any]: ...
     def hold_from_updates(self) -> tuple[float, float] | None: ...
+
+@final
+class SrUkf:
+    """Square-root unscented Kalman filter (seed 001, eqs 3.9–3.25)."""
+
+    def __new__(
+        cls,
+        model: Model,
+        x0: _F,
+        P0: _F,
+        Q: _F,
+        R: _F,
+        *,
+        dt: float,
+        substeps: int = 1,
+        states: list[int] | None = None,
+        outputs: list[int] | None = None,
+        H: _F | None = None,
+        alpha: float = 1e-3,
+        beta: float = 2.0,
+        kappa: float = 0.0,
+    ) -> SrUkf: ...
+    @staticmethod
+    def linear(
+        F: _F,
+        H: _F,
+        x0: _F,
+        P0: _F,
+        Q: _F,
+        R: _F,
+        *,
+        B: _F | None = None,
+        alpha: float = 1e-3,
+        beta: float = 2.0,
+        kappa: float = 0.0,
+    ) -> SrUkf: ...
+    @property
+    def n_states(self) -> int: ...
+    @property
+    def n_outputs(self) -> int: ...
+    @property
+    def n_inputs(self) -> int: ...
+    @property
+    def x(self) -> _F: ...
+    @property
+    def S(self) -> _F: ...
+    @property
+    def P(self) -> _F: ...
+    @property
+    def weights(self) -> tuple[float, tuple[float, float], tuple[float, float]]: ...
+    @property
+    def health(self) -> dict[str, Any]: ...
+    def predict(self, u: _F) -> None: ...
+    def update(self, u: _F, y: _F, mask: Sequence[bool] | None = None) -> None: ...
+    def step(self, u: _F, y: _F, mask: Sequence[bool] | None = None) -> None: ...
+    def reset(self, x: _F, P: _F) -> None: ...
+    def run(self, U: _F, Y: _F, mask: NDArray[np.bool_] | None = None) -> dict[str, _F]: ...

@@ -17,6 +17,7 @@ pub mod cable;
 pub mod control;
 pub mod dynamics;
 pub mod error;
+pub mod estimate;
 pub mod friction;
 pub mod identify;
 pub mod integrate;

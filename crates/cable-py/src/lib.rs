@@ -6,6 +6,7 @@
 mod convert;
 mod dynamics;
 mod errors;
+mod estimate;
 mod friction;
 mod identify;
 mod integrate;
@@ -29,6 +30,7 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(friction::dahl_rate, m)?)?;
     m.add_function(wrap_pyfunction!(friction::cable_tension, m)?)?;
     m.add_class::<identify::JointProblem>()?;
+    m.add_class::<estimate::SrUkf>()?;
     m.add_function(wrap_pyfunction!(identify::effect_catalogue, m)?)?;
     Ok(())
 }

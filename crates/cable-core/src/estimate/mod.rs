@@ -1,0 +1,22 @@
+//! State, parameter and force estimation: the square-root unscented Kalman filter of seed 001
+//! (van der Merwe's form, eqs 3.9–3.25) over any cable-core model.
+//!
+//! * [`SrUkf`]: scaled sigma points (α, β, κ), QR of the weighted deviations, Cholesky rank-one
+//!   update/downdate for the 0th point (whose covariance weight is negative for small α),
+//!   triangular-solve gain, rank-`m` downdate by `U = K·S_y`. A downdate that loses positive
+//!   definiteness is detected, the covariance rebuilt and projected onto the positive definite
+//!   cone, and counted in [`Health`].
+//! * [`Process`]/[`Observe`]: a cable-core [`Model`](crate::Model) integrated by RK4 with
+//!   sub-steps ([`ModelProcess`]), a discrete linear system ([`LinearProcess`]); linear
+//!   measurements ([`LinearObserve`]) or selected model outputs ([`ModelOutputs`]).
+//! * Missing measurements per step by a mask (camera occlusion, seed 001 ch. 4).
+//!
+//! Matrices handed to the filter are `n × n` symmetric covariances (either storage order);
+//! square roots it returns are lower-triangular, column-major.
+
+pub mod linalg;
+mod models;
+mod srukf;
+
+pub use models::{LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe, Process};
+pub use srukf::{Health, SigmaScaling, SrUkf, Weights};

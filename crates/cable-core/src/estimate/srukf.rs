@@ -1,0 +1,759 @@
+//! The square-root unscented Kalman filter of van der Merwe (seed 001, eqs 3.9–3.25).
+
+use super::linalg::{
+    cholesky_psd, cholupdate, nearest_spd_factor, outer_lower, qr_lower, solve_lower,
+};
+use super::models::{Observe, Process};
+use crate::error::{check, CableError, Result};
+
+/// Sigma-point scaling (seed 001: α = 1e-3, β = 2, κ = 0).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SigmaScaling {
+    /// Spread of the sigma points around the mean, `0 < α ≤ 1`.
+    pub alpha: f64,
+    /// Prior knowledge of the distribution (2 is optimal for Gaussians).
+    pub beta: f64,
+    /// Secondary scaling, `n + κ > 0`.
+    pub kappa: f64,
+}
+
+impl Default for SigmaScaling {
+    fn default() -> Self {
+        Self {
+            alpha: 1e-3,
+            beta: 2.0,
+            kappa: 0.0,
+        }
+    }
+}
+
+/// The scaled unscented transform's weights for `n` states.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Weights {
+    /// `γ = √(n + λ)`.
+    pub gamma: f64,
+    /// Mean weights `W(m)_0`, `W(m)_i` (i ≥ 1).
+    pub wm: (f64, f64),
+    /// Covariance weights `W(c)_0` (negative for small α), `W(c)_i`.
+    pub wc: (f64, f64),
+}
+
+impl Weights {
+    /// Merwe's scaled weights: `λ = α²(n + κ) − n`.
+    pub fn new(n: usize, s: SigmaScaling) -> Result<Self> {
+        if !(s.alpha > 0.0 && s.alpha <= 1.0) {
+            return Err(CableError::InvalidParameter {
+                name: "alpha".into(),
+                value: s.alpha,
+                requirement: "in (0, 1]",
+            });
+        }
+        check::finite("beta", s.beta)?;
+        let nf = n as f64;
+        if nf + s.kappa <= 0.0 || !s.kappa.is_finite() {
+            return Err(CableError::InvalidParameter {
+                name: "kappa".into(),
+                value: s.kappa,
+                requirement: "finite with n + kappa > 0",
+            });
+        }
+        let lambda = s.alpha * s.alpha * (nf + s.kappa) - nf;
+        let wi = 1.0 / (2.0 * (nf + lambda));
+        let wm0 = lambda / (nf + lambda);
+        Ok(Self {
+            gamma: (nf + lambda).sqrt(),
+            wm: (wm0, wi),
+            wc: (wm0 + 1.0 - s.alpha * s.alpha + s.beta, wi),
+        })
+    }
+}
+
+/// Health of the last step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Health {
+    /// Normalised innovation squared `νᵀ·P_yy⁻¹·ν` of the last update (NaN without one); its
+    /// mean is the number of measured channels when the filter is consistent.
+    pub nis: f64,
+    /// Measured channels in the last update.
+    pub measured: usize,
+    /// Estimate of the state covariance's condition number, `(max Sᵢᵢ / min Sᵢᵢ)²`.
+    pub condition: f64,
+    /// Failed Cholesky downdates recovered in the last step.
+    pub recovered: u32,
+    /// Failed downdates recovered since construction.
+    pub recoveries_total: u64,
+}
+
+/// Square-root UKF over a [`Process`] and an [`Observe`] model. `x` and the lower-triangular
+/// `S` (`P = S·Sᵀ`) are the state; `step(u, y, mask)` predicts over one period with `u` and
+/// updates with the measured entries of `y`. Stepping allocates nothing unless a downdate
+/// fails (then `P` is rebuilt and projected onto the positive definite cone).
+#[derive(Debug, Clone)]
+pub struct SrUkf<P: Process, H: Observe> {
+    /// Process model.
+    pub process: P,
+    /// Measurement model.
+    pub observe: H,
+    n: usize,
+    p: usize,
+    w: Weights,
+    x: Vec<f64>,
+    s: Vec<f64>,
+    sq: Vec<f64>,
+    r_full: Vec<f64>,
+    sr: Vec<f64>,
+    health: Health,
+    // workspaces
+    chi: Vec<f64>,
+    ysig: Vec<f64>,
+    comp: Vec<f64>,
+    dev: Vec<f64>,
+    s_saved: Vec<f64>,
+    vsave: Vec<f64>,
+    sy: Vec<f64>,
+    sr_obs: Vec<f64>,
+    pxy: Vec<f64>,
+    yhat: Vec<f64>,
+    nu: Vec<f64>,
+    obs: Vec<usize>,
+    last_mask: Vec<bool>,
+}
+
+fn square(name: &str, m: &[f64], n: usize) -> Result<()> {
+    check::len(name, m, n * n)?;
+    check::all_finite(name, m, n)
+}
+
+/// Lower Cholesky factor of a symmetric (row- or column-major alike) covariance.
+fn factor(name: &str, m: &[f64], n: usize, definite: bool) -> Result<Vec<f64>> {
+    square(name, m, n)?;
+    for i in 0..n {
+        for j in 0..i {
+            let (a, b) = (m[i + j * n], m[j + i * n]);
+            if (a - b).abs() > 1e-9 * (a.abs() + b.abs()).max(1e-300) {
+                return Err(CableError::InvalidParameter {
+                    name: format!("{name}[{i}][{j}]"),
+                    value: a,
+                    requirement: "symmetric (equal to its transpose)",
+                });
+            }
+        }
+    }
+    let l = cholesky_psd(m, n).map_err(|row| CableError::InvalidParameter {
+        name: format!("{name} (Cholesky pivot at row {row})"),
+        value: m[row + row * n],
+        requirement: "positive semi-definite",
+    })?;
+    if definite {
+        if let Some(i) = (0..n).find(|&i| l[i + i * n] <= 0.0) {
+            return Err(CableError::InvalidParameter {
+                name: format!("{name} (Cholesky pivot at row {i})"),
+                value: m[i + i * n],
+                requirement: "positive definite",
+            });
+        }
+    }
+    Ok(l)
+}
+
+impl<P: Process, H: Observe> SrUkf<P, H> {
+    /// A filter at mean `x0` with covariance `p0` (positive definite), process noise
+    /// covariance `q` (positive semi-definite) and measurement noise covariance `r` (positive
+    /// definite); matrices `n × n` / `p × p`, symmetric, in either storage order.
+    pub fn new(
+        process: P,
+        observe: H,
+        x0: &[f64],
+        p0: &[f64],
+        q: &[f64],
+        r: &[f64],
+        scaling: SigmaScaling,
+    ) -> Result<Self> {
+        let n = process.n_states();
+        let p = observe.n_outputs();
+        check::len("x0", x0, n)?;
+        check::all_finite("x0", x0, 1)?;
+        let s = factor("P0", p0, n, true)?;
+        let sq = factor("Q", q, n, false)?;
+        let sr = factor("R", r, p, true)?;
+        let w = Weights::new(n, scaling)?;
+        let ns = 2 * n + 1;
+        let rows = 2 * n + n.max(p);
+        Ok(Self {
+            process,
+            observe,
+            n,
+            p,
+            w,
+            x: x0.to_vec(),
+            s,
+            sq,
+            r_full: r.to_vec(),
+            sr_obs: sr.clone(),
+            sr,
+            health: Health {
+                nis: f64::NAN,
+                ..Health::default()
+            },
+            chi: vec![0.0; n * ns],
+            ysig: vec![0.0; p * ns],
+            comp: vec![0.0; rows * n.max(p)],
+            dev: vec![0.0; n.max(p)],
+            s_saved: vec![0.0; n * n],
+            vsave: vec![0.0; n.max(p)],
+            sy: vec![0.0; p * p],
+            pxy: vec![0.0; n * p],
+            yhat: vec![0.0; p],
+            nu: vec![0.0; p],
+            obs: (0..p).collect(),
+            last_mask: vec![true; p],
+        })
+    }
+
+    /// State dimension.
+    pub fn n_states(&self) -> usize {
+        self.n
+    }
+    /// Measurement dimension.
+    pub fn n_outputs(&self) -> usize {
+        self.p
+    }
+    /// Current mean.
+    pub fn x(&self) -> &[f64] {
+        &self.x
+    }
+    /// Current lower-triangular square root of the covariance (column-major `n × n`).
+    pub fn sqrt_covariance(&self) -> &[f64] {
+        &self.s
+    }
+    /// Current covariance `S·Sᵀ` (column-major; symmetric).
+    pub fn covariance(&self) -> Vec<f64> {
+        outer_lower(&self.s, self.n)
+    }
+    /// Weights in use.
+    pub fn weights(&self) -> &Weights {
+        &self.w
+    }
+    /// Health of the last step.
+    pub fn health(&self) -> Health {
+        self.health
+    }
+
+    /// Replace mean and covariance (e.g. to restart); `p` must be positive definite.
+    pub fn reset(&mut self, x: &[f64], p: &[f64]) -> Result<()> {
+        check::len("x", x, self.n)?;
+        check::all_finite("x", x, 1)?;
+        self.s = factor("P", p, self.n, true)?;
+        self.x.copy_from_slice(x);
+        Ok(())
+    }
+
+    /// Sigma points of the current `(x, S)` into `chi` (column `i` = point `i`).
+    fn sigma_points(&mut self) {
+        let (n, g) = (self.n, self.w.gamma);
+        self.chi[..n].copy_from_slice(&self.x);
+        for j in 0..n {
+            let sj = &self.s[j * n..(j + 1) * n];
+            let (plus, minus) = (1 + j, 1 + n + j);
+            for i in 0..n {
+                self.chi[i + plus * n] = self.x[i] + g * sj[i];
+                self.chi[i + minus * n] = self.x[i] - g * sj[i];
+            }
+        }
+    }
+
+    /// Record a failed downdate and rebuild `S` from `S_saved·S_savedᵀ + Σ signᵢ·vᵢ·vᵢᵀ`.
+    fn recover(&mut self, updates: &[(&[f64], f64)]) {
+        let n = self.n;
+        let mut pm = outer_lower(&self.s_saved, n);
+        for (v, sign) in updates {
+            for j in 0..n {
+                for i in 0..n {
+                    pm[i + j * n] += sign * v[i] * v[j];
+                }
+            }
+        }
+        self.s = nearest_spd_factor(&pm, n, 1e-12);
+        self.health.recovered += 1;
+        self.health.recoveries_total += 1;
+    }
+
+    /// Time update (eqs 3.11–3.15) with input `u` held over the period.
+    pub fn predict(&mut self, u: &[f64]) -> Result<()> {
+        check::len("u", u, self.process.n_inputs())?;
+        check::all_finite("u", u, 1)?;
+        self.health.recovered = 0;
+        self.predict_unchecked(u);
+        self.check_state()
+    }
+
+    fn predict_unchecked(&mut self, u: &[f64]) {
+        let n = self.n;
+        let ns = 2 * n + 1;
+        self.sigma_points();
+        for i in 0..ns {
+            self.process.propagate(&mut self.chi[i * n..(i + 1) * n], u);
+        }
+        // mean (eq 3.13) as χ₀ + Σ Wᵢ(χᵢ − χ₀): the weights sum to one, and this form does not
+        // cancel the ±1e6-weighted terms of the seed's α = 1e-3 (W₀ ≈ −n/(α²n))
+        let wmi = self.w.wm.1;
+        for r in 0..n {
+            let c0 = self.chi[r];
+            let mut acc = 0.0;
+            for i in 1..ns {
+                acc += self.chi[r + i * n] - c0;
+            }
+            self.x[r] = c0 + wmi * acc;
+        }
+        // compound [√Wc·(χ_1:2n − x̂), √Q] transposed: rows are the columns
+        let rows = 2 * n + n;
+        let swc = self.w.wc.1.sqrt();
+        for c in 0..n {
+            for i in 0..2 * n {
+                self.comp[i + c * rows] = swc * (self.chi[c + (i + 1) * n] - self.x[c]);
+            }
+            for j in 0..n {
+                // row 2n + j is column j of √Q
+                self.comp[2 * n + j + c * rows] = self.sq[c + j * n];
+            }
+        }
+        qr_lower(&mut self.comp[..rows * n], rows, n, &mut self.s);
+        // 0th point, weight possibly negative: update or downdate (eq 3.15)
+        let wc0 = self.w.wc.0;
+        if wc0 != 0.0 {
+            let a = wc0.abs().sqrt();
+            for r in 0..n {
+                self.dev[r] = a * (self.chi[r] - self.x[r]);
+            }
+            self.rank_one(n, wc0.signum());
+        }
+    }
+
+    /// `S ← cholupdate(S, dev[..n], sign)`, recovering from a failed downdate.
+    fn rank_one(&mut self, n: usize, sign: f64) {
+        self.s_saved.copy_from_slice(&self.s);
+        self.vsave[..n].copy_from_slice(&self.dev[..n]);
+        if cholupdate(&mut self.s, n, &mut self.dev[..n], sign).is_err() {
+            let v = std::mem::take(&mut self.vsave);
+            self.recover(&[(&v[..n], sign)]);
+            self.vsave = v;
+        }
+    }
+
+    /// Measurement update (eqs 3.16–3.25) with the entries of `y` where `mask` is true (all
+    /// when `mask` is `None`); `u` is passed to the measurement model.
+    pub fn update(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) -> Result<()> {
+        check::len("y", y, self.p)?;
+        if let Some(m) = mask {
+            if m.len() != self.p {
+                return Err(CableError::Shape {
+                    what: "mask".into(),
+                    expected: format!("({},)", self.p),
+                    got: format!("({},)", m.len()),
+                });
+            }
+        }
+        for i in 0..self.p {
+            let on = mask.is_none_or(|m| m[i]);
+            if on && !y[i].is_finite() {
+                return Err(CableError::NotFinite {
+                    what: "y (mask the missing channels instead)".into(),
+                    index: i,
+                    value: y[i],
+                    location: String::new(),
+                });
+            }
+        }
+        self.update_unchecked(u, y, mask);
+        self.check_state()
+    }
+
+    fn set_mask(&mut self, mask: Option<&[bool]>) {
+        let p = self.p;
+        let same = match mask {
+            None => self.last_mask.iter().all(|&b| b),
+            Some(m) => m == self.last_mask.as_slice(),
+        };
+        if same {
+            return;
+        }
+        match mask {
+            None => self.last_mask.iter_mut().for_each(|b| *b = true),
+            Some(m) => self.last_mask.copy_from_slice(m),
+        }
+        self.obs.clear();
+        self.obs.extend((0..p).filter(|&i| self.last_mask[i]));
+        let q = self.obs.len();
+        if q == p {
+            self.sr_obs.copy_from_slice(&self.sr);
+            return;
+        }
+        // √R of the observed block: factor R[obs, obs] (allocates only when the mask changes)
+        let mut sub = vec![0.0; q * q];
+        for (a, &i) in self.obs.iter().enumerate() {
+            for (b, &j) in self.obs.iter().enumerate() {
+                sub[a + b * q] = self.r_full[i + j * p];
+            }
+        }
+        let l = cholesky_psd(&sub, q).unwrap_or_else(|_| nearest_spd_factor(&sub, q, 1e-12));
+        self.sr_obs[..q * q].copy_from_slice(&l);
+    }
+
+    fn update_unchecked(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) {
+        self.set_mask(mask);
+        let (n, p) = (self.n, self.p);
+        let q = self.obs.len();
+        self.health.measured = q;
+        if q == 0 {
+            self.health.nis = f64::NAN;
+            return;
+        }
+        let ns = 2 * n + 1;
+        // redraw sigma points from the predicted (x, S) (eq 3.16) and measure them (eq 3.17)
+        self.sigma_points();
+        let mut full = std::mem::take(&mut self.nu); // p-long scratch
+        for i in 0..ns {
+            self.observe
+                .observe(&self.chi[i * n..(i + 1) * n], u, &mut full[..p]);
+            for (a, &k) in self.obs.iter().enumerate() {
+                self.ysig[a + i * q] = full[k];
+            }
+        }
+        self.nu = full;
+        let wmi = self.w.wm.1;
+        for a in 0..q {
+            let y0 = self.ysig[a];
+            let mut acc = 0.0;
+            for i in 1..ns {
+                acc += self.ysig[a + i * q] - y0;
+            }
+            self.yhat[a] = y0 + wmi * acc; // eq 3.18, summed as the mean above
+        }
+        // S_y = qr([√Wc·(Y − ŷ), √R]) (eq 3.19), then the 0th point (eq 3.20)
+        let rows = 2 * n + q;
+        let swc = self.w.wc.1.sqrt();
+        for c in 0..q {
+            for i in 0..2 * n {
+                self.comp[i + c * rows] = swc * (self.ysig[c + (i + 1) * q] - self.yhat[c]);
+            }
+            for j in 0..q {
+                self.comp[2 * n + j + c * rows] = self.sr_obs[c + j * q];
+            }
+        }
+        qr_lower(&mut self.comp[..rows * q], rows, q, &mut self.sy[..q * q]);
+        let wc0 = self.w.wc.0;
+        if wc0 != 0.0 {
+            let a = wc0.abs().sqrt();
+            for c in 0..q {
+                self.dev[c] = a * (self.ysig[c] - self.yhat[c]);
+            }
+            let mut sy = std::mem::take(&mut self.sy);
+            if cholupdate(&mut sy[..q * q], q, &mut self.dev[..q], wc0.signum()).is_err() {
+                // rebuild P_yy from the deviations and repair it
+                let mut pyy = vec![0.0; q * q];
+                for i in 0..ns {
+                    let wi = if i == 0 { wc0 } else { self.w.wc.1 };
+                    for b in 0..q {
+                        for a in 0..q {
+                            pyy[a + b * q] += wi
+                                * (self.ysig[a + i * q] - self.yhat[a])
+                                * (self.ysig[b + i * q] - self.yhat[b]);
+                        }
+                    }
+                }
+                let sr2 = outer_lower(&self.sr_obs[..q * q], q);
+                for k in 0..q * q {
+                    pyy[k] += sr2[k];
+                }
+                sy[..q * q].copy_from_slice(&nearest_spd_factor(&pyy, q, 1e-12));
+                self.health.recovered += 1;
+                self.health.recoveries_total += 1;
+            }
+            self.sy = sy;
+        }
+        // P_xy (eq 3.21), column-major n × q
+        let (wc0, wci) = self.w.wc;
+        for c in 0..q {
+            for r in 0..n {
+                let mut acc = 0.0;
+                for i in 1..ns {
+                    acc +=
+                        (self.chi[r + i * n] - self.x[r]) * (self.ysig[c + i * q] - self.yhat[c]);
+                }
+                self.pxy[r + c * n] =
+                    wci * acc + wc0 * (self.chi[r] - self.x[r]) * (self.ysig[c] - self.yhat[c]);
+            }
+        }
+        // K = (P_xy / S_yᵀ) / S_y (eq 3.22): Z = P_xy·S_y⁻ᵀ row by row, then K = Z·S_y⁻¹
+        let sy = &self.sy[..q * q];
+        let mut row = std::mem::take(&mut self.dev);
+        for r in 0..n {
+            for c in 0..q {
+                row[c] = self.pxy[r + c * n];
+            }
+            solve_lower(sy, q, &mut row[..q]); // (S_y·zᵀ = p_xyᵀ)
+            for c in 0..q {
+                self.pxy[r + c * n] = row[c]; // Z = U (eq 3.24: U = K·S_y)
+            }
+        }
+        // innovation and NIS = |S_y⁻¹ν|²
+        for (a, &k) in self.obs.iter().enumerate() {
+            self.nu[a] = y[k] - self.yhat[a];
+        }
+        row[..q].copy_from_slice(&self.nu[..q]);
+        solve_lower(sy, q, &mut row[..q]);
+        self.health.nis = row[..q].iter().map(|v| v * v).sum();
+        // x += K·ν = Z·(S_y⁻¹ν)   (K·ν = Z·S_y⁻¹·ν)
+        for r in 0..n {
+            let mut acc = 0.0;
+            for c in 0..q {
+                acc += self.pxy[r + c * n] * row[c];
+            }
+            self.x[r] += acc;
+        }
+        self.dev = row;
+        // S ← cholupdate(S, U, −1) column by column (eq 3.25)
+        self.s_saved.copy_from_slice(&self.s);
+        let mut failed = false;
+        for c in 0..q {
+            self.dev[..n].copy_from_slice(&self.pxy[c * n..(c + 1) * n]);
+            if cholupdate(&mut self.s, n, &mut self.dev[..n], -1.0).is_err() {
+                failed = true;
+                break;
+            }
+        }
+        if failed {
+            let cols: Vec<Vec<f64>> = (0..q)
+                .map(|c| self.pxy[c * n..(c + 1) * n].to_vec())
+                .collect();
+            let ups: Vec<(&[f64], f64)> = cols.iter().map(|v| (v.as_slice(), -1.0)).collect();
+            self.recover(&ups);
+        }
+    }
+
+    /// Predict with `u`, then update with `y` (entries where `mask` is true; all if `None`).
+    pub fn step(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) -> Result<()> {
+        check::len("u", u, self.process.n_inputs())?;
+        check::all_finite("u", u, 1)?;
+        self.health.recovered = 0;
+        self.predict_unchecked(u);
+        self.update(u, y, mask)
+    }
+
+    /// Refresh the condition estimate; a non-finite mean or factor is an error (the model
+    /// diverged: smaller dt or more substeps).
+    fn check_state(&mut self) -> Result<()> {
+        let n = self.n;
+        let (mut lo, mut hi) = (f64::INFINITY, 0.0_f64);
+        for i in 0..n {
+            let d = self.s[i + i * n].abs();
+            lo = lo.min(d);
+            hi = hi.max(d);
+        }
+        self.health.condition = if lo > 0.0 {
+            (hi / lo).powi(2)
+        } else {
+            f64::INFINITY
+        };
+        if self.x.iter().chain(&self.s).any(|v| !v.is_finite()) {
+            return Err(CableError::Diverged {
+                step: 0,
+                time_s: f64::NAN,
+            });
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimate::{LinearObserve, LinearProcess};
+    use approx::assert_relative_eq;
+
+    /// Exact Kalman filter for `x' = A x + B u`, `y = H x` (row-major), covariances row-major.
+    struct Kf {
+        n: usize,
+        x: Vec<f64>,
+        p: nalgebra::DMatrix<f64>,
+    }
+
+    fn dm(r: usize, c: usize, v: &[f64]) -> nalgebra::DMatrix<f64> {
+        nalgebra::DMatrix::from_row_slice(r, c, v)
+    }
+
+    #[test]
+    fn linear_system_equals_the_kalman_filter_with_negative_w0() {
+        let (n, m, p) = (4, 1, 2);
+        let dt = 0.01;
+        let a = vec![
+            1.0,
+            dt,
+            0.0,
+            0.0, //
+            -dt * 40.0,
+            1.0 - dt * 0.5,
+            dt * 10.0,
+            0.0, //
+            0.0,
+            0.0,
+            1.0,
+            dt, //
+            dt * 10.0,
+            0.0,
+            -dt * 30.0,
+            1.0 - dt * 0.2,
+        ];
+        let b = vec![0.0, dt, 0.0, 0.0];
+        let h = vec![1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        let q: Vec<f64> = (0..n * n)
+            .map(|k| if k % (n + 1) == 0 { 1e-6 } else { 0.0 })
+            .collect();
+        let r = vec![1e-4, 2e-5, 2e-5, 4e-4];
+        let p0: Vec<f64> = (0..n * n)
+            .map(|k| if k % (n + 1) == 0 { 0.1 } else { 0.01 })
+            .collect();
+        let x0 = vec![0.1, 0.0, -0.2, 0.0];
+        let mut f = SrUkf::new(
+            LinearProcess::new(n, m, a.clone(), b.clone()).unwrap(),
+            LinearObserve::new(p, n, h.clone()).unwrap(),
+            &x0,
+            &p0,
+            &q,
+            &r,
+            SigmaScaling::default(),
+        )
+        .unwrap();
+        assert!(f.weights().wc.0 < 0.0, "seed α = 1e-3 gives a negative W0");
+        let mut kf = Kf {
+            n,
+            x: x0.clone(),
+            p: dm(n, n, &p0),
+        };
+        let (am, bm, hm, qm, rm) = (
+            dm(n, n, &a),
+            dm(n, m, &b),
+            dm(p, n, &h),
+            dm(n, n, &q),
+            dm(p, p, &r),
+        );
+        for k in 0..300 {
+            let u = [(k as f64 * 0.05).sin()];
+            let y = [0.1 * (k as f64 * 0.03).cos(), -0.05 + 1e-3 * k as f64];
+            f.step(&u, &y, None).unwrap();
+            // exact KF
+            let x = nalgebra::DVector::from_column_slice(&kf.x);
+            let xp = &am * x + &bm * u[0];
+            let pp = &am * &kf.p * am.transpose() + &qm;
+            let s = &hm * &pp * hm.transpose() + &rm;
+            let kgain = &pp * hm.transpose() * s.clone().try_inverse().unwrap();
+            let innov = nalgebra::DVector::from_column_slice(&y) - &hm * &xp;
+            let xn = &xp + &kgain * innov;
+            kf.p = &pp - &kgain * s * kgain.transpose();
+            kf.x = xn.as_slice().to_vec();
+            let cov = f.covariance();
+            for i in 0..kf.n {
+                assert_relative_eq!(f.x()[i], kf.x[i], epsilon = 1e-9, max_relative = 1e-7);
+                for j in 0..kf.n {
+                    assert_relative_eq!(
+                        cov[i + j * n],
+                        kf.p[(i, j)],
+                        epsilon = 1e-12,
+                        max_relative = 1e-6
+                    );
+                }
+            }
+        }
+        assert_eq!(f.health().recoveries_total, 0);
+        assert!(f.health().nis.is_finite());
+    }
+
+    #[test]
+    fn a_downdate_lost_to_rounding_is_recovered_and_counted() {
+        // a near-perfect measurement of x0: the posterior variance 1e-30 is below the
+        // resolution of the prior's 1.0, so the rank-one downdate fails in floating point
+        let n = 2;
+        let mut f = SrUkf::new(
+            LinearProcess::new(n, 0, vec![1.0, 0.0, 0.0, 1.0], vec![]).unwrap(),
+            LinearObserve::select(n, &[0]).unwrap(),
+            &[0.0, 0.0],
+            &[1.0, 0.0, 0.0, 1.0],
+            &[0.0; 4],
+            &[1e-30],
+            SigmaScaling::default(),
+        )
+        .unwrap();
+        f.step(&[], &[0.5], None).unwrap();
+        let h = f.health();
+        assert!(h.recovered >= 1 && h.recoveries_total >= 1);
+        let cov = f.covariance();
+        assert!(cov.iter().all(|v| v.is_finite()));
+        assert!(
+            cov[0] >= 0.0 && cov[0] < 1e-6,
+            "x0 is now known: {}",
+            cov[0]
+        );
+        assert_relative_eq!(cov[3], 1.0, epsilon = 1e-9);
+        assert_relative_eq!(f.x()[0], 0.5, epsilon = 1e-9);
+    }
+
+    #[test]
+    fn masked_channels_are_not_used_and_nan_is_refused_unless_masked() {
+        let n = 2;
+        let mk = || {
+            SrUkf::new(
+                LinearProcess::new(n, 0, vec![1.0, 0.0, 0.0, 1.0], vec![]).unwrap(),
+                LinearObserve::select(n, &[0, 1]).unwrap(),
+                &[0.0, 0.0],
+                &[1.0, 0.0, 0.0, 1.0],
+                &[0.0; 4],
+                &[0.01, 0.0, 0.0, 0.01],
+                SigmaScaling::default(),
+            )
+            .unwrap()
+        };
+        let mut f = mk();
+        assert!(matches!(
+            f.step(&[], &[1.0, f64::NAN], None),
+            Err(CableError::NotFinite { index: 1, .. })
+        ));
+        let mut f = mk();
+        f.step(&[], &[1.0, f64::NAN], Some(&[true, false])).unwrap();
+        assert_relative_eq!(f.x()[0], 1.0 / 1.01, epsilon = 1e-9);
+        assert!(f.x()[1].abs() < 1e-300);
+        assert_relative_eq!(f.covariance()[3], 1.0, epsilon = 1e-12);
+        assert_eq!(f.health().measured, 1);
+    }
+
+    #[test]
+    fn bad_covariances_are_typed_errors() {
+        let n = 2;
+        let mk = |p0: &[f64], r: &[f64]| {
+            SrUkf::new(
+                LinearProcess::new(n, 0, vec![1.0, 0.0, 0.0, 1.0], vec![]).unwrap(),
+                LinearObserve::select(n, &[0]).unwrap(),
+                &[0.0, 0.0],
+                p0,
+                &[0.0; 4],
+                r,
+                SigmaScaling::default(),
+            )
+        };
+        assert!(matches!(
+            mk(&[1.0, 2.0, 2.0, 1.0], &[1.0]),
+            Err(CableError::InvalidParameter { .. })
+        ));
+        assert!(matches!(
+            mk(&[1.0, 0.5, 0.0, 1.0], &[1.0]),
+            Err(CableError::InvalidParameter { .. })
+        ));
+        assert!(matches!(
+            mk(&[1.0, 0.0, 0.0, 1.0], &[0.0]),
+            Err(CableError::InvalidParameter { .. })
+        ));
+        assert!(matches!(
+            mk(&[1.0, 0.0, 0.0], &[1.0]),
+            Err(CableError::Shape { .. })
+        ));
+    }
+}

@@ -1,0 +1,424 @@
+//! `SrUkf`: the square-root UKF over a cablekit model or a discrete linear system.
+
+use cable_core::dynamics::Model as _;
+use cable_core::estimate::{
+    self as core, LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe, Process,
+    SigmaScaling,
+};
+use cable_core::CableError;
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::convert::{matrix, to_matrix, to_vector, vector};
+use crate::dynamics::{with_model, AnyModel, Model};
+use crate::errors::{guarded, raise};
+
+type DynProcess = Box<dyn Process + Send + Sync>;
+type DynObserve = Box<dyn Observe + Send + Sync>;
+type Filter = core::SrUkf<DynProcess, DynObserve>;
+/// `(u, y, mask)` of one step.
+type Measurement = (Vec<f64>, Vec<f64>, Option<Vec<bool>>);
+
+/// Square-root unscented Kalman filter (seed 001, eqs 3.9–3.25).
+#[pyclass(module = "cablekit._cablekit")]
+pub struct SrUkf {
+    inner: Filter,
+    m: usize,
+}
+
+/// A `(k, k)` covariance as a flat row-major copy.
+fn square(obj: &Bound<'_, PyAny>, name: &str, k: usize) -> PyResult<Vec<f64>> {
+    let (arr, rows) = matrix(obj, name, Some(k))?;
+    if rows != k {
+        return Err(raise(
+            "ShapeError",
+            format!("{name} must have shape ({k}, {k}), got ({rows}, {k})"),
+            &[],
+        ));
+    }
+    Ok(arr.as_slice()?.to_vec())
+}
+
+/// Transpose a row-major `(r, c)` buffer into column-major (the same numbers for a symmetric
+/// matrix; needed for the non-symmetric ones the core reads column-major).
+fn col_major_from_lower(l: &[f64], n: usize) -> Vec<f64> {
+    // column-major lower → row-major (n, n)
+    let mut out = vec![0.0; n * n];
+    for j in 0..n {
+        for i in 0..n {
+            out[i * n + j] = l[i + j * n];
+        }
+    }
+    out
+}
+
+fn scaling(alpha: f64, beta: f64, kappa: f64) -> SigmaScaling {
+    SigmaScaling { alpha, beta, kappa }
+}
+
+fn mask_vec(obj: Option<&Bound<'_, PyAny>>, p: usize) -> PyResult<Option<Vec<bool>>> {
+    let Some(o) = obj else { return Ok(None) };
+    if o.is_none() {
+        return Ok(None);
+    }
+    let v: Vec<bool> = o.extract().map_err(|_| {
+        raise(
+            "DTypeError",
+            "mask must be a sequence of booleans (True = measured)".into(),
+            &[],
+        )
+    })?;
+    if v.len() != p {
+        return Err(raise(
+            "ShapeError",
+            format!("mask must have length {p}, got {}", v.len()),
+            &[],
+        ));
+    }
+    Ok(Some(v))
+}
+
+impl SrUkf {
+    fn build(
+        process: DynProcess,
+        observe: DynObserve,
+        x0: &Bound<'_, PyAny>,
+        p0: &Bound<'_, PyAny>,
+        q: &Bound<'_, PyAny>,
+        r: &Bound<'_, PyAny>,
+        s: SigmaScaling,
+    ) -> PyResult<Self> {
+        let (n, p, m) = (process.n_states(), observe.n_outputs(), process.n_inputs());
+        let x0 = vector(x0, "x0", n)?;
+        let p0 = square(p0, "P0", n)?;
+        let q = square(q, "Q", n)?;
+        let r = square(r, "R", p)?;
+        let inner = guarded(|| core::SrUkf::new(process, observe, &x0, &p0, &q, &r, s))?;
+        Ok(Self { inner, m })
+    }
+
+    /// `u`, `y` and the optional mask of one step, checked.
+    fn measurement(
+        &self,
+        u: &Bound<'_, PyAny>,
+        y: &Bound<'_, PyAny>,
+        mask: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Measurement> {
+        let p = self.inner.n_outputs();
+        Ok((
+            vector(u, "u", self.m)?,
+            vector(y, "y", p)?,
+            mask_vec(mask, p)?,
+        ))
+    }
+
+    fn health_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let h = self.inner.health();
+        let d = PyDict::new(py);
+        d.set_item("nis", h.nis)?;
+        d.set_item("measured", h.measured)?;
+        d.set_item("condition", h.condition)?;
+        d.set_item("recovered", h.recovered)?;
+        d.set_item("recoveries_total", h.recoveries_total)?;
+        Ok(d)
+    }
+}
+
+#[pymethods]
+impl SrUkf {
+    /// Filter over `model` integrated by RK4 (`substeps` per period `dt`, input held), measuring
+    /// either selected states (`states`), selected model outputs (`outputs`) or `H·x` (`H`).
+    #[new]
+    #[pyo3(signature = (model, x0, P0, Q, R, *, dt, substeps = 1, states = None, outputs = None, H = None, alpha = 1e-3, beta = 2.0, kappa = 0.0))]
+    #[allow(non_snake_case, clippy::too_many_arguments)]
+    fn new(
+        model: &Bound<'_, Model>,
+        x0: &Bound<'_, PyAny>,
+        P0: &Bound<'_, PyAny>,
+        Q: &Bound<'_, PyAny>,
+        R: &Bound<'_, PyAny>,
+        dt: f64,
+        substeps: usize,
+        states: Option<Vec<usize>>,
+        outputs: Option<Vec<usize>>,
+        H: Option<&Bound<'_, PyAny>>,
+        alpha: f64,
+        beta: f64,
+        kappa: f64,
+    ) -> PyResult<Self> {
+        let any = model.get().inner.clone();
+        let n = with_model!(&any, m => m.n_states());
+        let given = [states.is_some(), outputs.is_some(), H.is_some()];
+        if given.iter().filter(|&&g| g).count() != 1 {
+            return Err(raise(
+                "ParameterError",
+                "give exactly one measurement: states=[...], outputs=[...] or H=<(p, n) array>"
+                    .into(),
+                &[],
+            ));
+        }
+        let process: DynProcess = guarded(|| {
+            Ok::<DynProcess, CableError>(match any.clone() {
+                AnyModel::Transmission(t) => Box::new(ModelProcess::new(t, dt, substeps)?),
+                AnyModel::Antagonistic(j) => Box::new(ModelProcess::new(j, dt, substeps)?),
+                AnyModel::Dahl(d) => Box::new(ModelProcess::new(d, dt, substeps)?),
+            })
+        })?;
+        let observe: DynObserve = if let Some(idx) = states {
+            Box::new(guarded(|| LinearObserve::select(n, &idx))?)
+        } else if let Some(idx) = outputs {
+            guarded(|| {
+                Ok::<DynObserve, CableError>(match any {
+                    AnyModel::Transmission(t) => Box::new(ModelOutputs::new(t, idx)?),
+                    AnyModel::Antagonistic(j) => Box::new(ModelOutputs::new(j, idx)?),
+                    AnyModel::Dahl(d) => Box::new(ModelOutputs::new(d, idx)?),
+                })
+            })?
+        } else {
+            let h = H.expect("checked above");
+            let (arr, rows) = matrix(h, "H", Some(n))?;
+            let hv = arr.as_slice()?.to_vec();
+            Box::new(guarded(|| LinearObserve::new(rows, n, hv))?)
+        };
+        Self::build(process, observe, x0, P0, Q, R, scaling(alpha, beta, kappa))
+    }
+
+    /// Filter over the discrete linear system `x' = F·x + B·u`, `y = H·x`.
+    #[staticmethod]
+    #[pyo3(signature = (F, H, x0, P0, Q, R, *, B = None, alpha = 1e-3, beta = 2.0, kappa = 0.0))]
+    #[allow(non_snake_case, clippy::too_many_arguments)]
+    fn linear(
+        F: &Bound<'_, PyAny>,
+        H: &Bound<'_, PyAny>,
+        x0: &Bound<'_, PyAny>,
+        P0: &Bound<'_, PyAny>,
+        Q: &Bound<'_, PyAny>,
+        R: &Bound<'_, PyAny>,
+        B: Option<&Bound<'_, PyAny>>,
+        alpha: f64,
+        beta: f64,
+        kappa: f64,
+    ) -> PyResult<Self> {
+        let (farr, n) = matrix(F, "F", None)?;
+        let fv = farr.as_slice()?.to_vec();
+        if fv.len() != n * n {
+            return Err(raise(
+                "ShapeError",
+                format!("F must be square, got ({n}, {})", fv.len() / n),
+                &[],
+            ));
+        }
+        let (bv, m) = match B {
+            Some(b) if !b.is_none() => {
+                let (barr, rows) = matrix(b, "B", None)?;
+                if rows != n {
+                    return Err(raise(
+                        "ShapeError",
+                        format!("B must have {n} rows, got {rows}"),
+                        &[],
+                    ));
+                }
+                let v = barr.as_slice()?.to_vec();
+                let m = v.len() / n;
+                (v, m)
+            }
+            _ => (Vec::new(), 0),
+        };
+        let (harr, p) = matrix(H, "H", Some(n))?;
+        let hv = harr.as_slice()?.to_vec();
+        let process: DynProcess = Box::new(guarded(|| LinearProcess::new(n, m, fv, bv))?);
+        let observe: DynObserve = Box::new(guarded(|| LinearObserve::new(p, n, hv))?);
+        Self::build(process, observe, x0, P0, Q, R, scaling(alpha, beta, kappa))
+    }
+
+    #[getter]
+    fn n_states(&self) -> usize {
+        self.inner.n_states()
+    }
+    #[getter]
+    fn n_outputs(&self) -> usize {
+        self.inner.n_outputs()
+    }
+    #[getter]
+    fn n_inputs(&self) -> usize {
+        self.m
+    }
+    /// Current mean.
+    #[getter]
+    fn x<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        to_vector(py, self.inner.x().to_vec())
+    }
+    /// Current lower-triangular square root of the covariance.
+    #[getter(S)]
+    fn sqrt_covariance<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let n = self.inner.n_states();
+        to_matrix(
+            py,
+            col_major_from_lower(self.inner.sqrt_covariance(), n),
+            n,
+            n,
+        )
+    }
+    /// Current covariance `S·Sᵀ`.
+    #[getter(P)]
+    fn covariance<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let n = self.inner.n_states();
+        to_matrix(py, self.inner.covariance(), n, n) // symmetric: either order
+    }
+    /// `(gamma, (Wm0, Wmi), (Wc0, Wci))`.
+    #[getter]
+    fn weights(&self) -> (f64, (f64, f64), (f64, f64)) {
+        let w = self.inner.weights();
+        (w.gamma, w.wm, w.wc)
+    }
+    /// Health of the last step: `nis`, `measured`, `condition`, `recovered`,
+    /// `recoveries_total`.
+    #[getter]
+    fn health<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        self.health_dict(py)
+    }
+
+    /// Time update with input `u` held over one period.
+    fn predict(&mut self, u: &Bound<'_, PyAny>) -> PyResult<()> {
+        let u = vector(u, "u", self.m)?;
+        guarded(|| self.inner.predict(&u))
+    }
+
+    /// Measurement update with `y` (entries where `mask` is true; all without a mask).
+    #[pyo3(signature = (u, y, mask = None))]
+    fn update(
+        &mut self,
+        u: &Bound<'_, PyAny>,
+        y: &Bound<'_, PyAny>,
+        mask: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let (u, y, mask) = self.measurement(u, y, mask)?;
+        guarded(|| self.inner.update(&u, &y, mask.as_deref()))
+    }
+
+    /// Predict with `u`, then update with `y` (see `update`).
+    #[pyo3(signature = (u, y, mask = None))]
+    fn step(
+        &mut self,
+        u: &Bound<'_, PyAny>,
+        y: &Bound<'_, PyAny>,
+        mask: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let (u, y, mask) = self.measurement(u, y, mask)?;
+        guarded(|| self.inner.step(&u, &y, mask.as_deref()))
+    }
+
+    /// Replace the mean and covariance.
+    #[allow(non_snake_case)]
+    fn reset(&mut self, x: &Bound<'_, PyAny>, P: &Bound<'_, PyAny>) -> PyResult<()> {
+        let n = self.inner.n_states();
+        let x = vector(x, "x", n)?;
+        let p = square(P, "P", n)?;
+        guarded(|| self.inner.reset(&x, &p))
+    }
+
+    /// Filter a whole log: `U` `(T, m)` inputs (the input over the period ending at sample
+    /// `k`), `Y` `(T, p)` measurements, `mask` `(T, p)` booleans (default: all measured; a NaN
+    /// where the mask is true is an error). Returns `x` `(T, n)`, `S` `(T, n, n)`, `nis`,
+    /// `condition`, `recovered` `(T,)` and `measured` `(T,)`. The GIL is released.
+    #[pyo3(signature = (U, Y, mask = None))]
+    #[allow(non_snake_case)]
+    fn run<'py>(
+        &mut self,
+        py: Python<'py>,
+        U: &Bound<'py, PyAny>,
+        Y: &Bound<'py, PyAny>,
+        mask: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (n, p, m) = (self.inner.n_states(), self.inner.n_outputs(), self.m);
+        let (yarr, t) = matrix(Y, "Y", Some(p))?;
+        let ydata = yarr.as_slice()?.to_vec();
+        let udata: Vec<f64> = if m == 0 {
+            Vec::new()
+        } else {
+            let (uarr, tu) = matrix(U, "U", Some(m))?;
+            if tu != t {
+                return Err(raise(
+                    "ShapeError",
+                    format!("U has {tu} rows but Y has {t}"),
+                    &[],
+                ));
+            }
+            uarr.as_slice()?.to_vec()
+        };
+        let mdata: Option<Vec<bool>> = match mask {
+            Some(mk) if !mk.is_none() => {
+                let arr = mk.cast::<numpy::PyArray2<bool>>().map_err(|_| {
+                    raise(
+                        "DTypeError",
+                        "mask must be a (T, p) numpy array of bool".into(),
+                        &[],
+                    )
+                })?;
+                if arr.shape() != [t, p] {
+                    return Err(raise(
+                        "ShapeError",
+                        format!("mask must have shape ({t}, {p}), got {:?}", arr.shape()),
+                        &[],
+                    ));
+                }
+                Some(arr.readonly().as_array().iter().copied().collect())
+            }
+            _ => None,
+        };
+        let inner = &mut self.inner;
+        let out = py.detach(|| {
+            guarded(|| {
+                let mut xs = vec![0.0; t * n];
+                let mut ss = vec![0.0; t * n * n];
+                let (mut nis, mut cond) = (vec![0.0; t], vec![0.0; t]);
+                let (mut rec, mut meas) = (vec![0.0; t], vec![0.0; t]);
+                for k in 0..t {
+                    let u = &udata[k * m..(k + 1) * m];
+                    let y = &ydata[k * p..(k + 1) * p];
+                    let mk = mdata.as_ref().map(|v| &v[k * p..(k + 1) * p]);
+                    inner.step(u, y, mk).map_err(|e| match e {
+                        CableError::Diverged { .. } => CableError::Diverged {
+                            step: k,
+                            time_s: f64::NAN,
+                        },
+                        CableError::NotFinite { index, value, .. } => CableError::NotFinite {
+                            what: "Y (mask the missing entries instead)".into(),
+                            index: k * p + index,
+                            value,
+                            location: format!(" (row {k}, column {index})"),
+                        },
+                        other => other,
+                    })?;
+                    xs[k * n..(k + 1) * n].copy_from_slice(inner.x());
+                    let s = inner.sqrt_covariance();
+                    for i in 0..n {
+                        for j in 0..n {
+                            ss[k * n * n + i * n + j] = s[i + j * n];
+                        }
+                    }
+                    let h = inner.health();
+                    nis[k] = h.nis;
+                    cond[k] = h.condition;
+                    rec[k] = h.recovered as f64;
+                    meas[k] = h.measured as f64;
+                }
+                Ok((xs, ss, nis, cond, rec, meas))
+            })
+        })?;
+        let (xs, ss, nis, cond, rec, meas) = out;
+        let d = PyDict::new(py);
+        d.set_item("x", to_matrix(py, xs, t, n))?;
+        let s3: Bound<'py, PyArray3<f64>> = Array3::from_shape_vec((t, n, n), ss)
+            .expect("sized above")
+            .into_pyarray(py);
+        d.set_item("S", s3)?;
+        d.set_item("nis", to_vector(py, nis))?;
+        d.set_item("condition", to_vector(py, cond))?;
+        d.set_item("recovered", to_vector(py, rec))?;
+        d.set_item("measured", to_vector(py, meas))?;
+        Ok(d)
+    }
+}
