@@ -297,13 +297,17 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         // mean (eq 3.13) as χ₀ + Σ Wᵢ(χᵢ − χ₀): the weights sum to one, and this form does not
         // cancel the ±1e6-weighted terms of the seed's α = 1e-3 (W₀ ≈ −n/(α²n))
         let wmi = self.w.wm.1;
-        for r in 0..n {
-            let c0 = self.chi[r];
-            let mut acc = 0.0;
-            for i in 1..ns {
-                acc += self.chi[r + i * n] - c0;
+        self.dev[..n].fill(0.0);
+        {
+            let (c0, rest) = self.chi.split_at(n);
+            for col in rest.chunks_exact(n) {
+                for ((acc, v), z) in self.dev[..n].iter_mut().zip(col).zip(c0) {
+                    *acc += v - z;
+                }
             }
-            self.x[r] = c0 + wmi * acc;
+            for ((x, acc), z) in self.x.iter_mut().zip(&self.dev[..n]).zip(c0) {
+                *x = z + wmi * acc;
+            }
         }
         // compound [√Wc·(χ_1:2n − x̂), √Q] transposed: rows are the columns
         let rows = 2 * n + n;
@@ -317,7 +321,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                 self.comp[2 * n + j + c * rows] = self.sq[c + j * n];
             }
         }
-        qr_lower(&mut self.comp[..rows * n], rows, n, &mut self.s);
+        qr_lower(&mut self.comp[..rows * n], rows, n, n, &mut self.s);
         // 0th point, weight possibly negative: update or downdate (eq 3.15)
         let wc0 = self.w.wc.0;
         if wc0 != 0.0 {
@@ -440,7 +444,13 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                 self.comp[2 * n + j + c * rows] = self.sr_obs[c + j * q];
             }
         }
-        qr_lower(&mut self.comp[..rows * q], rows, q, &mut self.sy[..q * q]);
+        qr_lower(
+            &mut self.comp[..rows * q],
+            rows,
+            q,
+            q,
+            &mut self.sy[..q * q],
+        );
         let wc0 = self.w.wc.0;
         if wc0 != 0.0 {
             let a = wc0.abs().sqrt();
@@ -471,17 +481,19 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             }
             self.sy = sy;
         }
-        // P_xy (eq 3.21), column-major n × q
+        // P_xy (eq 3.21), column-major n × q: Σᵢ Wᵢ·(χᵢ − x̂)·(Yᵢ − ŷ)ᵀ, accumulated point by
+        // point over contiguous columns
         let (wc0, wci) = self.w.wc;
-        for c in 0..q {
-            for r in 0..n {
-                let mut acc = 0.0;
-                for i in 1..ns {
-                    acc +=
-                        (self.chi[r + i * n] - self.x[r]) * (self.ysig[c + i * q] - self.yhat[c]);
+        self.pxy[..n * q].fill(0.0);
+        for i in 0..ns {
+            let w = if i == 0 { wc0 } else { wci };
+            let xi = &self.chi[i * n..(i + 1) * n];
+            for c in 0..q {
+                let dy = w * (self.ysig[c + i * q] - self.yhat[c]);
+                let col = &mut self.pxy[c * n..(c + 1) * n];
+                for ((p, xv), xm) in col.iter_mut().zip(xi).zip(&self.x) {
+                    *p += (xv - xm) * dy;
                 }
-                self.pxy[r + c * n] =
-                    wci * acc + wc0 * (self.chi[r] - self.x[r]) * (self.ysig[c] - self.yhat[c]);
             }
         }
         // K = (P_xy / S_yᵀ) / S_y (eq 3.22): Z = P_xy·S_y⁻ᵀ row by row, then K = Z·S_y⁻¹

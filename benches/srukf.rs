@@ -1,0 +1,93 @@
+//! criterion bench of the square-root UKF (issue #4): predict + update of the Raven-II 3-link
+//! transmission (n = 12 states, m = 3 motor encoders), RK4 process model; budget in
+//! `budgets.toml`.
+
+use std::hint::black_box;
+
+use cable_bench::raven_fixture;
+use cable_core::dynamics::Model;
+use cable_core::estimate::{LinearObserve, ModelProcess, SigmaScaling, SrUkf};
+use cable_core::integrate::{simulate, InputHold, SimOptions};
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+
+fn srukf(c: &mut Criterion) {
+    let (model, x0, u) = raven_fixture();
+    let n = model.n_states();
+    let mut g = c.benchmark_group("srukf_raven3");
+    g.throughput(Throughput::Elements(1));
+    // (filter period, RK4 substeps): 10 kHz with one RK4 step, 1 kHz with Raven's advised 4
+    for (label, dt, sub) in [("step_10khz_1rk4", 1e-4, 1), ("step_1khz_4rk4", 1e-3, 4)] {
+        // a measured trajectory to filter, cycled
+        let steps = 2000;
+        let inputs: Vec<f64> = (0..steps)
+            .flat_map(|k| {
+                let s = (k as f64 * dt * 6.0).sin();
+                [u[0] * s, u[1] * s, u[2] * s, 0.0, 0.0, 0.0]
+            })
+            .collect();
+        let opts = SimOptions::new(dt, sub, InputHold::Zoh).expect("valid");
+        let traj = simulate(&model, &inputs, &x0, &opts).expect("stable");
+        let ys: Vec<[f64; 3]> = (0..steps)
+            .map(|k| {
+                let s = &traj.states[k * n..(k + 1) * n];
+                [s[0], s[4], s[8]]
+            })
+            .collect();
+        let p0: Vec<f64> = (0..n * n)
+            .map(|k| if k % (n + 1) == 0 { 1e-6 } else { 0.0 })
+            .collect();
+        let q: Vec<f64> = p0.iter().map(|v| v * 1e-3).collect();
+        let r: Vec<f64> = (0..9)
+            .map(|k| if k % 4 == 0 { 1e-8 } else { 0.0 })
+            .collect();
+        let process = ModelProcess::new(model.clone(), dt, sub).expect("valid");
+        let observe = LinearObserve::select(n, &[0, 4, 8]).expect("valid");
+        let mut f =
+            SrUkf::new(process, observe, &x0, &p0, &q, &r, SigmaScaling::default()).expect("valid");
+        let mut k = 0usize;
+        g.bench_function(label, |b| {
+            b.iter(|| {
+                let i = k % steps;
+                f.step(
+                    black_box(&inputs[i * 6..(i + 1) * 6]),
+                    black_box(&ys[i]),
+                    None,
+                )
+                .expect("finite");
+                k += 1;
+                if i == steps - 1 {
+                    f.reset(&x0, &p0).expect("valid");
+                }
+                black_box(f.x());
+            })
+        });
+    }
+    // the filter's own arithmetic: the same sizes with a linear process
+    let a: Vec<f64> = (0..n * n)
+        .map(|k| if k % (n + 1) == 0 { 0.999 } else { 1e-4 })
+        .collect();
+    let process = cable_core::estimate::LinearProcess::new(n, 0, a, vec![]).expect("valid");
+    let observe = LinearObserve::select(n, &[0, 4, 8]).expect("valid");
+    let eye: Vec<f64> = (0..n * n)
+        .map(|k| if k % (n + 1) == 0 { 1e-6 } else { 0.0 })
+        .collect();
+    let r: Vec<f64> = (0..9)
+        .map(|k| if k % 4 == 0 { 1e-8 } else { 0.0 })
+        .collect();
+    let q: Vec<f64> = eye.iter().map(|v| v * 1e-3).collect();
+    let mut f =
+        SrUkf::new(process, observe, &x0, &eye, &q, &r, SigmaScaling::default()).expect("valid");
+    let mut k = 0u32;
+    g.bench_function("step_linear_process", |b| {
+        b.iter(|| {
+            k = k.wrapping_add(1);
+            let y = [x0[0] + 1e-4 * f64::from(k % 7), x0[4], x0[8]];
+            f.step(&[], black_box(&y), None).expect("finite");
+            black_box(f.x());
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, srukf);
+criterion_main!(benches);

@@ -1,0 +1,110 @@
+"""Python-side sr-UKF budgets (issue #4): `SrUkf.step()` on the Raven-II 3-link transmission
+(n = 12, m = 3 motor encoders, RK4), and filterpy's `UnscentedKalmanFilter` with Merwe's points
+on the same model in the same run (ratio printed; its process function calls the same Rust RK4
+step, so the ratio measures the filters, not Python against Rust dynamics).
+
+Usage (with a release build installed): python benches/srukf_bench.py
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import cablekit as ck  # noqa: E402
+from tests.reference import rk4  # noqa: E402
+from tests.reference.transmission import TransmissionRef  # noqa: E402
+
+
+def setup(dt: float):
+    model = ck.CableTransmission.raven2(3)
+    n = model.n_states
+    steps = 4000
+    t = np.arange(steps) * dt
+    u = np.zeros((steps, 6))
+    u[:, :3] = np.array([0.1, 0.05, 0.2]) * np.sin(6.0 * t)[:, None]
+    u = np.ascontiguousarray(u)
+    sim = ck.simulate(model, u, dt, np.zeros(n))
+    y = np.ascontiguousarray(
+        sim.states[:, [0, 4, 8]] + 1e-5 * np.random.default_rng(0).normal(size=(steps, 3))
+    )
+    p0, q, r = 1e-6 * np.eye(n), 1e-9 * np.eye(n), 1e-8 * np.eye(3)
+    return model, u, y, p0, q, r
+
+
+def main() -> int:
+    budgets = tomllib.loads((ROOT / "benches" / "budgets.toml").read_text())["python"]
+    dt = 1e-4
+    model, u, y, p0, q, r = setup(dt)
+    n = model.n_states
+    f = ck.SrUkf(model, np.zeros(n), p0, q, r, dt=dt, substeps=1, states=[0, 4, 8])
+    for k in range(200):  # warm-up
+        f.step(u[k], y[k])
+    per = []
+    for _rep in range(7):
+        f.reset(np.zeros(n), p0)
+        t0 = time.perf_counter()
+        for k in range(2000):
+            f.step(u[k], y[k])
+        per.append((time.perf_counter() - t0) / 2000)
+    step_us = 1e6 * float(np.median(per))
+    f.reset(np.zeros(n), p0)
+    t0 = time.perf_counter()
+    f.run(u, y)
+    run_us = 1e6 * (time.perf_counter() - t0) / len(u)
+
+    pts = MerweScaledSigmaPoints(n, alpha=1e-3, beta=2.0, kappa=0.0)
+
+    def fx(x, dt_, uk):
+        return model.rk4_step(x, uk, dt_)
+
+    peer = UnscentedKalmanFilter(dim_x=n, dim_z=3, dt=dt, fx=fx, hx=lambda x: x[[0, 4, 8]], points=pts)
+    peer.x, peer.P, peer.Q, peer.R = np.zeros(n), p0.copy(), q.copy(), r.copy()
+    t0 = time.perf_counter()
+    m = 200
+    for k in range(m):
+        peer.predict(uk=u[k])
+        peer.update(y[k])
+    peer_us = 1e6 * (time.perf_counter() - t0) / m
+    # and as a Python user would write it: the process in NumPy (the test suite's reference)
+    ref = TransmissionRef(model.params())
+
+    def fx_numpy(x, dt_, uk):
+        return rk4.advance(ref.derivative, x.copy(), uk, uk, dt_, 1)
+
+    peer_np = UnscentedKalmanFilter(
+        dim_x=n, dim_z=3, dt=dt, fx=fx_numpy, hx=lambda x: x[[0, 4, 8]], points=pts
+    )
+    peer_np.x, peer_np.P, peer_np.Q, peer_np.R = np.zeros(n), p0.copy(), q.copy(), r.copy()
+    t0 = time.perf_counter()
+    m_np = 20
+    for k in range(m_np):
+        peer_np.predict(uk=u[k])
+        peer_np.update(y[k])
+    peer_np_us = 1e6 * (time.perf_counter() - t0) / m_np
+    ratio = peer_us / step_us
+    ok_step = step_us <= budgets["srukf_step_us"]
+    ok_ratio = ratio >= budgets["srukf_min_ratio_vs_filterpy"]
+    print("sr-UKF, Raven-II 3-link (n = 12, m = 3 motor encoders), 10 kHz, one RK4 step per period")
+    print(
+        f"  SrUkf.step() from Python    {step_us:8.2f} us   budget {budgets['srukf_step_us']:.1f} us   "
+        f"{'ok' if ok_step else 'OVER BUDGET'}"
+    )
+    print(f"  SrUkf.run() per step        {run_us:8.2f} us   (GIL released, no per-step conversion)")
+    print(f"  filterpy UKF, same model    {peer_us:8.1f} us   (process: cablekit's Rust RK4 step)")
+    print(f"  filterpy UKF, NumPy model   {peer_np_us:8.1f} us   ratio {peer_np_us / step_us:.0f}x")
+    goal = budgets["srukf_min_ratio_vs_filterpy"]
+    print(f"  ratio filterpy / cablekit   {ratio:8.0f}x     goal >= {goal:.0f}x   {'ok' if ok_ratio else 'BELOW GOAL'}")
+    return 0 if ok_step and ok_ratio else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
