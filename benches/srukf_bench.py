@@ -102,7 +102,8 @@ def main() -> int:
     print(f"  filterpy UKF, same model    {peer_us:8.1f} us   (process: cablekit's Rust RK4 step)")
     print(f"  filterpy UKF, NumPy model   {peer_np_us:8.1f} us   ratio {peer_np_us / step_us:.0f}x")
     goal = budgets["srukf_min_ratio_vs_filterpy"]
-    print(f"  ratio filterpy / cablekit   {ratio:8.0f}x     goal >= {goal:.0f}x   {'ok' if ok_ratio else 'BELOW GOAL'}")
+    verdict = "ok" if ok_ratio else "BELOW GOAL"
+    print(f"  ratio filterpy / cablekit   {ratio:8.0f}x     goal >= {goal:.0f}x   {verdict}")
     return 0 if ok_step and ok_ratio else 1
 
 
