@@ -30,6 +30,7 @@ from cablekit.errors import (
     ShapeError,
     SimulationDivergedError,
 )
+from cablekit.estimate import JointStateEstimate, estimate_joint_states, kinematic_joint_angles
 from cablekit.simulation import (
     MotorPD,
     SimulationResult,
@@ -47,6 +48,7 @@ __all__ = [
     "DahlElement",
     "DataError",
     "InternalError",
+    "JointStateEstimate",
     "LayoutError",
     "Model",
     "MotorPD",
@@ -62,6 +64,8 @@ __all__ = [
     "capstan_ratio",
     "coulomb_friction",
     "dahl_rate",
+    "estimate_joint_states",
+    "kinematic_joint_angles",
     "propose_step",
     "simulate",
     "simulate_servo",

@@ -368,6 +368,9 @@ impl SrUkf {
             }
             _ => None,
         };
+        if m > 0 {
+            cable_core::check::all_finite("U", &udata, m).map_err(crate::errors::PyCableError)?;
+        }
         let inner = &mut self.inner;
         let out = py.detach(|| {
             guarded(|| {
