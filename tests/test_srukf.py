@@ -328,3 +328,62 @@ def test_step_shape_errors_and_measurement_choice():
     ukf = ck.SrUkf(model, np.zeros(n), np.eye(n) * 1e-6, np.eye(n) * 1e-10, np.eye(2), dt=1e-3, outputs=idx)
     ukf.step(np.zeros(4), np.array([40.0, 40.0]))
     assert np.all(np.isfinite(ukf.x))
+
+
+# ---- square-root URTS smoother -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("alpha", [1e-3, 0.5])
+def test_smoother_equals_the_linear_rts_smoother(alpha):
+    """On a linear system the unscented RTS smoother is the Rauch–Tung–Striebel smoother:
+    means and covariances at every sample (the last equals the filter)."""
+    f, b, h, q, r, p0, x0 = linear_system()
+    us, ys = linear_log(200, seed=6)
+    res = ck.SrUkf.linear(f, h, x0, p0, q, r, B=b, alpha=alpha).run(us, ys, smooth=True)
+    # exact KF forward, RTS backward
+    xf, pf, xp, pp = [], [], [], []
+    x, p = x0.copy(), p0.copy()
+    for k in range(200):
+        x, p = f @ x + b @ us[k], f @ p @ f.T + q
+        xp.append(x), pp.append(p)
+        s = h @ p @ h.T + r
+        kg = p @ h.T @ np.linalg.inv(s)
+        x, p = x + kg @ (ys[k] - h @ x), p - kg @ s @ kg.T
+        xf.append(x), pf.append(p)
+    xs, ps = [xf[-1]], [pf[-1]]
+    for k in range(198, -1, -1):
+        # the prediction from k to k+1 uses the input of sample k+1
+        g = pf[k] @ f.T @ np.linalg.inv(pp[k + 1])
+        xs.insert(0, xf[k] + g @ (xs[0] - xp[k + 1]))
+        ps.insert(0, pf[k] + g @ (ps[0] - pp[k + 1]) @ g.T)
+    xs, ps = np.array(xs), np.array(ps)
+    tol = 1e-9 if alpha == 0.5 else 2e-9
+    np.testing.assert_allclose(res["x_smooth"], xs, rtol=0, atol=tol * (1 + np.abs(xs).max()))
+    p_sm = np.einsum("tij,tkj->tik", res["S_smooth"], res["S_smooth"])
+    np.testing.assert_allclose(p_sm, ps, rtol=0, atol=1e-9 * np.abs(ps).max())
+    np.testing.assert_array_equal(res["x_smooth"][-1], res["x"][-1])
+    # smoothing never increases the variance
+    assert np.all(np.einsum("tii->ti", p_sm) <= np.einsum("tij,tij->ti", res["S"], res["S"]) * (1 + 1e-9))
+
+
+def test_smoother_reduces_the_joint_angle_error_on_the_raven_twin():
+    """Offline: the smoothed joint angles of a Raven-II twin run are closer to the truth than
+    the filtered ones."""
+    from cablekit.twins import raven_joint_state_experiment
+
+    run = raven_joint_state_experiment("A", seconds=4.0, seed=2)
+    model = run.nominal
+    n = model.n_states
+    u = np.concatenate([run.tau_m, np.zeros_like(run.tau_m)], axis=1)
+    u = np.ascontiguousarray(np.vstack([u[:1], u[:-1]]))
+    x0 = np.zeros(n)
+    x0[0::4] = run.q_m[0]
+    x0[2::4] = ck.kinematic_joint_angles(model, run.q_m[:1])[0]
+    q = np.diag(np.tile([0.0, 1e-3, 0.0, 1e-3], 3))
+    p0 = np.diag(np.tile([1e-9, 1e-2, 1e-6, 1e-2], 3))
+    ukf = ck.SrUkf(model, x0, p0, q, 1.8e-9 * np.eye(3), dt=run.dt, substeps=6, states=[0, 4, 8])
+    res = ukf.run(u, run.q_m, smooth=True)
+    s = slice(1000, -10)
+    err_f = np.abs(res["x"][s][:, 2::4] - run.q_l_true[s]).mean(axis=0)
+    err_s = np.abs(res["x_smooth"][s][:, 2::4] - run.q_l_true[s]).mean(axis=0)
+    assert np.all(err_s < err_f), (err_s, err_f)

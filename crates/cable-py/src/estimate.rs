@@ -54,6 +54,13 @@ fn col_major_from_lower(l: &[f64], n: usize) -> Vec<f64> {
     out
 }
 
+/// `(t, n, n)` ndarray from a row-major buffer.
+fn cube(py: Python<'_>, data: Vec<f64>, t: usize, n: usize) -> Bound<'_, PyArray3<f64>> {
+    Array3::from_shape_vec((t, n, n), data)
+        .expect("sized by the caller")
+        .into_pyarray(py)
+}
+
 fn scaling(alpha: f64, beta: f64, kappa: f64) -> SigmaScaling {
     SigmaScaling { alpha, beta, kappa }
 }
@@ -323,7 +330,10 @@ impl SrUkf {
     /// `k`), `Y` `(T, p)` measurements, `mask` `(T, p)` booleans (default: all measured; a NaN
     /// where the mask is true is an error). Returns `x` `(T, n)`, `S` `(T, n, n)`, `nis`,
     /// `condition`, `recovered` `(T,)` and `measured` `(T,)`. The GIL is released.
-    #[pyo3(signature = (U, Y, mask = None))]
+    ///
+    /// With `smooth=True` the square-root URTS smoother then runs backwards over the filtered
+    /// run and `x_smooth` `(T, n)`, `S_smooth` `(T, n, n)` are added (offline identification).
+    #[pyo3(signature = (U, Y, mask = None, smooth = false))]
     #[allow(non_snake_case)]
     fn run<'py>(
         &mut self,
@@ -331,6 +341,7 @@ impl SrUkf {
         U: &Bound<'py, PyAny>,
         Y: &Bound<'py, PyAny>,
         mask: Option<&Bound<'py, PyAny>>,
+        smooth: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let (n, p, m) = (self.inner.n_states(), self.inner.n_outputs(), self.m);
         let (yarr, t) = matrix(Y, "Y", Some(p))?;
@@ -376,6 +387,11 @@ impl SrUkf {
             guarded(|| {
                 let mut xs = vec![0.0; t * n];
                 let mut ss = vec![0.0; t * n * n];
+                let mut sc = if smooth {
+                    vec![0.0; t * n * n]
+                } else {
+                    Vec::new()
+                };
                 let (mut nis, mut cond) = (vec![0.0; t], vec![0.0; t]);
                 let (mut rec, mut meas) = (vec![0.0; t], vec![0.0; t]);
                 for k in 0..t {
@@ -397,6 +413,9 @@ impl SrUkf {
                     })?;
                     xs[k * n..(k + 1) * n].copy_from_slice(inner.x());
                     let s = inner.sqrt_covariance();
+                    if smooth {
+                        sc[k * n * n..(k + 1) * n * n].copy_from_slice(s);
+                    }
                     for i in 0..n {
                         for j in 0..n {
                             ss[k * n * n + i * n + j] = s[i + j * n];
@@ -408,16 +427,31 @@ impl SrUkf {
                     rec[k] = h.recovered as f64;
                     meas[k] = h.measured as f64;
                 }
-                Ok((xs, ss, nis, cond, rec, meas))
+                let smoothed = if smooth {
+                    let (xsm, scm, _) = inner.smooth(&xs, &sc, &udata)?;
+                    let mut ssm = vec![0.0; t * n * n];
+                    for k in 0..t {
+                        for i in 0..n {
+                            for j in 0..n {
+                                ssm[k * n * n + i * n + j] = scm[k * n * n + i + j * n];
+                            }
+                        }
+                    }
+                    Some((xsm, ssm))
+                } else {
+                    None
+                };
+                Ok((xs, ss, nis, cond, rec, meas, smoothed))
             })
         })?;
-        let (xs, ss, nis, cond, rec, meas) = out;
+        let (xs, ss, nis, cond, rec, meas, smoothed) = out;
         let d = PyDict::new(py);
+        if let Some((xsm, ssm)) = smoothed {
+            d.set_item("x_smooth", to_matrix(py, xsm, t, n))?;
+            d.set_item("S_smooth", cube(py, ssm, t, n))?;
+        }
         d.set_item("x", to_matrix(py, xs, t, n))?;
-        let s3: Bound<'py, PyArray3<f64>> = Array3::from_shape_vec((t, n, n), ss)
-            .expect("sized above")
-            .into_pyarray(py);
-        d.set_item("S", s3)?;
+        d.set_item("S", cube(py, ss, t, n))?;
         d.set_item("nis", to_vector(py, nis))?;
         d.set_item("condition", to_vector(py, cond))?;
         d.set_item("recovered", to_vector(py, rec))?;
