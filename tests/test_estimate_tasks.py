@@ -65,3 +65,74 @@ def test_joint_state_helper_rejects_bad_input():
         estimate_joint_states(model, q, bad, 1e-3)
     with pytest.raises(ck.ParameterError, match="experiment"):
         raven_joint_state_experiment("D")
+
+
+# ---- task 2: joint state–parameter estimation ----------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def parameter_run():
+    from cablekit.twins import raven_parameter_experiment
+
+    return raven_parameter_experiment(seconds=15.0, seed=1)
+
+
+def test_parameters_converge_to_the_twin_truth(parameter_run):
+    """Cable stiffness and damping of the elbow, the three coupling coefficients and the
+    shoulder pulley radius, started at the nominal values (20 % off for the stiffness, 50 % for
+    the damping, 5–20 % for the others): within 2 % of the truth at the end."""
+    from cablekit.estimate import estimate_parameters
+
+    run = parameter_run
+    est = estimate_parameters(
+        run.nominal, list(run.truth), run.q_m, run.tau_m, run.dt, q_l=run.q_l, encoder_noise=2e-5
+    )
+    true = np.array(list(run.truth.values()))
+    start_err = np.abs(est.initial - true) / np.abs(true)
+    end_err = np.abs(est.values[-1] - true) / np.abs(true)
+    assert np.all(start_err > 0.04)
+    assert np.all(end_err < 0.02), dict(zip(run.truth, end_err, strict=True))
+    assert np.all(est.recovered == 0)
+    # the filter's own uncertainty covers the remaining error (3σ)
+    assert np.all(np.abs(est.values[-1] - true) < 3 * est.std[-1] + 1e-3 * np.abs(true))
+
+
+def test_bounds_hold_every_sigma_point_and_the_mean(parameter_run):
+    """A stiffness bound below the truth: the estimate stops at the bound and never crosses it."""
+    from cablekit.estimate import estimate_parameters
+
+    run = parameter_run
+    names = ["cable_stiffness[1]"]
+    lo, hi = 0.9 * run.truth[names[0]] / 0.8, 2e5  # lower bound above the true 0.8 × nominal
+    est = estimate_parameters(
+        run.nominal,
+        names,
+        run.q_m[:3000],
+        run.tau_m[:3000],
+        run.dt,
+        q_l=run.q_l[:3000],
+        encoder_noise=2e-5,
+        bounds=[(lo, hi)],
+    )
+    assert np.all(est.values >= lo) and np.all(est.values <= hi)
+    assert est.values[-1, 0] == pytest.approx(lo, rel=5e-3)  # pressed against the bound
+
+
+def test_unknown_parameter_names_are_refused():
+    from cablekit.estimate import TransmissionParameters
+
+    model = ck.CableTransmission.raven2(3)
+    for bad in ["mass[0]", "cable_stiffness[5]", "coupling[0][1]", "cable_stiffness"]:
+        with pytest.raises(ck.ParameterError, match="parameter"):
+            TransmissionParameters(model, [bad])
+    with pytest.raises(ck.CablekitError, match="parameter"):
+        ck.SrUkf.with_parameters(
+            model,
+            ["cable_stiffness[7]"],
+            np.zeros(13),
+            np.eye(13),
+            np.eye(13),
+            np.eye(3),
+            dt=1e-3,
+            states=[0, 4, 8],
+        )

@@ -6,7 +6,10 @@ up for a cable transmission and return results with named fields:
 * :func:`estimate_joint_states` — joint angles and velocities of a cable transmission from its
   motor encoders and the applied motor torques (seed 001 ch. 3), with the transmission
   kinematics estimate alongside for comparison;
-* :func:`kinematic_joint_angles` — the rigid-cable estimate ``q_l = T⁻¹·q_m``.
+* :func:`kinematic_joint_angles` — the rigid-cable estimate ``q_l = T⁻¹·q_m``;
+* :func:`estimate_parameters` — joint state–parameter estimation of transmission parameters
+  (cable stiffness and damping, coupling coefficients, pulley radius, …) as random-walk states
+  with bounds (seed 001 §3.3, ch. 4).
 """
 
 from __future__ import annotations
@@ -25,7 +28,14 @@ if TYPE_CHECKING:
 
     from cablekit._cablekit import CableTransmission
 
-__all__ = ["JointStateEstimate", "estimate_joint_states", "kinematic_joint_angles"]
+__all__ = [
+    "JointStateEstimate",
+    "ParameterEstimate",
+    "TransmissionParameters",
+    "estimate_joint_states",
+    "estimate_parameters",
+    "kinematic_joint_angles",
+]
 
 
 @dataclass(frozen=True)
@@ -130,4 +140,161 @@ def estimate_joint_states(
         nis=res["nis"],
         recovered=res["recovered"],
         substeps=substeps,
+    )
+
+
+#: per-link parameters (one index); ``coupling`` takes two
+_KEYS = {"cable_stiffness", "cable_damping", "joint_radius", "link_inertia", "link_coulomb", "link_viscous"}
+
+
+class TransmissionParameters:
+    """Named parameters of a cable transmission (``"cable_stiffness[1]"``,
+    ``"coupling[2][0]"``, … — the keyword names of :class:`CableTransmission` with 0-based
+    indices): read their values, build the model with new values."""
+
+    def __init__(self, model: CableTransmission, names: list[str]):
+        self.base = model
+        self.names = list(names)
+        self._params = model.params()
+        for name in self.names:
+            self._locate(name)
+
+    def _locate(self, name: str) -> tuple[str, tuple[int, ...]]:
+        key, _, rest = name.partition("[")
+        try:
+            idx = tuple(int(part) for part in ("[" + rest).replace("]", "").split("[")[1:])
+        except ValueError:
+            idx = ()
+        value = self._params.get(key)
+        ok = (key in _KEYS and len(idx) == 1) or (key == "coupling" and len(idx) == 2)
+        try:
+            for i in idx:
+                value = value[i]  # type: ignore[index]
+        except (IndexError, TypeError):
+            ok = False
+        if not ok or (key == "coupling" and idx[1] >= idx[0]):
+            raise ParameterError(
+                f"unknown transmission parameter {name!r}: use cable_stiffness[i], cable_damping[i], "
+                "coupling[i][j] (i > j), joint_radius[i], link_inertia[i], link_coulomb[i], link_viscous[i]"
+            )
+        return key, idx
+
+    def values(self) -> NDArray[np.float64]:
+        """The parameters' values in the base model."""
+        out = []
+        for name in self.names:
+            key, idx = self._locate(name)
+            v = self._params[key]
+            for i in idx:
+                v = v[i]
+            out.append(float(v))
+        return np.array(out)
+
+    def model(self, values: list[float] | NDArray[np.float64]) -> CableTransmission:
+        """The base model with the parameters set to ``values``."""
+        from cablekit._cablekit import CableTransmission as _Tx
+
+        p = {
+            k: ([list(r) for r in v] if k == "coupling" else (list(v) if isinstance(v, list) else v))
+            for k, v in self._params.items()
+        }
+        for name, v in zip(self.names, values, strict=True):
+            key, idx = self._locate(name)
+            if key == "coupling":
+                p[key][idx[0]][idx[1]] = float(v)
+            else:
+                p[key][idx[0]] = float(v)
+        return _Tx(**p)
+
+
+@dataclass(frozen=True)
+class ParameterEstimate:
+    """Result of :func:`estimate_parameters`; row ``k`` is sample ``k``."""
+
+    names: list[str]
+    """Parameter names, in column order."""
+    values: NDArray[np.float64]
+    """Estimated parameters over time ``(T, p)``."""
+    std: NDArray[np.float64]
+    """Their filter standard deviations ``(T, p)``."""
+    initial: NDArray[np.float64]
+    """Starting values (the model's)."""
+    x: NDArray[np.float64]
+    """Filtered transmission states ``(T, 4·n_links)``."""
+    nis: NDArray[np.float64]
+    recovered: NDArray[np.float64]
+
+    @property
+    def final(self) -> dict[str, float]:
+        """The last estimate of every parameter."""
+        return {k: float(v) for k, v in zip(self.names, self.values[-1], strict=True)}
+
+
+def estimate_parameters(
+    model: CableTransmission,
+    params: list[str],
+    q_m: NDArray[np.float64],
+    tau_m: NDArray[np.float64],
+    dt: float,
+    *,
+    q_l: NDArray[np.float64] | None = None,
+    encoder_noise: float = 1e-4,
+    initial_spread: float = 0.3,
+    drift: float = 1e-4,
+    bounds: list[tuple[float, float]] | None = None,
+    motor_noise: float = 1.0,
+    link_noise: float = 1.0,
+    substeps: int | None = None,
+    alpha: float = 0.5,
+) -> ParameterEstimate:
+    """Joint state–parameter estimation (seed 001 §3.3, ch. 4) of the named transmission
+    parameters from motor encoders, applied torques and — offline, as the seed identified its
+    coupling coefficients — joint encoders ``q_l``.
+
+    The parameters start at the model's values with a standard deviation of
+    ``initial_spread`` × their magnitude and walk randomly at ``drift`` × their magnitude per
+    √s; ``bounds`` (``(lower, upper)`` per parameter) are enforced on every sigma point and on
+    the mean, on top of the physical ranges (positive stiffness, radius and inertia;
+    non-negative damping and friction). ``alpha`` defaults to 0.5: the seed's 1e-3 loses digits
+    on stiff cables (docs/estimation.md).
+    """
+    q_m = np.ascontiguousarray(q_m, dtype=np.float64)
+    tau_m = np.ascontiguousarray(tau_m, dtype=np.float64)
+    n_links = model.n_links
+    if q_m.ndim != 2 or q_m.shape[1] != n_links or tau_m.shape != q_m.shape:
+        raise ShapeError(f"q_m and tau_m must have shape (T, {n_links}), got {q_m.shape} and {tau_m.shape}")
+    theta0 = TransmissionParameters(model, params).values()
+    n = model.n_states
+    p = len(params)
+    if substeps is None:
+        substeps = propose_step(model, dt).substeps
+    u = np.concatenate([tau_m, np.zeros_like(tau_m)], axis=1)
+    u = np.ascontiguousarray(np.vstack([u[:1], u[:-1]]))
+    scale = np.where(np.abs(theta0) > 0, np.abs(theta0), 1.0)
+    x0 = np.zeros(n + p)
+    x0[0:n:4] = q_m[0]
+    x0[2:n:4] = kinematic_joint_angles(model, q_m[:1])[0] if q_l is None else q_l[0]
+    x0[n:] = theta0
+    p0 = np.diag(np.r_[np.tile([encoder_noise**2, 1e-2, 1e-6, 1e-2], n_links), (initial_spread * scale) ** 2])
+    q = np.diag(
+        np.r_[
+            np.tile([0.0, motor_noise**2 * dt, 0.0, link_noise**2 * dt], n_links), (drift * scale) ** 2 * dt
+        ]
+    )
+    states = list(range(0, n, 4))
+    y = q_m
+    if q_l is not None:
+        q_l = np.ascontiguousarray(q_l, dtype=np.float64)
+        if q_l.shape != q_m.shape:
+            raise ShapeError(f"q_l must have the shape of q_m {q_m.shape}, got {q_l.shape}")
+        states += list(range(2, n, 4))
+        y = np.ascontiguousarray(np.concatenate([q_m, q_l], axis=1))
+    r = encoder_noise**2 * np.eye(len(states))
+    ukf = SrUkf.with_parameters(
+        model, list(params), x0, p0, q, r, dt=dt, substeps=substeps, states=states, bounds=bounds, alpha=alpha
+    )
+    res = ukf.run(u, y)
+    std = np.sqrt(np.einsum("tij,tij->ti", res["S"], res["S"]))
+    return ParameterEstimate(
+        list(params), res["x"][:, n:], std[:, n:], theta0, res["x"][:, :n], res["nis"], res["recovered"]
     )

@@ -2,8 +2,8 @@
 
 use cable_core::dynamics::Model as _;
 use cable_core::estimate::{
-    self as core, LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe, Process,
-    SigmaScaling,
+    self as core, LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe,
+    ParamTransmission, Process, SigmaScaling, TransmissionParam,
 };
 use cable_core::CableError;
 use numpy::ndarray::Array3;
@@ -59,6 +59,27 @@ fn cube(py: Python<'_>, data: Vec<f64>, t: usize, n: usize) -> Bound<'_, PyArray
     Array3::from_shape_vec((t, n, n), data)
         .expect("sized by the caller")
         .into_pyarray(py)
+}
+
+/// Selected states or `H·x` (exactly one of them).
+fn linear_observe(
+    n: usize,
+    states: Option<Vec<usize>>,
+    h: Option<&Bound<'_, PyAny>>,
+) -> PyResult<DynObserve> {
+    match (states, h) {
+        (Some(idx), None) => Ok(Box::new(guarded(|| LinearObserve::select(n, &idx))?)),
+        (None, Some(h)) => {
+            let (arr, rows) = matrix(h, "H", Some(n))?;
+            let hv = arr.as_slice()?.to_vec();
+            Ok(Box::new(guarded(|| LinearObserve::new(rows, n, hv))?))
+        }
+        _ => Err(raise(
+            "ParameterError",
+            format!("give exactly one measurement: states=[...] or H=<(p, {n}) array>"),
+            &[],
+        )),
+    }
 }
 
 fn scaling(alpha: f64, beta: f64, kappa: f64) -> SigmaScaling {
@@ -173,9 +194,7 @@ impl SrUkf {
                 AnyModel::Dahl(d) => Box::new(ModelProcess::new(d, dt, substeps)?),
             })
         })?;
-        let observe: DynObserve = if let Some(idx) = states {
-            Box::new(guarded(|| LinearObserve::select(n, &idx))?)
-        } else if let Some(idx) = outputs {
+        let observe: DynObserve = if let Some(idx) = outputs {
             guarded(|| {
                 Ok::<DynObserve, CableError>(match any {
                     AnyModel::Transmission(t) => Box::new(ModelOutputs::new(t, idx)?),
@@ -184,12 +203,61 @@ impl SrUkf {
                 })
             })?
         } else {
-            let h = H.expect("checked above");
-            let (arr, rows) = matrix(h, "H", Some(n))?;
-            let hv = arr.as_slice()?.to_vec();
-            Box::new(guarded(|| LinearObserve::new(rows, n, hv))?)
+            linear_observe(n, states, H)?
         };
         Self::build(process, observe, x0, P0, Q, R, scaling(alpha, beta, kappa))
+    }
+
+    /// Joint state–parameter filter over a cable transmission: the state is `[x; θ]` with `θ`
+    /// the named transmission parameters (`"cable_stiffness[1]"`, `"coupling[2][0]"`, ...) as
+    /// random walks; every sigma point's `θ` and the mean are projected into `bounds`
+    /// (`(lower, upper)` per parameter, intersected with the physical ranges). `x0`, `P0`, `Q`
+    /// cover `n + len(params)` entries; measurements are selected `states` or `H`.
+    #[staticmethod]
+    #[pyo3(signature = (model, params, x0, P0, Q, R, *, dt, substeps = 1, states = None, H = None, bounds = None, alpha = 1e-3, beta = 2.0, kappa = 0.0))]
+    #[allow(non_snake_case, clippy::too_many_arguments)]
+    fn with_parameters(
+        model: &Bound<'_, Model>,
+        params: Vec<String>,
+        x0: &Bound<'_, PyAny>,
+        P0: &Bound<'_, PyAny>,
+        Q: &Bound<'_, PyAny>,
+        R: &Bound<'_, PyAny>,
+        dt: f64,
+        substeps: usize,
+        states: Option<Vec<usize>>,
+        H: Option<&Bound<'_, PyAny>>,
+        bounds: Option<Vec<(f64, f64)>>,
+        alpha: f64,
+        beta: f64,
+        kappa: f64,
+    ) -> PyResult<Self> {
+        let AnyModel::Transmission(base) = model.get().inner.clone() else {
+            return Err(raise(
+                "ParameterError",
+                "parameter estimation needs a CableTransmission".into(),
+                &[],
+            ));
+        };
+        let links = base.n_links();
+        let parsed = guarded(|| {
+            params
+                .iter()
+                .map(|p| TransmissionParam::parse(p, links))
+                .collect::<Result<Vec<_>, _>>()
+        })?;
+        let process = guarded(|| ParamTransmission::new(base, parsed, bounds, dt, substeps))?;
+        let n = process.n_states();
+        let observe = linear_observe(n, states, H)?;
+        Self::build(
+            Box::new(process),
+            observe,
+            x0,
+            P0,
+            Q,
+            R,
+            scaling(alpha, beta, kappa),
+        )
     }
 
     /// Filter over the discrete linear system `x' = F·x + B·u`, `y = H·x`.

@@ -150,10 +150,12 @@ pub fn solve_lower_transpose(l: &[f64], n: usize, b: &mut [f64]) {
 /// rest of their column is zero too (a state without noise); returns the failing row otherwise.
 pub fn cholesky_psd(p: &[f64], n: usize) -> Result<Vec<f64>, usize> {
     let mut l = vec![0.0; n * n];
-    let scale = (0..n).map(|i| p[i + i * n].abs()).fold(0.0, f64::max);
-    let tiny = 1e-14 * scale.max(f64::MIN_POSITIVE);
     for j in 0..n {
-        let mut d = p[j + j * n];
+        let pjj = p[j + j * n];
+        // pivots are judged against their own diagonal entry, so a well-posed but badly scaled
+        // covariance (angles in 1e-10 rad², stiffness in 1e8 (N/m)²) is not called singular
+        let tiny = 1e-13 * pjj.abs();
+        let mut d = pjj;
         for k in 0..j {
             d -= l[j + k * n] * l[j + k * n];
         }
@@ -167,7 +169,8 @@ pub fn cholesky_psd(p: &[f64], n: usize) -> Result<Vec<f64>, usize> {
                 for k in 0..j {
                     s -= l[i + k * n] * l[j + k * n];
                 }
-                if s.abs() > 1e-10 * scale.max(f64::MIN_POSITIVE) {
+                let scale = (p[i + i * n].abs() * pjj.abs()).sqrt();
+                if s.abs() > 1e-7 * scale {
                     return Err(j);
                 }
             }

@@ -10,13 +10,18 @@
 //!   sub-steps ([`ModelProcess`]), a discrete linear system ([`LinearProcess`]); linear
 //!   measurements ([`LinearObserve`]) or selected model outputs ([`ModelOutputs`]).
 //! * Missing measurements per step by a mask (camera occlusion, seed 001 ch. 4).
+//! * Joint state–parameter estimation: [`ParamTransmission`] appends transmission parameters
+//!   (stiffness, damping, coupling, pulley radius, …) to the state as random walks, with bounds
+//!   enforced by projecting the sigma points and the mean.
 //!
 //! Matrices handed to the filter are `n × n` symmetric covariances (either storage order);
 //! square roots it returns are lower-triangular, column-major.
 
 pub mod linalg;
 mod models;
+mod params;
 mod srukf;
 
 pub use models::{LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe, Process};
+pub use params::{with_params, ParamTransmission, TransmissionParam};
 pub use srukf::{Health, SigmaScaling, SrUkf, Weights};

@@ -13,6 +13,8 @@ pub trait Process {
     fn n_inputs(&self) -> usize;
     /// Propagates `x` over one filter period in place with input `u` (held over the period).
     fn propagate(&mut self, x: &mut [f64], u: &[f64]);
+    /// Projects a mean onto the admissible set (bounded parameters); identity by default.
+    fn project(&self, _x: &mut [f64]) {}
 }
 
 /// A measurement `y = H(x, u)`.
@@ -227,6 +229,9 @@ impl<T: Process + ?Sized> Process for Box<T> {
     #[inline]
     fn propagate(&mut self, x: &mut [f64], u: &[f64]) {
         (**self).propagate(x, u)
+    }
+    fn project(&self, x: &mut [f64]) {
+        (**self).project(x)
     }
 }
 

@@ -309,6 +309,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                 *x = z + wmi * acc;
             }
         }
+        self.process.project(&mut self.x);
         // compound [√Wc·(χ_1:2n − x̂), √Q] transposed: rows are the columns
         let rows = 2 * n + n;
         let swc = self.w.wc.1.sqrt();
@@ -524,6 +525,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             self.x[r] += acc;
         }
         self.dev = row;
+        self.process.project(&mut self.x);
         // S ← cholupdate(S, U, −1) column by column (eq 3.25)
         self.s_saved.copy_from_slice(&self.s);
         let mut failed = false;
