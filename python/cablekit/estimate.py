@@ -79,6 +79,8 @@ def estimate_joint_states(
     substeps: int | None = None,
     alpha: float = 1e-3,
     external: NDArray[np.float64] | None = None,
+    q_camera: NDArray[np.float64] | None = None,
+    camera_noise: float = 1e-2,
 ) -> JointStateEstimate:
     """Joint states of a cable transmission from motor encoders only (seed 001 ch. 3).
 
@@ -93,6 +95,11 @@ def estimate_joint_states(
     measurement noise ``encoder_noise`` is the encoders' standard deviation (rad), quantisation
     included (a step ``Δ`` adds ``Δ/√12``). The filter starts at rest at the kinematic
     estimate of the first sample.
+
+    **Camera fusion** (seed 001 ch. 4): ``q_camera`` ``(T, n)`` are joint angles seen by a
+    camera (standard deviation ``camera_noise``), NaN where the joint is occluded. The
+    observation model switches per sample: camera and encoders where the camera sees the joint,
+    the encoders alone (the transmission kinematics, through the model) where it does not.
     """
     n_links = model.n_links
     q_m = np.ascontiguousarray(q_m, dtype=np.float64)
@@ -127,9 +134,24 @@ def estimate_joint_states(
     # start: motor angles as measured, joint angles from the kinematics (cable stretch unknown,
     # ~1 mrad), at rest within ~0.1 rad/s
     p0 = np.diag(np.tile([encoder_noise**2, 1e-2, 1e-6, 1e-2], n_links))
+    states = list(range(0, n, 4))
     r = encoder_noise**2 * np.eye(n_links)
-    ukf = SrUkf(model, x0, p0, q, r, dt=dt, substeps=substeps, states=list(range(0, n, 4)), alpha=alpha)
-    res = ukf.run(u, q_m)
+    y, mask = q_m, None
+    if q_camera is not None:
+        cam = np.ascontiguousarray(q_camera, dtype=np.float64)
+        if cam.shape != q_m.shape:
+            raise ShapeError(f"q_camera must have the shape of q_m {q_m.shape}, got {cam.shape}")
+        if not (np.isfinite(camera_noise) and camera_noise > 0):
+            raise ParameterError(f"camera_noise must be finite and > 0, got {camera_noise}")
+        if np.isinf(cam).any():
+            raise ParameterError("q_camera holds ±inf; mark occluded samples with NaN")
+        states += list(range(2, n, 4))
+        r = np.diag(np.r_[np.full(n_links, encoder_noise**2), np.full(n_links, camera_noise**2)])
+        seen = ~np.isnan(cam)
+        y = np.ascontiguousarray(np.concatenate([q_m, np.where(seen, cam, 0.0)], axis=1))
+        mask = np.ascontiguousarray(np.concatenate([np.ones_like(seen), seen], axis=1))
+    ukf = SrUkf(model, x0, p0, q, r, dt=dt, substeps=substeps, states=states, alpha=alpha)
+    res = ukf.run(u, y, mask)
     std = np.sqrt(np.einsum("tij,tij->ti", res["S"], res["S"]))  # row norms of S: √diag(S·Sᵀ)
     return JointStateEstimate(
         q_l=res["x"][:, 2::4],
@@ -221,6 +243,8 @@ class ParameterEstimate:
     """Starting values (the model's)."""
     x: NDArray[np.float64]
     """Filtered transmission states ``(T, 4·n_links)``."""
+    x_std: NDArray[np.float64]
+    """Their standard deviations."""
     nis: NDArray[np.float64]
     recovered: NDArray[np.float64]
 
@@ -239,6 +263,7 @@ def estimate_parameters(
     *,
     q_l: NDArray[np.float64] | None = None,
     encoder_noise: float = 1e-4,
+    joint_noise: float | None = None,
     initial_spread: float = 0.3,
     drift: float = 1e-4,
     bounds: list[tuple[float, float]] | None = None,
@@ -257,6 +282,9 @@ def estimate_parameters(
     the mean, on top of the physical ranges (positive stiffness, radius and inertia;
     non-negative damping and friction). ``alpha`` defaults to 0.5: the seed's 1e-3 loses digits
     on stiff cables (docs/estimation.md).
+
+    ``q_l`` may be a camera's joint angles (seed 001 ch. 4): NaN where there is no frame or the
+    joint is occluded, with ``joint_noise`` its standard deviation (default ``encoder_noise``).
     """
     q_m = np.ascontiguousarray(q_m, dtype=np.float64)
     tau_m = np.ascontiguousarray(tau_m, dtype=np.float64)
@@ -282,19 +310,35 @@ def estimate_parameters(
         ]
     )
     states = list(range(0, n, 4))
-    y = q_m
+    y, mask = q_m, None
+    r = encoder_noise**2 * np.eye(n_links)
     if q_l is not None:
         q_l = np.ascontiguousarray(q_l, dtype=np.float64)
         if q_l.shape != q_m.shape:
             raise ShapeError(f"q_l must have the shape of q_m {q_m.shape}, got {q_l.shape}")
+        if np.isinf(q_l).any():
+            raise ParameterError("q_l holds ±inf; mark missing samples with NaN")
+        jn = encoder_noise if joint_noise is None else joint_noise
+        if not (np.isfinite(jn) and jn > 0):
+            raise ParameterError(f"joint_noise must be finite and > 0, got {jn}")
         states += list(range(2, n, 4))
-        y = np.ascontiguousarray(np.concatenate([q_m, q_l], axis=1))
-    r = encoder_noise**2 * np.eye(len(states))
+        seen = ~np.isnan(q_l)
+        y = np.ascontiguousarray(np.concatenate([q_m, np.where(seen, q_l, 0.0)], axis=1))
+        if not seen.all():
+            mask = np.ascontiguousarray(np.concatenate([np.ones_like(seen), seen], axis=1))
+        r = np.diag(np.r_[np.full(n_links, encoder_noise**2), np.full(n_links, jn**2)])
     ukf = SrUkf.with_parameters(
         model, list(params), x0, p0, q, r, dt=dt, substeps=substeps, states=states, bounds=bounds, alpha=alpha
     )
-    res = ukf.run(u, y)
+    res = ukf.run(u, y, mask)
     std = np.sqrt(np.einsum("tij,tij->ti", res["S"], res["S"]))
     return ParameterEstimate(
-        list(params), res["x"][:, n:], std[:, n:], theta0, res["x"][:, :n], res["nis"], res["recovered"]
+        list(params),
+        res["x"][:, n:],
+        std[:, n:],
+        theta0,
+        res["x"][:, :n],
+        std[:, :n],
+        res["nis"],
+        res["recovered"],
     )

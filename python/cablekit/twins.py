@@ -26,7 +26,14 @@ import numpy as np
 
 import cablekit as ck
 
-__all__ = ["JointStateRun", "ParameterRun", "raven_joint_state_experiment", "raven_parameter_experiment"]
+__all__ = [
+    "CameraRun",
+    "JointStateRun",
+    "ParameterRun",
+    "raven_camera_experiment",
+    "raven_joint_state_experiment",
+    "raven_parameter_experiment",
+]
 
 DT = 1e-3
 #: motor-encoder resolution of Raven-II: 4000 counts per motor turn, 12.25:1 gearbox (rad at the
@@ -85,7 +92,11 @@ def _perturbed(p: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
 
 
 def raven_joint_state_experiment(
-    experiment: str, seconds: float = 20.0, seed: int = 0, encoder_noise: float = 2e-5
+    experiment: str,
+    seconds: float = 20.0,
+    seed: int = 0,
+    encoder_noise: float = 2e-5,
+    radius_error: float = 0.0,
 ) -> JointStateRun:
     """Generate one run of experiment ``"A"``, ``"B"`` or ``"C"`` (see the module)."""
     if experiment not in ("A", "B", "C"):
@@ -108,6 +119,9 @@ def raven_joint_state_experiment(
             p["link_inertia"][2] + mass,
         ]
         truth["payload"] = {"mass_kg": mass, "lever_m": lever}
+    if radius_error:
+        p["joint_radius"] = [p["joint_radius"][0] * (1 + radius_error), *p["joint_radius"][1:]]
+        truth["radius_error"] = radius_error
     real = ck.CableTransmission(**p)
     truth["parameters"] = p
     n = round(seconds / DT)
@@ -191,3 +205,48 @@ def raven_parameter_experiment(
         DT,
         true,
     )
+
+
+@dataclass(frozen=True)
+class CameraRun:
+    """A joint-state twin run with a camera: ``q_camera`` holds the camera's joint angles at its
+    frames and NaN elsewhere (between frames and while occluded)."""
+
+    base: JointStateRun
+    q_camera: np.ndarray
+    occluded: np.ndarray  # (T,) bool: the camera cannot see the instrument
+    camera_noise: float
+    occlusion: float
+
+
+def raven_camera_experiment(
+    occlusion: float,
+    seconds: float = 20.0,
+    seed: int = 0,
+    frame_rate: float = 30.0,
+    camera_noise: float = np.deg2rad(0.3),
+    radius_error: float = 0.05,
+) -> CameraRun:
+    """Experiment A of :func:`raven_joint_state_experiment` with a stereo camera (seed 001
+    ch. 4): joint angles at ``frame_rate`` with ``camera_noise`` (rad; m on the insertion axis,
+    scaled by 0.1), hidden during random occlusions that cover ``occlusion`` (0–1) of the run
+    in 0.2–2 s bursts. The real shoulder pulley radius is off by ``radius_error`` (the kinematic
+    error the camera corrects: seed 001 found 6.5 %)."""
+    if not 0.0 <= occlusion < 1.0:
+        raise ck.ParameterError(f"occlusion must be in [0, 1), got {occlusion}")
+    rng = np.random.default_rng([seed, 7, round(1000 * occlusion)])
+    base = raven_joint_state_experiment("A", seconds, seed, radius_error=radius_error)
+    n = len(base.q_m)
+    occluded = np.zeros(n, bool)
+    target = occlusion * n
+    while occluded.sum() < target:
+        start = int(rng.integers(n))
+        length = round(rng.uniform(0.2, 2.0) / DT)
+        occluded[start : start + length] = True
+    frames = np.zeros(n, bool)
+    frames[:: max(1, round(1.0 / (frame_rate * DT)))] = True
+    seen = frames & ~occluded
+    scale = np.array([1.0, 1.0, 0.1])  # the insertion axis in metres
+    cam = base.q_l_true + rng.normal(0.0, camera_noise, base.q_l_true.shape) * scale
+    cam[~seen] = np.nan
+    return CameraRun(base, np.ascontiguousarray(cam), occluded, camera_noise, float(occluded.mean()))
