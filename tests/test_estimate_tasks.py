@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import cablekit as ck
 from cablekit.estimate import estimate_joint_states, kinematic_joint_angles
@@ -180,3 +182,91 @@ def test_camera_input_is_checked():
         from cablekit.twins import raven_camera_experiment
 
         raven_camera_experiment(1.0)
+
+
+# ---- task 5: external force ----------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def force_runs():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+    from external_force import both_methods, per_weight
+
+    from cablekit.twins import raven_force_experiment
+
+    out = {}
+    for kind in ("zero", "basket"):
+        run = raven_force_experiment(kind)
+        out[kind] = (run, *both_methods(run))
+    return out, per_weight
+
+
+def test_basket_weights_are_read_by_the_ukf_and_the_stretch_method(force_runs):
+    """The lifted-basket twin (271/497/704/910 g): the UKF and the cable-stretch method with the
+    reference chosen by the direction of motion read every weight within 2 %; the seed's
+    stretch-range quadrant rule reads light by about the friction level once the load's
+    stretch exceeds the gap between the unloaded modes."""
+    from cablekit.twins import BASKET
+
+    runs, per_weight = force_runs
+    run, forces, method = runs["basket"]
+    for label in ("UKF", "stretch (direction)"):
+        means = per_weight(run, forces[label])
+        for m in BASKET:
+            assert means[m] == pytest.approx(-m * 9.80665, rel=0.02), (label, m, means[m])
+    quad = per_weight(run, forces["stretch (quadrants)"])
+    gap = method.stiffness * (method.upper - method.lower) / 2
+    for m in BASKET:
+        assert quad[m] - (-m * 9.80665) == pytest.approx(gap, rel=0.3)
+
+
+def test_zero_force_error_ranges(force_runs):
+    runs, _ = force_runs
+    run, forces, _ = runs["zero"]
+    s = slice(1000, None)
+    spread = {k: np.quantile(np.abs(f - run.force)[s], 0.99) for k, f in forces.items()}
+    assert spread["UKF"] < 1.0 and spread["stretch (direction)"] < 0.5, spread
+    assert spread["stretch (direction)"] < min(spread["stretch (quadrants)"], spread["UKF"]), spread
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    gap=st.floats(5.0, 50.0),
+    sigma=st.floats(0.5, 2.0),
+    share=st.floats(0.3, 0.7),
+    seed=st.integers(0, 2**16),
+)
+def test_two_gaussian_fit_recovers_the_modes(gap, sigma, share, seed):
+    """Property: a bimodal stretch (modes `gap` apart, spread `sigma`, any mix) gives back its
+    two means within 0.2σ and its spread within 20 %."""
+    from cablekit.estimate import CableStretchForce
+
+    rng = np.random.default_rng(seed)
+    n = 4000
+    k = int(share * n)
+    s = np.r_[rng.normal(-gap / 2, sigma, k), rng.normal(gap / 2, sigma, n - k)] * 1e-6
+    m = CableStretchForce(1.0, 0.0).fit(s)
+    assert m.lower == pytest.approx(-gap / 2 * 1e-6, abs=0.2 * sigma * 1e-6)
+    assert m.upper == pytest.approx(gap / 2 * 1e-6, abs=0.2 * sigma * 1e-6)
+    assert m.sigma == pytest.approx(sigma * 1e-6, rel=0.2)
+
+
+def test_force_helpers_reject_bad_input():
+    from cablekit.estimate import CableStretchForce, estimate_external_force
+
+    model = ck.CableTransmission.raven2(3)
+    q = np.zeros((50, 3))
+    with pytest.raises(ck.ParameterError, match="links"):
+        estimate_external_force(model, q, q, 1e-3, links=[3])
+    with pytest.raises(ck.ParameterError, match="links"):
+        estimate_external_force(model, q, q, 1e-3, links=[1, 1])
+    m = CableStretchForce(1e4, 10.0)
+    with pytest.raises(ck.ParameterError, match="fit"):
+        m.force(np.zeros(5), np.zeros(5))
+    with pytest.raises(ck.ParameterError, match="20 samples"):
+        m.fit(np.zeros(5))
+    with pytest.raises(ck.ParameterError, match="both ways"):
+        m.fit(np.linspace(0, 1, 100), np.ones(100))

@@ -279,6 +279,23 @@ class SrUkf:
         kappa: float = 0.0,
     ) -> SrUkf: ...
     @staticmethod
+    def with_input_states(
+        model: Model,
+        inputs: list[int],
+        x0: _F,
+        P0: _F,
+        Q: _F,
+        R: _F,
+        *,
+        dt: float,
+        substeps: int = 1,
+        states: list[int] | None = None,
+        H: _F | None = None,
+        alpha: float = 1e-3,
+        beta: float = 2.0,
+        kappa: float = 0.0,
+    ) -> SrUkf: ...
+    @staticmethod
     def linear(
         F: _F,
         H: _F,

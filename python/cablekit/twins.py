@@ -28,9 +28,11 @@ import cablekit as ck
 
 __all__ = [
     "CameraRun",
+    "ForceRun",
     "JointStateRun",
     "ParameterRun",
     "raven_camera_experiment",
+    "raven_force_experiment",
     "raven_joint_state_experiment",
     "raven_parameter_experiment",
 ]
@@ -250,3 +252,77 @@ def raven_camera_experiment(
     cam = base.q_l_true + rng.normal(0.0, camera_noise, base.q_l_true.shape) * scale
     cam[~seen] = np.nan
     return CameraRun(base, np.ascontiguousarray(cam), occluded, camera_noise, float(occluded.mean()))
+
+
+#: seed 001 §5.3: the basket's weights (kg) and the cycle schedule: 6 unloaded cycles (training),
+#: then each weight for 4 cycles with 2 unloaded cycles between
+BASKET = (0.271, 0.497, 0.704, 0.910)
+#: Raven-II's linear encoder on the insertion axis (MicroE Mercury II 1600): 5 µm
+LINEAR_ENCODER_LSB = 5e-6
+
+
+@dataclass(frozen=True)
+class ForceRun:
+    """An external-force twin run on the insertion axis: motor encoders, the linear encoder on
+    the insertion link, applied torques, and the true external force on the axis."""
+
+    nominal: ck.CableTransmission
+    q_m: np.ndarray  # (T, 3)
+    q_l3: np.ndarray  # (T,) the insertion link's encoder (m)
+    tau_m: np.ndarray  # (T, 3)
+    force: np.ndarray  # (T,) true external force along the insertion axis (N)
+    training: np.ndarray  # (T,) bool: the unloaded cycles before the first load
+    dt: float
+    mass: np.ndarray  # (T,) the basket's load (kg) over time
+
+
+def raven_force_experiment(kind: str = "basket", seed: int = 0, frequency: float = 1.0) -> ForceRun:
+    """Seed 001 §5.3 on the twin: the shoulder and elbow held still, the insertion axis
+    following a 2 cm sinusoid at ``frequency`` Hz, either lifting a basket (``"basket"``: the
+    schedule of :data:`BASKET`) or in free motion (``"zero"``, 16 cycles). The robot's
+    parameters differ from the nominal set as in :func:`raven_joint_state_experiment`; the
+    weight acts along the axis (it is vertical) as an external force ``−m·g``."""
+    if kind not in ("basket", "zero"):
+        raise ck.ParameterError(f"kind must be 'basket' or 'zero', got {kind!r}")
+    rng = np.random.default_rng([seed, 11])
+    nominal = ck.CableTransmission.raven2(3)
+    real = ck.CableTransmission(**_perturbed(nominal.params(), rng))
+    cycles = [0.0] * 6
+    if kind == "basket":
+        for k, m in enumerate(BASKET):
+            cycles += [m] * 4 + ([0.0] * 2 if k < len(BASKET) - 1 else [])
+    else:
+        cycles += [0.0] * 10
+    period = 1.0 / frequency
+    n = round(len(cycles) * period / DT)
+    t = np.arange(n) * DT
+    mass = np.array(cycles)[np.minimum((t / period).astype(int), len(cycles) - 1)]
+    force = -mass * 9.80665
+    amp = 0.02
+    w = 2 * np.pi * frequency
+    q = np.zeros((n, 3))
+    dq = np.zeros((n, 3))
+    q[:, 2] = amp * (1 - np.cos(w * t)) / 2  # starts at rest
+    dq[:, 2] = amp * w * np.sin(w * t) / 2
+    tm = nominal.transmission_matrix
+    refs = np.ascontiguousarray(np.column_stack([q @ tm.T, dq @ tm.T]))
+    ext = np.zeros((n, 3))
+    ext[:, 2] = force
+    sub = 8 * max(1, ck.propose_step(real, DT).substeps)
+    sim = ck.simulate_servo(
+        real, refs, DT, ck.MotorPD.raven2(3), external=np.ascontiguousarray(ext), substeps=sub
+    )
+    q_m = sim.states[:, [0, 4, 8]] + rng.normal(0.0, 2e-5, (n, 3))
+    q_m = np.round(q_m / ENCODER_LSB) * ENCODER_LSB
+    q_l3 = np.round(sim.states[:, 10] / LINEAR_ENCODER_LSB) * LINEAR_ENCODER_LSB
+    training = t < 6 * period
+    return ForceRun(
+        nominal,
+        np.ascontiguousarray(q_m),
+        np.ascontiguousarray(q_l3),
+        np.ascontiguousarray(sim.inputs[:, :3]),
+        force,
+        training,
+        DT,
+        mass,
+    )

@@ -2,7 +2,7 @@
 
 use cable_core::dynamics::Model as _;
 use cable_core::estimate::{
-    self as core, LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe,
+    self as core, InputStates, LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe,
     ParamTransmission, Process, SigmaScaling, TransmissionParam,
 };
 use cable_core::CableError;
@@ -258,6 +258,38 @@ impl SrUkf {
             R,
             scaling(alpha, beta, kappa),
         )
+    }
+
+    /// Filter over `model` with unknown inputs as random-walk states (seed 001 §5.3): the state
+    /// is `[x; w]` and model input `inputs[k]` receives `u[inputs[k]] + w[k]` (e.g. an external
+    /// joint force). `x0`, `P0`, `Q` cover `n + len(inputs)` entries.
+    #[staticmethod]
+    #[pyo3(signature = (model, inputs, x0, P0, Q, R, *, dt, substeps = 1, states = None, H = None, alpha = 1e-3, beta = 2.0, kappa = 0.0))]
+    #[allow(non_snake_case, clippy::too_many_arguments)]
+    fn with_input_states(
+        model: &Bound<'_, Model>,
+        inputs: Vec<usize>,
+        x0: &Bound<'_, PyAny>,
+        P0: &Bound<'_, PyAny>,
+        Q: &Bound<'_, PyAny>,
+        R: &Bound<'_, PyAny>,
+        dt: f64,
+        substeps: usize,
+        states: Option<Vec<usize>>,
+        H: Option<&Bound<'_, PyAny>>,
+        alpha: f64,
+        beta: f64,
+        kappa: f64,
+    ) -> PyResult<Self> {
+        let process: DynProcess = guarded(|| {
+            Ok::<DynProcess, CableError>(match model.get().inner.clone() {
+                AnyModel::Transmission(t) => Box::new(InputStates::new(t, inputs, dt, substeps)?),
+                AnyModel::Antagonistic(j) => Box::new(InputStates::new(j, inputs, dt, substeps)?),
+                AnyModel::Dahl(d) => Box::new(InputStates::new(d, inputs, dt, substeps)?),
+            })
+        })?;
+        let observe = linear_observe(process.n_states(), states, H)?;
+        Self::build(process, observe, x0, P0, Q, R, scaling(alpha, beta, kappa))
     }
 
     /// Filter over the discrete linear system `x' = F·x + B·u`, `y = H·x`.

@@ -22,6 +22,8 @@ mod models;
 mod params;
 mod srukf;
 
-pub use models::{LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe, Process};
+pub use models::{
+    InputStates, LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe, Process,
+};
 pub use params::{with_params, ParamTransmission, TransmissionParam};
 pub use srukf::{Health, SigmaScaling, SrUkf, Weights};

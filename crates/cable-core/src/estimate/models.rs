@@ -244,3 +244,63 @@ impl<T: Observe + ?Sized> Observe for Box<T> {
         (**self).observe(x, u, y)
     }
 }
+
+/// A model whose selected inputs carry extra random-walk states: the state is `[x; w]` and
+/// input `inputs[k]` receives `u[inputs[k]] + w[k]` (an unknown external force or torque as a
+/// filter state, seed 001 §5.3).
+#[derive(Debug, Clone)]
+pub struct InputStates<M: Model> {
+    /// The model.
+    pub model: M,
+    inputs: Vec<usize>,
+    dt: f64,
+    substeps: usize,
+    rk4: Rk4,
+    u: Vec<f64>,
+}
+
+impl<M: Model> InputStates<M> {
+    /// `inputs`: the model input indices driven by the extra states (distinct, in range).
+    pub fn new(model: M, inputs: Vec<usize>, dt: f64, substeps: usize) -> Result<Self> {
+        SimOptions::new(dt, substeps, InputHold::Zoh)?;
+        let m = model.n_inputs();
+        for (k, &i) in inputs.iter().enumerate() {
+            if i >= m || inputs[..k].contains(&i) {
+                return Err(CableError::InvalidParameter {
+                    name: format!("input_states[{k}]"),
+                    value: i as f64,
+                    requirement: "a distinct model input index",
+                });
+            }
+        }
+        let rk4 = Rk4::for_model(&model);
+        Ok(Self {
+            u: vec![0.0; m],
+            model,
+            inputs,
+            dt,
+            substeps,
+            rk4,
+        })
+    }
+}
+
+impl<M: Model> Process for InputStates<M> {
+    fn n_states(&self) -> usize {
+        self.model.n_states() + self.inputs.len()
+    }
+    fn n_inputs(&self) -> usize {
+        self.model.n_inputs()
+    }
+    fn propagate(&mut self, x: &mut [f64], u: &[f64]) {
+        let n = self.model.n_states();
+        self.u.copy_from_slice(u);
+        for (k, &i) in self.inputs.iter().enumerate() {
+            self.u[i] += x[n + k];
+        }
+        let h = self.dt / self.substeps as f64;
+        for _ in 0..self.substeps {
+            self.rk4.step(&self.model, &mut x[..n], &self.u, h);
+        }
+    }
+}
