@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from cablekit.estimate import TransmissionParameters, estimate_joint_states, estimate_parameters
+from cablekit.plotting import pyplot_or_none
 from cablekit.twins import ENCODER_LSB, raven_camera_experiment
 
 SIGMA = float(np.hypot(2e-5, ENCODER_LSB / np.sqrt(12)))
@@ -115,13 +116,8 @@ def main() -> None:
     print(text)
     print(f"({time.perf_counter() - t0:.1f} s)")
     (out / "table.md").write_text(text + "\n")
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("matplotlib not installed (pip install 'cablekit[report]'): no plot")
+    plt = pyplot_or_none()
+    if plt is None:
         return
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     occ = [100 * r["occlusion"] for r in rows]

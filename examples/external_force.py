@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from cablekit.estimate import CableStretchForce, estimate_external_force, stretch_and_rate
+from cablekit.plotting import pyplot_or_none
 from cablekit.twins import BASKET, ENCODER_LSB, LINEAR_ENCODER_LSB, raven_force_experiment
 
 SIGMA = float(np.hypot(2e-5, ENCODER_LSB / np.sqrt(12)))
@@ -97,13 +98,8 @@ def main() -> None:
     print(text)
     print(f"({time.perf_counter() - t0:.1f} s)")
     (out / "table.md").write_text(text + "\n")
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("matplotlib not installed (pip install 'cablekit[report]'): no plot")
+    plt = pyplot_or_none()
+    if plt is None:
         return
     fig, axes = plt.subplots(2, 2, figsize=(13, 7), gridspec_kw={"width_ratios": [3, 1]})
     colors = {"UKF": "C0", "stretch (quadrants)": "C1", "stretch (direction)": "C2"}

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from cablekit.estimate import estimate_joint_states
+from cablekit.plotting import pyplot_or_none
 from cablekit.twins import ENCODER_LSB, raven_joint_state_experiment
 
 UNITS = [("deg", 180 / np.pi), ("deg", 180 / np.pi), ("cm", 100.0)]
@@ -78,13 +79,8 @@ def main() -> None:
     text = "\n".join(lines)
     print(text)
     (out / "table.md").write_text(text + "\n")
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("matplotlib not installed (pip install 'cablekit[report]'): no plot")
+    plt = pyplot_or_none()
+    if plt is None:
         return
     fig, axes = plt.subplots(3, 2, figsize=(12, 8), gridspec_kw={"width_ratios": [3, 1]})
     run, est = series["A"]

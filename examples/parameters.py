@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from cablekit.estimate import estimate_parameters
+from cablekit.plotting import pyplot_or_none
 from cablekit.twins import raven_parameter_experiment
 
 
@@ -47,13 +48,8 @@ def main() -> None:
     text = "\n".join(lines)
     print(text)
     (out / "table.md").write_text(text + "\n")
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("matplotlib not installed (pip install 'cablekit[report]'): no plot")
+    plt = pyplot_or_none()
+    if plt is None:
         return
     t = np.arange(len(run.q_m)) * run.dt
     fig, axes = plt.subplots(2, 3, figsize=(13, 6), sharex=True)

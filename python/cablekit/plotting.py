@@ -22,6 +22,16 @@ def _pyplot() -> Any:
     return plt
 
 
+def pyplot_or_none() -> Any:
+    """``matplotlib.pyplot`` on the Agg backend, or None (with a note) without the report
+    extra: for scripts whose plots are optional."""
+    try:
+        return _pyplot()
+    except CablekitError:
+        print("matplotlib not installed (pip install 'cablekit[report]'): no plot")
+        return None
+
+
 def plot_run(result: SimulationResult, path: str | Path, title: str = "") -> Path:
     """Plot a run's positions, tensions and inputs to a PNG; returns the path."""
     plt = _pyplot()
