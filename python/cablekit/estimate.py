@@ -12,13 +12,16 @@ up for a cable transmission and return results with named fields:
   with bounds (seed 001 §3.3, ch. 4);
 * :func:`estimate_external_force` — external joint forces as random-walk states (the UKF
   method of seed 001 §5.3), and :class:`CableStretchForce` — the cable-stretch method with its
-  two-Gaussian, four-quadrant classification.
+  two-Gaussian, four-quadrant classification;
+* :func:`estimate_stiffness`, :class:`PretensionMap`, :class:`StringCalibration` — pretension
+  from the filter's cable stiffness through a fitted quadratic map, its Low/Mid/High category,
+  and the taut-string frequency → tension calibration (seed 001 §5.2).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -36,10 +39,13 @@ __all__ = [
     "ForceEstimate",
     "JointStateEstimate",
     "ParameterEstimate",
+    "PretensionMap",
+    "StringCalibration",
     "TransmissionParameters",
     "estimate_external_force",
     "estimate_joint_states",
     "estimate_parameters",
+    "estimate_stiffness",
     "kinematic_joint_angles",
     "stretch_and_rate",
 ]
@@ -65,6 +71,55 @@ class JointStateEstimate:
     """Downdate recoveries per step (0 in healthy operation)."""
     substeps: int
     """RK4 substeps per sample used by the filter's process model."""
+
+
+@dataclass(frozen=True)
+class _Observations:
+    states: list[int]
+    y: NDArray[np.float64]
+    mask: NDArray[np.bool_] | None
+    r: NDArray[np.float64]
+
+
+def _observations(
+    q_m: NDArray[np.float64],
+    q_l: NDArray[np.float64] | None,
+    encoder_noise: float,
+    joint_noise: float | None,
+    x0: NDArray[np.float64],
+    name: str = "q_l",
+) -> _Observations:
+    """Motor encoders always; joint angles ``q_l`` where given (NaN = not measured at that
+    sample; a column that is all NaN is not a channel). Joint encoders (not a camera) also start
+    ``x0``'s joint angles at their first reading. The measurement noise of the joint channels
+    is ``joint_noise``."""
+    n_links = q_m.shape[1]
+    states = [4 * j for j in range(n_links)]
+    r = [encoder_noise**2] * n_links
+    if q_l is None:
+        return _Observations(states, q_m, None, np.diag(r))
+    q_l = np.ascontiguousarray(q_l, dtype=np.float64)
+    if q_l.shape != q_m.shape:
+        raise ShapeError(f"{name} must have the shape of q_m {q_m.shape}, got {q_l.shape}")
+    if np.isinf(q_l).any():
+        raise ParameterError(f"{name} holds ±inf; mark missing samples with NaN")
+    jn = encoder_noise if joint_noise is None else joint_noise
+    if not (np.isfinite(jn) and jn > 0):
+        raise ParameterError(
+            f"{'camera_noise' if name == 'q_camera' else 'joint_noise'} must be finite and > 0, got {jn}"
+        )
+    cols = [j for j in range(n_links) if not np.isnan(q_l[:, j]).all()]
+    seen = ~np.isnan(q_l[:, cols])
+    for c, j in enumerate(cols):
+        if name == "q_l" and seen[0, c]:
+            x0[2 + 4 * j] = q_l[0, j]
+    states += [2 + 4 * j for j in cols]
+    r += [jn**2] * len(cols)
+    y = np.ascontiguousarray(np.concatenate([q_m, np.where(seen, q_l[:, cols], 0.0)], axis=1))
+    mask = None
+    if not seen.all():
+        mask = np.ascontiguousarray(np.concatenate([np.ones((len(q_m), n_links), bool), seen], axis=1))
+    return _Observations(states, y, mask, np.diag(r))
 
 
 def kinematic_joint_angles(model: CableTransmission, q_m: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -141,24 +196,11 @@ def estimate_joint_states(
     # start: motor angles as measured, joint angles from the kinematics (cable stretch unknown,
     # ~1 mrad), at rest within ~0.1 rad/s
     p0 = np.diag(np.tile([encoder_noise**2, 1e-2, 1e-6, 1e-2], n_links))
-    states = list(range(0, n, 4))
-    r = encoder_noise**2 * np.eye(n_links)
-    y, mask = q_m, None
-    if q_camera is not None:
-        cam = np.ascontiguousarray(q_camera, dtype=np.float64)
-        if cam.shape != q_m.shape:
-            raise ShapeError(f"q_camera must have the shape of q_m {q_m.shape}, got {cam.shape}")
-        if not (np.isfinite(camera_noise) and camera_noise > 0):
-            raise ParameterError(f"camera_noise must be finite and > 0, got {camera_noise}")
-        if np.isinf(cam).any():
-            raise ParameterError("q_camera holds ±inf; mark occluded samples with NaN")
-        states += list(range(2, n, 4))
-        r = np.diag(np.r_[np.full(n_links, encoder_noise**2), np.full(n_links, camera_noise**2)])
-        seen = ~np.isnan(cam)
-        y = np.ascontiguousarray(np.concatenate([q_m, np.where(seen, cam, 0.0)], axis=1))
-        mask = np.ascontiguousarray(np.concatenate([np.ones_like(seen), seen], axis=1))
-    ukf = SrUkf(model, x0, p0, q, r, dt=dt, substeps=substeps, states=states, alpha=alpha)
-    res = ukf.run(u, y, mask)
+    if q_camera is not None and not (np.isfinite(camera_noise) and camera_noise > 0):
+        raise ParameterError(f"camera_noise must be finite and > 0, got {camera_noise}")
+    obs = _observations(q_m, q_camera, encoder_noise, camera_noise, x0, "q_camera")
+    ukf = SrUkf(model, x0, p0, q, obs.r, dt=dt, substeps=substeps, states=obs.states, alpha=alpha)
+    res = ukf.run(u, obs.y, obs.mask)
     std = np.sqrt(np.einsum("tij,tij->ti", res["S"], res["S"]))  # row norms of S: √diag(S·Sᵀ)
     return JointStateEstimate(
         q_l=res["x"][:, 2::4],
@@ -308,7 +350,7 @@ def estimate_parameters(
     scale = np.where(np.abs(theta0) > 0, np.abs(theta0), 1.0)
     x0 = np.zeros(n + p)
     x0[0:n:4] = q_m[0]
-    x0[2:n:4] = kinematic_joint_angles(model, q_m[:1])[0] if q_l is None else q_l[0]
+    x0[2:n:4] = kinematic_joint_angles(model, q_m[:1])[0]
     x0[n:] = theta0
     p0 = np.diag(np.r_[np.tile([encoder_noise**2, 1e-2, 1e-6, 1e-2], n_links), (initial_spread * scale) ** 2])
     q = np.diag(
@@ -316,28 +358,21 @@ def estimate_parameters(
             np.tile([0.0, motor_noise**2 * dt, 0.0, link_noise**2 * dt], n_links), (drift * scale) ** 2 * dt
         ]
     )
-    states = list(range(0, n, 4))
-    y, mask = q_m, None
-    r = encoder_noise**2 * np.eye(n_links)
-    if q_l is not None:
-        q_l = np.ascontiguousarray(q_l, dtype=np.float64)
-        if q_l.shape != q_m.shape:
-            raise ShapeError(f"q_l must have the shape of q_m {q_m.shape}, got {q_l.shape}")
-        if np.isinf(q_l).any():
-            raise ParameterError("q_l holds ±inf; mark missing samples with NaN")
-        jn = encoder_noise if joint_noise is None else joint_noise
-        if not (np.isfinite(jn) and jn > 0):
-            raise ParameterError(f"joint_noise must be finite and > 0, got {jn}")
-        states += list(range(2, n, 4))
-        seen = ~np.isnan(q_l)
-        y = np.ascontiguousarray(np.concatenate([q_m, np.where(seen, q_l, 0.0)], axis=1))
-        if not seen.all():
-            mask = np.ascontiguousarray(np.concatenate([np.ones_like(seen), seen], axis=1))
-        r = np.diag(np.r_[np.full(n_links, encoder_noise**2), np.full(n_links, jn**2)])
+    obs = _observations(q_m, q_l, encoder_noise, joint_noise, x0)
     ukf = SrUkf.with_parameters(
-        model, list(params), x0, p0, q, r, dt=dt, substeps=substeps, states=states, bounds=bounds, alpha=alpha
+        model,
+        list(params),
+        x0,
+        p0,
+        q,
+        obs.r,
+        dt=dt,
+        substeps=substeps,
+        states=obs.states,
+        bounds=bounds,
+        alpha=alpha,
     )
-    res = ukf.run(u, y, mask)
+    res = ukf.run(u, obs.y, obs.mask)
     std = np.sqrt(np.einsum("tij,tij->ti", res["S"], res["S"]))
     return ParameterEstimate(
         list(params),
@@ -403,21 +438,7 @@ def estimate_external_force(
     x0 = np.zeros(n + k)
     x0[0:n:4] = q_m[0]
     x0[2:n:4] = kinematic_joint_angles(model, q_m[:1])[0]
-    states = list(range(0, n, 4))
-    y, mask = q_m, None
-    r = [encoder_noise**2] * n_links
-    if q_l is not None:
-        q_l = np.ascontiguousarray(q_l, dtype=np.float64)
-        if q_l.shape != q_m.shape:
-            raise ShapeError(f"q_l must have the shape of q_m {q_m.shape}, got {q_l.shape}")
-        cols = [j for j in range(n_links) if not np.isnan(q_l[:, j]).all()]
-        seen = ~np.isnan(q_l[:, cols])
-        x0[[2 + 4 * j for j in cols]] = np.where(seen[0], q_l[0, cols], x0[[2 + 4 * j for j in cols]])
-        states += [2 + 4 * j for j in cols]
-        r += [(encoder_noise if joint_noise is None else joint_noise) ** 2] * len(cols)
-        y = np.ascontiguousarray(np.concatenate([q_m, np.where(seen, q_l[:, cols], 0.0)], axis=1))
-        if not seen.all():
-            mask = np.ascontiguousarray(np.concatenate([np.ones((len(q_m), n_links), bool), seen], axis=1))
+    obs = _observations(q_m, q_l, encoder_noise, joint_noise, x0)
     p0 = np.diag(np.r_[np.tile([encoder_noise**2, 1e-2, 1e-6, 1e-2], n_links), np.full(k, 100.0)])
     q = np.diag(
         np.r_[
@@ -431,13 +452,13 @@ def estimate_external_force(
         x0,
         p0,
         q,
-        np.diag(r),
+        obs.r,
         dt=dt,
         substeps=substeps,
-        states=states,
+        states=obs.states,
         alpha=alpha,
     )
-    res = ukf.run(u, y, mask)
+    res = ukf.run(u, obs.y, obs.mask)
     std = np.sqrt(np.einsum("tij,tij->ti", res["S"], res["S"]))
     return ForceEstimate(list(links), res["x"][:, n:], std[:, n:], res["x"][:, :n], res["nis"])
 
@@ -575,3 +596,84 @@ def stretch_and_rate(
     rate = np.zeros_like(s)
     rate[k:-k] = (s[2 * k :] - s[: -2 * k]) / (2 * k * dt)
     return s, rate
+
+
+def estimate_stiffness(
+    model: CableTransmission,
+    link: int,
+    q_m: NDArray[np.float64],
+    tau_m: NDArray[np.float64],
+    dt: float,
+    q_l: NDArray[np.float64] | None = None,
+    **kwargs: Any,
+) -> tuple[float, float]:
+    """The cable stiffness of ``link`` (N/m) and its standard deviation at the end of a run, by
+    joint state–parameter estimation (:func:`estimate_parameters`; ``kwargs`` pass on). The
+    link noise defaults to 0.1 (as for forces: a wandering link velocity averages friction
+    away)."""
+    kwargs.setdefault("link_noise", 0.1)
+    est = estimate_parameters(model, [f"cable_stiffness[{link}]"], q_m, tau_m, dt, q_l=q_l, **kwargs)
+    return float(est.values[-1, 0]), float(est.std[-1, 0])
+
+
+#: seed 001 §5.2's pretension categories (N): Low below 8, Mid 8–14, High above 14
+CATEGORY_BOUNDS = (8.0, 14.0)
+
+
+@dataclass
+class PretensionMap:
+    """Tension from estimated cable stiffness by a degree-two polynomial (seed 001 §5.2, Fig.
+    5.3), fitted on runs of known tension; the stiffness can be biased (friction and inertia
+    errors of the model), the fit absorbs a consistent bias."""
+
+    coefficients: NDArray[np.float64] | None = None
+    """``(c0, c1, c2)`` of ``T = c0 + c1·k + c2·k²``, k in kN/m."""
+
+    def fit(self, stiffness: NDArray[np.float64], tension: NDArray[np.float64]) -> PretensionMap:
+        k = np.asarray(stiffness, dtype=np.float64) / 1e3
+        t = np.asarray(tension, dtype=np.float64)
+        if (
+            k.shape != t.shape
+            or k.ndim != 1
+            or len(k) < 3
+            or not (np.isfinite(k).all() and np.isfinite(t).all())
+        ):
+            raise ParameterError("fit needs at least 3 finite (stiffness, tension) pairs of equal length")
+        self.coefficients = np.polynomial.polynomial.polyfit(k, t, 2)
+        return self
+
+    def tension(self, stiffness: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        if self.coefficients is None:
+            raise ParameterError("fit() the map on runs of known tension first")
+        return np.polynomial.polynomial.polyval(
+            np.asarray(stiffness, dtype=np.float64) / 1e3, self.coefficients
+        )
+
+    @staticmethod
+    def category(tension: NDArray[np.float64] | float) -> NDArray[np.str_]:
+        """``"low"`` (< 8 N), ``"mid"`` (8–14 N) or ``"high"`` (> 14 N) per value."""
+        t = np.asarray(tension, dtype=np.float64)
+        lo, hi = CATEGORY_BOUNDS
+        return np.where(t < lo, "low", np.where(t > hi, "high", "mid"))
+
+
+@dataclass
+class StringCalibration:
+    """Taut-string calibration (seed 001 §5.2): a free span of length ``L`` and linear density
+    ``μ`` vibrates at ``f = √(T/μ)/(2L)``, so ``T = a·f²`` with ``a = 4L²μ``; ``a`` is fitted
+    (least squares through the origin) on spans whose tension a gauge measured."""
+
+    a: float = float("nan")
+
+    def fit(self, frequency: NDArray[np.float64], tension: NDArray[np.float64]) -> StringCalibration:
+        f2 = np.asarray(frequency, dtype=np.float64) ** 2
+        t = np.asarray(tension, dtype=np.float64)
+        if f2.shape != t.shape or len(t) < 1 or not (np.isfinite(f2).all() and np.isfinite(t).all()):
+            raise ParameterError("fit needs finite (frequency, tension) pairs of equal length")
+        self.a = float(f2 @ t / (f2 @ f2))
+        return self
+
+    def tension(self, frequency: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        if np.isnan(self.a):
+            raise ParameterError("fit() the string calibration first")
+        return self.a * np.asarray(frequency, dtype=np.float64) ** 2

@@ -31,10 +31,12 @@ __all__ = [
     "ForceRun",
     "JointStateRun",
     "ParameterRun",
+    "PretensionRun",
     "raven_camera_experiment",
     "raven_force_experiment",
     "raven_joint_state_experiment",
     "raven_parameter_experiment",
+    "raven_pretension_run",
 ]
 
 DT = 1e-3
@@ -325,4 +327,85 @@ def raven_force_experiment(kind: str = "basket", seed: int = 0, frequency: float
         training,
         DT,
         mass,
+    )
+
+
+#: the insertion cable's tangent stiffness grows with its tension and saturates (strands bed in
+#: under load): k(T) = K_INF·(1 − exp(−T/T_CRIMP)); seed 001 Fig. 5.3 shows this shape
+K_INF, T_CRIMP = 12_000.0, 6.0
+#: taut-string calibration (seed 001 §5.2): a free cable length L (m) of linear density μ (kg/m)
+#: vibrates at f = √(T/μ)/(2L)
+STRING_LENGTH, STRING_DENSITY = 0.25, 1.2e-3
+
+
+def insertion_stiffness(tension: float) -> float:
+    """The twin's insertion-cable stiffness (N/m) at pretension ``tension`` (N)."""
+    return K_INF * (1.0 - np.exp(-tension / T_CRIMP))
+
+
+def string_frequency(tension: float) -> float:
+    """Fundamental frequency (Hz) of the free cable span at ``tension`` (N)."""
+    return float(np.sqrt(tension / STRING_DENSITY) / (2 * STRING_LENGTH))
+
+
+@dataclass(frozen=True)
+class PretensionRun:
+    """One run of the pretension study: encoders and torques of the insertion axis moving, the
+    measured vibration frequency of the free cable span, and the true tension."""
+
+    nominal: ck.CableTransmission
+    q_m: np.ndarray
+    q_l3: np.ndarray
+    tau_m: np.ndarray
+    dt: float
+    frequency: float
+    tension: float
+
+
+def raven_pretension_run(tension: float, seconds: float = 10.0, seed: int = 0) -> PretensionRun:
+    """Raven-II with the insertion cable tensioned to ``tension`` N (seed 001 §5.2: 18 runs with
+    the tension changed by hand): the insertion axis follows a 2 cm, 1 Hz sinusoid with a
+    5–20 Hz identification chirp, the shoulder and elbow held still; the cable's stiffness
+    follows :func:`insertion_stiffness`; the free span's vibration frequency is measured with
+    0.5 % noise."""
+    if not 0.5 <= tension <= 60.0:
+        raise ck.ParameterError(f"tension must be in [0.5, 60] N, got {tension}")
+    # the same robot in every run (its calibration errors drawn from ``seed`` alone): only the
+    # tension changes between runs, as when the seed's experimenter turned the screw adjuster
+    nominal = ck.CableTransmission.raven2(3)
+    p = _perturbed(nominal.params(), np.random.default_rng([seed, 13]))
+    rng = np.random.default_rng([seed, 13, round(100 * tension)])
+    p["pretension"] = [*p["pretension"][:2], tension]
+    p["cable_stiffness"] = [*p["cable_stiffness"][:2], insertion_stiffness(tension)]
+    p["cable_law"] = "linear"
+    real = ck.CableTransmission(**p)
+    n = round(seconds / DT)
+    t = np.arange(n) * DT
+    w = 2 * np.pi
+    q = np.zeros((n, 3))
+    dq = np.zeros((n, 3))
+    tc = t % 5.0
+    phase = 2 * np.pi * (5.0 * tc + 1.5 * tc**2)
+    rate = 2 * np.pi * (5.0 + 3.0 * tc)
+    chirp = 2e-5  # m: the insertion motor's reflected inertia leaves little torque to shake it
+    q[:, 2] = 0.02 * (1 - np.cos(w * t)) / 2 + chirp * np.sin(phase) * np.minimum(t, 1.0)
+    dq[:, 2] = 0.02 * w * np.sin(w * t) / 2 + chirp * (
+        rate * np.cos(phase) * np.minimum(t, 1.0) + np.sin(phase) * (t < 1.0)
+    )
+    tm = nominal.transmission_matrix
+    refs = np.ascontiguousarray(np.column_stack([q @ tm.T, dq @ tm.T]))
+    sub = 8 * max(1, ck.propose_step(real, DT).substeps)
+    sim = ck.simulate_servo(real, refs, DT, ck.MotorPD.raven2(3), substeps=sub)
+    q_m = sim.states[:, [0, 4, 8]] + rng.normal(0.0, 2e-5, (n, 3))
+    q_m = np.round(q_m / ENCODER_LSB) * ENCODER_LSB
+    q_l3 = np.round(sim.states[:, 10] / LINEAR_ENCODER_LSB) * LINEAR_ENCODER_LSB
+    freq = string_frequency(tension) * (1 + 0.005 * rng.normal())
+    return PretensionRun(
+        nominal,
+        np.ascontiguousarray(q_m),
+        np.ascontiguousarray(q_l3),
+        np.ascontiguousarray(sim.inputs[:, :3]),
+        DT,
+        freq,
+        tension,
     )
