@@ -11,6 +11,7 @@ __all__ = [
     "AntagonisticJoint",
     "CableTransmission",
     "DahlElement",
+    "DualSrUkf",
     "JointProblem",
     "Model",
     "SrUkf",
@@ -332,3 +333,28 @@ class SrUkf:
     def run(
         self, U: _F, Y: _F, mask: NDArray[np.bool_] | None = None, smooth: bool = False
     ) -> dict[str, _F]: ...
+
+@final
+class DualSrUkf:
+    """Dual state–parameter sr-UKF (seed 001 eqs 3.7–3.8)."""
+
+    def __new__(
+        cls,
+        model: Model,
+        params: list[str],
+        x0: _F,
+        P0: _F,
+        Q: _F,
+        P0_theta: _F,
+        Q_theta: _F,
+        R: _F,
+        *,
+        dt: float,
+        substeps: int = 1,
+        states: list[int],
+        bounds: list[tuple[float, float]] | None = None,
+        alpha: float = 1e-3,
+        beta: float = 2.0,
+        kappa: float = 0.0,
+    ) -> DualSrUkf: ...
+    def run(self, U: _F, Y: _F, mask: NDArray[np.bool_] | None = None) -> dict[str, _F]: ...

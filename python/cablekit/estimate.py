@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cablekit._cablekit import SrUkf
+from cablekit._cablekit import DualSrUkf, SrUkf
 from cablekit.errors import ParameterError, ShapeError
 from cablekit.simulation import propose_step
 
@@ -320,6 +320,7 @@ def estimate_parameters(
     link_noise: float = 1.0,
     substeps: int | None = None,
     alpha: float = 0.5,
+    method: str = "joint",
 ) -> ParameterEstimate:
     """Joint state–parameter estimation (seed 001 §3.3, ch. 4) of the named transmission
     parameters from motor encoders, applied torques and — offline, as the seed identified its
@@ -334,7 +335,14 @@ def estimate_parameters(
 
     ``q_l`` may be a camera's joint angles (seed 001 ch. 4): NaN where there is no frame or the
     joint is occluded, with ``joint_noise`` its standard deviation (default ``encoder_noise``).
+
+    ``method="joint"`` augments the state with the parameters (one filter); ``method="dual"``
+    runs a state filter and a parameter filter side by side (eqs 3.7–3.8; the parameters'
+    measurement is the state filter's last estimate propagated with each parameter sigma
+    point). ``x_std`` and ``nis`` are not available from the dual filter (NaN).
     """
+    if method not in ("joint", "dual"):
+        raise ParameterError(f"method must be 'joint' or 'dual', got {method!r}")
     q_m = np.ascontiguousarray(q_m, dtype=np.float64)
     tau_m = np.ascontiguousarray(tau_m, dtype=np.float64)
     n_links = model.n_links
@@ -359,6 +367,35 @@ def estimate_parameters(
         ]
     )
     obs = _observations(q_m, q_l, encoder_noise, joint_noise, x0)
+    if method == "dual":
+        c = np.ascontiguousarray
+        dual = DualSrUkf(
+            model,
+            list(params),
+            c(x0[:n]),
+            c(p0[:n, :n]),
+            c(q[:n, :n]),
+            c(p0[n:, n:]),
+            c(q[n:, n:]),
+            obs.r,
+            dt=dt,
+            substeps=substeps,
+            states=obs.states,
+            bounds=bounds,
+            alpha=alpha,
+        )
+        out = dual.run(u, obs.y, obs.mask)
+        nan = np.full((len(u), n), np.nan)
+        return ParameterEstimate(
+            list(params),
+            out["theta"],
+            out["theta_std"],
+            theta0,
+            out["x"],
+            nan,
+            np.full(len(u), np.nan),
+            np.zeros(len(u)),
+        )
     ukf = SrUkf.with_parameters(
         model,
         list(params),

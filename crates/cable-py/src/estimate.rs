@@ -459,26 +459,7 @@ impl SrUkf {
             }
             uarr.as_slice()?.to_vec()
         };
-        let mdata: Option<Vec<bool>> = match mask {
-            Some(mk) if !mk.is_none() => {
-                let arr = mk.cast::<numpy::PyArray2<bool>>().map_err(|_| {
-                    raise(
-                        "DTypeError",
-                        "mask must be a (T, p) numpy array of bool".into(),
-                        &[],
-                    )
-                })?;
-                if arr.shape() != [t, p] {
-                    return Err(raise(
-                        "ShapeError",
-                        format!("mask must have shape ({t}, {p}), got {:?}", arr.shape()),
-                        &[],
-                    ));
-                }
-                Some(arr.readonly().as_array().iter().copied().collect())
-            }
-            _ => None,
-        };
+        let mdata = bool_matrix(mask, t, p)?;
         if m > 0 {
             cable_core::check::all_finite("U", &udata, m).map_err(crate::errors::PyCableError)?;
         }
@@ -557,5 +538,156 @@ impl SrUkf {
         d.set_item("recovered", to_vector(py, rec))?;
         d.set_item("measured", to_vector(py, meas))?;
         Ok(d)
+    }
+}
+
+/// Dual state–parameter estimation (seed 001 eqs 3.7–3.8): a state filter over the transmission
+/// and a parameter filter over the named parameters, run side by side.
+#[pyclass(module = "cablekit._cablekit")]
+pub struct DualSrUkf {
+    inner: core::DualSrUkf,
+    m: usize,
+}
+
+#[pymethods]
+impl DualSrUkf {
+    #[new]
+    #[pyo3(signature = (model, params, x0, P0, Q, P0_theta, Q_theta, R, *, dt, substeps = 1, states, bounds = None, alpha = 1e-3, beta = 2.0, kappa = 0.0))]
+    #[allow(non_snake_case, clippy::too_many_arguments)]
+    fn new(
+        model: &Bound<'_, Model>,
+        params: Vec<String>,
+        x0: &Bound<'_, PyAny>,
+        P0: &Bound<'_, PyAny>,
+        Q: &Bound<'_, PyAny>,
+        P0_theta: &Bound<'_, PyAny>,
+        Q_theta: &Bound<'_, PyAny>,
+        R: &Bound<'_, PyAny>,
+        dt: f64,
+        substeps: usize,
+        states: Vec<usize>,
+        bounds: Option<Vec<(f64, f64)>>,
+        alpha: f64,
+        beta: f64,
+        kappa: f64,
+    ) -> PyResult<Self> {
+        let AnyModel::Transmission(base) = model.get().inner.clone() else {
+            return Err(raise(
+                "ParameterError",
+                "dual estimation needs a CableTransmission".into(),
+                &[],
+            ));
+        };
+        let (n, m, p) = (base.n_states(), base.n_inputs(), params.len());
+        let links = base.n_links();
+        let parsed = guarded(|| {
+            params
+                .iter()
+                .map(|s| TransmissionParam::parse(s, links))
+                .collect::<Result<Vec<_>, _>>()
+        })?;
+        let x0 = vector(x0, "x0", n)?;
+        let p0 = square(P0, "P0", n)?;
+        let q = square(Q, "Q", n)?;
+        let p0t = square(P0_theta, "P0_theta", p)?;
+        let qt = square(Q_theta, "Q_theta", p)?;
+        let r = square(R, "R", states.len())?;
+        let inner = guarded(|| {
+            core::DualSrUkf::new(
+                base,
+                parsed,
+                bounds,
+                dt,
+                substeps,
+                &states,
+                &x0,
+                &p0,
+                &q,
+                &p0t,
+                &qt,
+                &r,
+                scaling(alpha, beta, kappa),
+            )
+        })?;
+        Ok(Self { inner, m })
+    }
+
+    /// Filter a log (`U` `(T, m)`, `Y` `(T, len(states))`, optional `mask`): returns `x`
+    /// `(T, n)`, `theta` `(T, p)` and `theta_std` `(T, p)`. The GIL is released.
+    #[pyo3(signature = (U, Y, mask = None))]
+    #[allow(non_snake_case)]
+    fn run<'py>(
+        &mut self,
+        py: Python<'py>,
+        U: &Bound<'py, PyAny>,
+        Y: &Bound<'py, PyAny>,
+        mask: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (n, q, m) = (
+            self.inner.state.n_states(),
+            self.inner.state.n_outputs(),
+            self.m,
+        );
+        let p = self.inner.params.n_states();
+        let (yarr, t) = matrix(Y, "Y", Some(q))?;
+        let ydata = yarr.as_slice()?.to_vec();
+        let (uarr, tu) = matrix(U, "U", Some(m))?;
+        if tu != t {
+            return Err(raise(
+                "ShapeError",
+                format!("U has {tu} rows but Y has {t}"),
+                &[],
+            ));
+        }
+        let udata = uarr.as_slice()?.to_vec();
+        cable_core::check::all_finite("U", &udata, m).map_err(crate::errors::PyCableError)?;
+        let mdata = bool_matrix(mask, t, q)?;
+        let inner = &mut self.inner;
+        let (xs, th, ts) = py.detach(|| {
+            guarded(|| {
+                let (mut xs, mut th, mut ts) =
+                    (vec![0.0; t * n], vec![0.0; t * p], vec![0.0; t * p]);
+                for k in 0..t {
+                    let mk = mdata.as_ref().map(|v| &v[k * q..(k + 1) * q]);
+                    inner.step(&udata[k * m..(k + 1) * m], &ydata[k * q..(k + 1) * q], mk)?;
+                    xs[k * n..(k + 1) * n].copy_from_slice(inner.state.x());
+                    th[k * p..(k + 1) * p].copy_from_slice(inner.params.x());
+                    let s = inner.params.sqrt_covariance();
+                    for i in 0..p {
+                        ts[k * p + i] = (0..p).map(|j| s[i + j * p].powi(2)).sum::<f64>().sqrt();
+                    }
+                }
+                Ok((xs, th, ts))
+            })
+        })?;
+        let d = PyDict::new(py);
+        d.set_item("x", to_matrix(py, xs, t, n))?;
+        d.set_item("theta", to_matrix(py, th, t, p))?;
+        d.set_item("theta_std", to_matrix(py, ts, t, p))?;
+        Ok(d)
+    }
+}
+
+/// An optional `(t, q)` boolean numpy mask.
+fn bool_matrix(mask: Option<&Bound<'_, PyAny>>, t: usize, q: usize) -> PyResult<Option<Vec<bool>>> {
+    match mask {
+        Some(mk) if !mk.is_none() => {
+            let arr = mk.cast::<numpy::PyArray2<bool>>().map_err(|_| {
+                raise(
+                    "DTypeError",
+                    "mask must be a (T, p) numpy array of bool".into(),
+                    &[],
+                )
+            })?;
+            if arr.shape() != [t, q] {
+                return Err(raise(
+                    "ShapeError",
+                    format!("mask must have shape ({t}, {q}), got {:?}", arr.shape()),
+                    &[],
+                ));
+            }
+            Ok(Some(arr.readonly().as_array().iter().copied().collect()))
+        }
+        _ => Ok(None),
     }
 }

@@ -31,6 +31,7 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(friction::cable_tension, m)?)?;
     m.add_class::<identify::JointProblem>()?;
     m.add_class::<estimate::SrUkf>()?;
+    m.add_class::<estimate::DualSrUkf>()?;
     m.add_function(wrap_pyfunction!(identify::effect_catalogue, m)?)?;
     Ok(())
 }

@@ -25,5 +25,7 @@ mod srukf;
 pub use models::{
     InputStates, LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe, Process,
 };
-pub use params::{with_params, ParamTransmission, TransmissionParam};
+pub use params::{
+    with_params, DualSrUkf, ParamObserve, ParamTransmission, RandomWalk, TransmissionParam,
+};
 pub use srukf::{Health, SigmaScaling, SrUkf, Weights};

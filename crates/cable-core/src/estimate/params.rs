@@ -311,3 +311,131 @@ mod tests {
         assert!(x[..8].iter().all(|v| v.is_finite()));
     }
 }
+
+/// Dual estimation (seed 001 eqs 3.7–3.8, Wan & van der Merwe): a state filter over the
+/// transmission with the current parameter estimate and a parameter filter over `θ` alone (a
+/// random walk, eq 3.7) whose measurement is `d_k = H·F(x̂_{k−1}, u; θ)` (eq 3.8): the state
+/// filter's last estimate propagated with each parameter sigma point. Each step updates the
+/// parameters first, then the state with the new parameters.
+#[derive(Debug, Clone)]
+pub struct DualSrUkf {
+    /// The state filter.
+    pub state: super::SrUkf<super::ModelProcess<CableTransmission>, super::LinearObserve>,
+    /// The parameter filter.
+    pub params: super::SrUkf<RandomWalk, ParamObserve>,
+    base: CableTransmission,
+    names: Vec<TransmissionParam>,
+}
+
+/// `θ_k = θ_{k−1}` (the filter adds the random walk), projected into bounds.
+#[derive(Debug, Clone)]
+pub struct RandomWalk {
+    bounds: Vec<(f64, f64)>,
+}
+
+impl Process for RandomWalk {
+    fn n_states(&self) -> usize {
+        self.bounds.len()
+    }
+    fn n_inputs(&self) -> usize {
+        0
+    }
+    fn propagate(&mut self, x: &mut [f64], _u: &[f64]) {
+        self.project(x);
+    }
+    fn project(&self, x: &mut [f64]) {
+        for (v, (lo, hi)) in x.iter_mut().zip(&self.bounds) {
+            *v = v.clamp(*lo, *hi);
+        }
+    }
+}
+
+/// The parameter filter's measurement: the state filter's previous estimate propagated one
+/// period with the parameters `θ`, then measured.
+#[derive(Debug, Clone)]
+pub struct ParamObserve {
+    proc: ParamTransmission,
+    idx: Vec<usize>,
+    x_prev: Vec<f64>,
+    u: Vec<f64>,
+    buf: Vec<f64>,
+}
+
+impl super::Observe for ParamObserve {
+    fn n_outputs(&self) -> usize {
+        self.idx.len()
+    }
+    fn observe(&mut self, theta: &[f64], _u: &[f64], y: &mut [f64]) {
+        let n = self.x_prev.len();
+        self.buf[..n].copy_from_slice(&self.x_prev);
+        self.buf[n..].copy_from_slice(theta);
+        self.proc.propagate(&mut self.buf, &self.u);
+        for (yi, &k) in y.iter_mut().zip(&self.idx) {
+            *yi = self.buf[k];
+        }
+    }
+}
+
+impl DualSrUkf {
+    /// State filter at `(x0, p0)` with process noise `q`, parameter filter at the model's
+    /// parameter values with covariance `p0_theta` and random-walk covariance `q_theta`; both
+    /// measure the states `measured` with noise covariance `r`. Bounds as for
+    /// [`ParamTransmission`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        base: CableTransmission,
+        params: Vec<TransmissionParam>,
+        bounds: Option<Vec<(f64, f64)>>,
+        dt: f64,
+        substeps: usize,
+        measured: &[usize],
+        x0: &[f64],
+        p0: &[f64],
+        q: &[f64],
+        p0_theta: &[f64],
+        q_theta: &[f64],
+        r: &[f64],
+        scaling: super::SigmaScaling,
+    ) -> Result<Self> {
+        let proc = ParamTransmission::new(base.clone(), params.clone(), bounds, dt, substeps)?;
+        let theta0 = proc.initial();
+        let n = base.n_states();
+        let state = super::SrUkf::new(
+            super::ModelProcess::new(base.clone(), dt, substeps)?,
+            super::LinearObserve::select(n, measured)?,
+            x0,
+            p0,
+            q,
+            r,
+            scaling,
+        )?;
+        let walk = RandomWalk {
+            bounds: proc.bounds().to_vec(),
+        };
+        let obs = ParamObserve {
+            idx: measured.to_vec(),
+            x_prev: x0.to_vec(),
+            u: vec![0.0; base.n_inputs()],
+            buf: vec![0.0; n + params.len()],
+            proc,
+        };
+        let params_filter = super::SrUkf::new(walk, obs, &theta0, p0_theta, q_theta, r, scaling)?;
+        Ok(Self {
+            state,
+            params: params_filter,
+            base,
+            names: params,
+        })
+    }
+
+    /// One step: parameters updated from `y` through the state filter's last estimate, the
+    /// state filter's model rebuilt with them, then the state predicted and updated.
+    pub fn step(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) -> Result<()> {
+        crate::error::check::len("u", u, self.base.n_inputs())?;
+        self.params.observe.x_prev.copy_from_slice(self.state.x());
+        self.params.observe.u.copy_from_slice(u);
+        self.params.step(&[], y, mask)?;
+        self.state.process.model = with_params(&self.base, &self.names, self.params.x())?;
+        self.state.step(u, y, mask)
+    }
+}
