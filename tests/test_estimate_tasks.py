@@ -322,6 +322,25 @@ def test_pretension_from_estimated_stiffness_on_held_out_runs():
     cat = PretensionMap.category
     np.testing.assert_array_equal(cat(r["t_hat"][held]), cat(r["tension"][held]))
     assert np.all(np.abs(r["t_hat"][held] - r["tension"][held]) < 2.0)
+    # the one-run helper gives the same answer for a new run
+    from cablekit.estimate import estimate_pretension
+    from cablekit.twins import LINEAR_ENCODER_LSB, raven_pretension_run
+
+    run = raven_pretension_run(5.0, seconds=4.0)
+    q_l = np.full_like(run.q_m, np.nan)
+    q_l[:, 2] = run.q_l3
+    one = estimate_pretension(
+        run.nominal,
+        2,
+        r["map"],
+        run.q_m,
+        run.tau_m,
+        run.dt,
+        q_l=q_l,
+        encoder_noise=SIGMA,
+        joint_noise=LINEAR_ENCODER_LSB / np.sqrt(12),
+    )
+    assert one.category == "low" and abs(one.tension - 5.0) < 2.0
 
 
 def test_pretension_helpers_check_their_input():

@@ -39,12 +39,14 @@ __all__ = [
     "ForceEstimate",
     "JointStateEstimate",
     "ParameterEstimate",
+    "PretensionEstimate",
     "PretensionMap",
     "StringCalibration",
     "TransmissionParameters",
     "estimate_external_force",
     "estimate_joint_states",
     "estimate_parameters",
+    "estimate_pretension",
     "estimate_stiffness",
     "kinematic_joint_angles",
     "stretch_and_rate",
@@ -714,3 +716,33 @@ class StringCalibration:
         if np.isnan(self.a):
             raise ParameterError("fit() the string calibration first")
         return self.a * np.asarray(frequency, dtype=np.float64) ** 2
+
+
+@dataclass(frozen=True)
+class PretensionEstimate:
+    """Result of :func:`estimate_pretension`."""
+
+    stiffness: float
+    """Estimated cable stiffness (N/m)."""
+    stiffness_std: float
+    tension: float
+    """Tension from the map (N)."""
+    category: str
+    """``"low"``, ``"mid"`` or ``"high"`` (seed 001 §5.2)."""
+
+
+def estimate_pretension(
+    model: CableTransmission,
+    link: int,
+    tension_map: PretensionMap,
+    q_m: NDArray[np.float64],
+    tau_m: NDArray[np.float64],
+    dt: float,
+    q_l: NDArray[np.float64] | None = None,
+    **kwargs: Any,
+) -> PretensionEstimate:
+    """Pretension of ``link``'s cable from one run (seed 001 §5.2): the filter's stiffness
+    (:func:`estimate_stiffness`, ``kwargs`` pass on) through a fitted :class:`PretensionMap`."""
+    k, sd = estimate_stiffness(model, link, q_m, tau_m, dt, q_l=q_l, **kwargs)
+    t = float(tension_map.tension(k))
+    return PretensionEstimate(k, sd, t, str(PretensionMap.category(t)))
