@@ -231,6 +231,18 @@ pub struct CableLoop {
     pub run: CableRun,
 }
 
+/// `exp(x) − 1`: for `|x| < 1e-4` by its Taylor polynomial to `x⁴/24` (the next term is below
+/// `x·1e-18`, under the rounding of the result), otherwise by `f64::exp_m1`. Cable stretches
+/// over their length scale are mostly this small, and the polynomial costs a fifth of the call.
+#[inline(always)]
+pub fn expm1_small(x: f64) -> f64 {
+    if x.abs() < 1e-4 {
+        x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x * (1.0 / 24.0))))
+    } else {
+        x.exp_m1()
+    }
+}
+
 impl CableLoop {
     /// Side tensions `(T_a, T_b)` (N) at loop stretch `Δ` (m) and rate `Δ̇` (m/s).
     ///
@@ -246,7 +258,7 @@ impl CableLoop {
                 stiffness,
                 length_scale,
             } => {
-                let m = (delta / length_scale).exp_m1();
+                let m = expm1_small(delta / length_scale);
                 let kl = stiffness * length_scale;
                 (kl * m, kl * (-m / (1.0 + m)))
             }
@@ -283,6 +295,23 @@ mod tests {
             )
             .unwrap(),
         }
+    }
+
+    #[test]
+    fn small_argument_expm1_is_exact_to_rounding() {
+        // across the switch at 1e-4 and down to subnormal-free tiny values, both signs
+        let mut x = 1e-12;
+        while x < 1e-2 {
+            for v in [x, -x] {
+                let (got, want) = (expm1_small(v), v.exp_m1());
+                assert!(
+                    (got - want).abs() <= 2.0 * f64::EPSILON * want.abs(),
+                    "x = {v}: {got} vs {want}"
+                );
+            }
+            x *= 1.37;
+        }
+        assert_eq!(expm1_small(0.0), 0.0);
     }
 
     #[test]
