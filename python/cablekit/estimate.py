@@ -124,6 +124,67 @@ def _observations(
     return _Observations(states, y, mask, np.diag(r))
 
 
+@dataclass(frozen=True)
+class _Setup:
+    q_m: NDArray[np.float64]
+    u: NDArray[np.float64]
+    x0: NDArray[np.float64]
+    p0: NDArray[np.float64]
+    q: NDArray[np.float64]
+    substeps: int
+
+
+def _setup(
+    model: CableTransmission,
+    q_m: NDArray[np.float64],
+    tau_m: NDArray[np.float64],
+    dt: float,
+    substeps: int | None,
+    encoder_noise: float,
+    motor_noise: float,
+    link_noise: float,
+    extra: int = 0,
+    external: NDArray[np.float64] | None = None,
+) -> _Setup:
+    """What every task helper starts from: checked arrays; the inputs shifted so that the one
+    acting over the period ending at sample k is what the servo applied at sample k − 1; the
+    start at rest with the motor angles as measured and the joint angles from the kinematics
+    (cable stretch unknown, ~1 mrad); the process noise of white random accelerations (velocity
+    variance a²·dt; the angles follow through the dynamics). ``extra`` zero rows and columns
+    are appended for augmented states, for the caller to fill."""
+    n_links = model.n_links
+    q_m = np.ascontiguousarray(q_m, dtype=np.float64)
+    tau_m = np.ascontiguousarray(tau_m, dtype=np.float64)
+    if q_m.ndim != 2 or q_m.shape[1] != n_links:
+        raise ShapeError(f"q_m must have shape (T, {n_links}), got {q_m.shape}")
+    if tau_m.shape != q_m.shape:
+        raise ShapeError(f"tau_m must have the shape of q_m {q_m.shape}, got {tau_m.shape}")
+    for name, v in (
+        ("dt", dt),
+        ("encoder_noise", encoder_noise),
+        ("motor_noise", motor_noise),
+        ("link_noise", link_noise),
+    ):
+        if not (np.isfinite(v) and v > 0):
+            raise ParameterError(f"{name} must be finite and > 0, got {v}")
+    ext = np.zeros_like(tau_m) if external is None else np.ascontiguousarray(external, dtype=np.float64)
+    if ext.shape != q_m.shape:
+        raise ShapeError(f"external must have the shape of q_m {q_m.shape}, got {ext.shape}")
+    if substeps is None:
+        substeps = propose_step(model, dt).substeps
+    u = np.concatenate([tau_m, ext], axis=1)
+    u = np.ascontiguousarray(np.vstack([u[:1], u[:-1]]))
+    n = model.n_states
+    x0 = np.zeros(n + extra)
+    x0[0:n:4] = q_m[0]
+    x0[2:n:4] = kinematic_joint_angles(model, q_m[:1])[0]
+    p0 = np.zeros((n + extra, n + extra))
+    p0[:n, :n] = np.diag(np.tile([encoder_noise**2, 1e-2, 1e-6, 1e-2], n_links))
+    q = np.zeros((n + extra, n + extra))
+    q[:n, :n] = np.diag(np.tile([0.0, motor_noise**2 * dt, 0.0, link_noise**2 * dt], n_links))
+    return _Setup(q_m, u, x0, p0, q, substeps)
+
+
 def kinematic_joint_angles(model: CableTransmission, q_m: NDArray[np.float64]) -> NDArray[np.float64]:
     """Joint angles from motor angles through the rigid transmission, ``q_l = T⁻¹·q_m``."""
     q_m = np.asarray(q_m, dtype=np.float64)
@@ -165,39 +226,8 @@ def estimate_joint_states(
     observation model switches per sample: camera and encoders where the camera sees the joint,
     the encoders alone (the transmission kinematics, through the model) where it does not.
     """
-    n_links = model.n_links
-    q_m = np.ascontiguousarray(q_m, dtype=np.float64)
-    tau_m = np.ascontiguousarray(tau_m, dtype=np.float64)
-    if q_m.ndim != 2 or q_m.shape[1] != n_links:
-        raise ShapeError(f"q_m must have shape (T, {n_links}), got {q_m.shape}")
-    if tau_m.shape != q_m.shape:
-        raise ShapeError(f"tau_m must have the shape of q_m {q_m.shape}, got {tau_m.shape}")
-    for name, v in (
-        ("dt", dt),
-        ("encoder_noise", encoder_noise),
-        ("motor_noise", motor_noise),
-        ("link_noise", link_noise),
-    ):
-        if not (np.isfinite(v) and v > 0):
-            raise ParameterError(f"{name} must be finite and > 0, got {v}")
-    ext = np.zeros_like(tau_m) if external is None else np.ascontiguousarray(external, dtype=np.float64)
-    if ext.shape != q_m.shape:
-        raise ShapeError(f"external must have the shape of q_m {q_m.shape}, got {ext.shape}")
-    n = model.n_states
-    if substeps is None:
-        substeps = propose_step(model, dt).substeps
-    # the input over the period ending at sample k is what the servo applied at sample k − 1
-    u = np.concatenate([tau_m, ext], axis=1)
-    u = np.ascontiguousarray(np.vstack([u[:1], u[:-1]]))
-    q_l0 = kinematic_joint_angles(model, q_m[:1])[0]
-    x0 = np.zeros(n)
-    x0[0::4], x0[2::4] = q_m[0], q_l0
-    # discrete process noise of a white random acceleration a: velocity variance a²·dt (the
-    # angles follow through the dynamics)
-    q = np.diag(np.tile([0.0, motor_noise**2 * dt, 0.0, link_noise**2 * dt], n_links))
-    # start: motor angles as measured, joint angles from the kinematics (cable stretch unknown,
-    # ~1 mrad), at rest within ~0.1 rad/s
-    p0 = np.diag(np.tile([encoder_noise**2, 1e-2, 1e-6, 1e-2], n_links))
+    su = _setup(model, q_m, tau_m, dt, substeps, encoder_noise, motor_noise, link_noise, external=external)
+    q_m, u, x0, p0, q, substeps = su.q_m, su.u, su.x0, su.p0, su.q, su.substeps
     if q_camera is not None and not (np.isfinite(camera_noise) and camera_noise > 0):
         raise ParameterError(f"camera_noise must be finite and > 0, got {camera_noise}")
     obs = _observations(q_m, q_camera, encoder_noise, camera_noise, x0, "q_camera")
@@ -345,29 +375,14 @@ def estimate_parameters(
     """
     if method not in ("joint", "dual"):
         raise ParameterError(f"method must be 'joint' or 'dual', got {method!r}")
-    q_m = np.ascontiguousarray(q_m, dtype=np.float64)
-    tau_m = np.ascontiguousarray(tau_m, dtype=np.float64)
-    n_links = model.n_links
-    if q_m.ndim != 2 or q_m.shape[1] != n_links or tau_m.shape != q_m.shape:
-        raise ShapeError(f"q_m and tau_m must have shape (T, {n_links}), got {q_m.shape} and {tau_m.shape}")
     theta0 = TransmissionParameters(model, params).values()
-    n = model.n_states
-    p = len(params)
-    if substeps is None:
-        substeps = propose_step(model, dt).substeps
-    u = np.concatenate([tau_m, np.zeros_like(tau_m)], axis=1)
-    u = np.ascontiguousarray(np.vstack([u[:1], u[:-1]]))
+    n, p = model.n_states, len(params)
+    su = _setup(model, q_m, tau_m, dt, substeps, encoder_noise, motor_noise, link_noise, extra=p)
+    q_m, u, x0, p0, q, substeps = su.q_m, su.u, su.x0, su.p0, su.q, su.substeps
     scale = np.where(np.abs(theta0) > 0, np.abs(theta0), 1.0)
-    x0 = np.zeros(n + p)
-    x0[0:n:4] = q_m[0]
-    x0[2:n:4] = kinematic_joint_angles(model, q_m[:1])[0]
     x0[n:] = theta0
-    p0 = np.diag(np.r_[np.tile([encoder_noise**2, 1e-2, 1e-6, 1e-2], n_links), (initial_spread * scale) ** 2])
-    q = np.diag(
-        np.r_[
-            np.tile([0.0, motor_noise**2 * dt, 0.0, link_noise**2 * dt], n_links), (drift * scale) ** 2 * dt
-        ]
-    )
+    p0[n:, n:] = np.diag((initial_spread * scale) ** 2)
+    q[n:, n:] = np.diag((drift * scale) ** 2 * dt)
     obs = _observations(q_m, q_l, encoder_noise, joint_noise, x0)
     if method == "dual":
         c = np.ascontiguousarray
@@ -462,29 +477,15 @@ def estimate_external_force(
     what absorbs unmodelled link loads, and a link velocity left free to wander averages its
     dry friction away (on the twin, 1.0 made every basket weight read 7.5 % light: the
     friction's share)."""
-    q_m = np.ascontiguousarray(q_m, dtype=np.float64)
-    tau_m = np.ascontiguousarray(tau_m, dtype=np.float64)
     n_links = model.n_links
-    if q_m.ndim != 2 or q_m.shape[1] != n_links or tau_m.shape != q_m.shape:
-        raise ShapeError(f"q_m and tau_m must have shape (T, {n_links}), got {q_m.shape} and {tau_m.shape}")
     if not links or any(not 0 <= i < n_links for i in links) or len(set(links)) != len(links):
         raise ParameterError(f"links must be distinct link indices in [0, {n_links}), got {links}")
     n, k = model.n_states, len(links)
-    if substeps is None:
-        substeps = propose_step(model, dt).substeps
-    u = np.concatenate([tau_m, np.zeros_like(tau_m)], axis=1)
-    u = np.ascontiguousarray(np.vstack([u[:1], u[:-1]]))
-    x0 = np.zeros(n + k)
-    x0[0:n:4] = q_m[0]
-    x0[2:n:4] = kinematic_joint_angles(model, q_m[:1])[0]
+    su = _setup(model, q_m, tau_m, dt, substeps, encoder_noise, motor_noise, link_noise, extra=k)
+    q_m, u, x0, p0, q, substeps = su.q_m, su.u, su.x0, su.p0, su.q, su.substeps
+    p0[n:, n:] = 100.0 * np.eye(k)
+    q[n:, n:] = force_noise**2 * dt * np.eye(k)
     obs = _observations(q_m, q_l, encoder_noise, joint_noise, x0)
-    p0 = np.diag(np.r_[np.tile([encoder_noise**2, 1e-2, 1e-6, 1e-2], n_links), np.full(k, 100.0)])
-    q = np.diag(
-        np.r_[
-            np.tile([0.0, motor_noise**2 * dt, 0.0, link_noise**2 * dt], n_links),
-            np.full(k, force_noise**2 * dt),
-        ]
-    )
     ukf = SrUkf.with_input_states(
         model,
         [n_links + i for i in links],
