@@ -3,6 +3,8 @@
 two-Gaussian, four-quadrant classification, the UKF where the quadrant is unknown), on a twin
 lifting a basket of 271/497/704/910 g and in free motion.
 
+Also the pulling- and pushing-spring experiments (quadrants I/IV and II/III).
+
 Usage: python examples/external_force.py [--out out/external_force]
 """
 
@@ -65,13 +67,19 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    zero = raven_force_experiment("zero")
-    basket = raven_force_experiment("basket")
+    runs = {
+        "zero force": raven_force_experiment("zero"),
+        "basket": raven_force_experiment("basket"),
+        "pulling spring": raven_force_experiment("pull"),
+        "pushing spring": raven_force_experiment("push"),
+    }
     results = {}
     lines = ["| run | method | error min … max | 1–99 % of the errors | MAE |", "|---|---|---|---|---|"]
-    for name, run in (("zero force", zero), ("basket", basket)):
+    for name, run in runs.items():
         forces, method = both_methods(run)
-        s = slice(round(1.0 / run.dt), None)
+        # scored: after the first second; on the springs, once attached (after the training)
+        start = 1.0 if name in ("zero force", "basket") else 6.2
+        s = slice(round(start / run.dt), None)
         results[name] = (run, forces, method)
         for label, f in forces.items():
             e = (f - run.force)[s]
@@ -101,9 +109,9 @@ def main() -> None:
     plt = pyplot_or_none()
     if plt is None:
         return
-    fig, axes = plt.subplots(2, 2, figsize=(13, 7), gridspec_kw={"width_ratios": [3, 1]})
+    fig, axes = plt.subplots(3, 2, figsize=(13, 10), gridspec_kw={"width_ratios": [3, 1]})
     colors = {"UKF": "C0", "stretch (quadrants)": "C1", "stretch (direction)": "C2"}
-    for row, name in enumerate(("basket", "zero force")):
+    for row, name in enumerate(("basket", "zero force", "pushing spring")):
         run, forces, _ = results[name]
         t = np.arange(len(run.force)) * run.dt
         ax = axes[row, 0]
@@ -118,7 +126,7 @@ def main() -> None:
         bx.set_xlabel("error (N)")
     axes[0, 0].legend(loc="lower left", fontsize=8)
     axes[0, 1].legend(fontsize=8)
-    axes[1, 0].set_xlabel("time (s)")
+    axes[-1, 0].set_xlabel("time (s)")
     fig.tight_layout()
     fig.savefig(out / "external_force.png", dpi=110)
     print(f"wrote {out / 'table.md'} and {out / 'external_force.png'}")

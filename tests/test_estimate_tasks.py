@@ -247,6 +247,33 @@ def test_basket_weights_are_read_by_the_ukf_and_the_stretch_method(force_runs):
         assert quad[m] - (-m * 9.80665) == pytest.approx(gap, rel=0.3)
 
 
+@pytest.mark.parametrize("kind", ["pull", "push"])
+def test_spring_contact_in_all_four_quadrants(kind):
+    """Seed 001 §5.3 experiments 3–4 on the twin: an extension spring (always pulling) and a
+    compression spring (always pushing). The UKF and the direction-rule stretch method are
+    unbiased (mean error < 0.05 N) and the direction rule stays within ±0.5 N (1–99 %); the
+    quadrant rule is biased by the friction gap, with the sign of the force."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+    from external_force import both_methods
+
+    from cablekit.twins import raven_force_experiment
+
+    run = raven_force_experiment(kind)
+    forces, method = both_methods(run)
+    s = slice(round(6.2 / run.dt), None)
+    assert np.all(np.sign(run.force[s]) == (-1 if kind == "pull" else 1))
+    for label in ("UKF", "stretch (direction)"):
+        assert abs(np.mean((forces[label] - run.force)[s])) < 0.05, label
+    e = (forces["stretch (direction)"] - run.force)[s]
+    assert np.all(np.abs(np.quantile(e, [0.01, 0.99])) < 0.5)
+    gap = method.stiffness * (method.upper - method.lower) / 2
+    bias = np.mean((forces["stretch (quadrants)"] - run.force)[s])
+    assert bias == pytest.approx(gap if kind == "pull" else -gap, rel=0.3)
+
+
 def test_zero_force_error_ranges(force_runs):
     runs, _ = force_runs
     run, forces, _ = runs["zero"]

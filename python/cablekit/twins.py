@@ -278,14 +278,27 @@ class ForceRun:
     mass: np.ndarray  # (T,) the basket's load (kg) over time
 
 
+#: the springs of seed 001 §5.3's experiments 3–4 (N/m): one pulled, one pushed (compression)
+SPRING_STIFFNESS = 150.0
+
+
 def raven_force_experiment(kind: str = "basket", seed: int = 0, frequency: float = 1.0) -> ForceRun:
     """Seed 001 §5.3 on the twin: the shoulder and elbow held still, the insertion axis
-    following a 2 cm sinusoid at ``frequency`` Hz, either lifting a basket (``"basket"``: the
-    schedule of :data:`BASKET`) or in free motion (``"zero"``, 16 cycles). The robot's
-    parameters differ from the nominal set as in :func:`raven_joint_state_experiment`; the
-    weight acts along the axis (it is vertical) as an external force ``−m·g``."""
-    if kind not in ("basket", "zero"):
-        raise ck.ParameterError(f"kind must be 'basket' or 'zero', got {kind!r}")
+    following a 2 cm sinusoid at ``frequency`` Hz after 6 unloaded training cycles, then:
+
+    * ``"basket"``: lifting a basket on the schedule of :data:`BASKET` (the weight acts along the
+      vertical axis as ``−m·g``);
+    * ``"zero"``: free motion, 16 cycles;
+    * ``"pull"``: 10 cycles attached to an extension spring anchored 2 cm below the travel
+      (always pulling: quadrants I and IV);
+    * ``"push"``: 10 cycles against a compression spring whose rest point is 2 cm above the
+      travel (always pushing: quadrants II and III).
+
+    The spring force is taken at the commanded position (the servo tracks it within µm, a
+    0.1 % error at 150 N/m) and is what a load cell in series would read. The robot's parameters
+    differ from the nominal set as in :func:`raven_joint_state_experiment`."""
+    if kind not in ("basket", "zero", "pull", "push"):
+        raise ck.ParameterError(f"kind must be 'basket', 'zero', 'pull' or 'push', got {kind!r}")
     rng = np.random.default_rng([seed, 11])
     nominal = ck.CableTransmission.raven2(3)
     real = ck.CableTransmission(**_perturbed(nominal.params(), rng))
@@ -294,7 +307,7 @@ def raven_force_experiment(kind: str = "basket", seed: int = 0, frequency: float
         for k, m in enumerate(BASKET):
             cycles += [m] * 4 + ([0.0] * 2 if k < len(BASKET) - 1 else [])
     else:
-        cycles += [0.0] * 10
+        cycles += [0.0] * 10  # free motion, or attached to a spring
     period = 1.0 / frequency
     n = round(len(cycles) * period / DT)
     t = np.arange(n) * DT
@@ -306,6 +319,14 @@ def raven_force_experiment(kind: str = "basket", seed: int = 0, frequency: float
     dq = np.zeros((n, 3))
     q[:, 2] = amp * (1 - np.cos(w * t)) / 2  # starts at rest
     dq[:, 2] = amp * w * np.sin(w * t) / 2
+    if kind in ("pull", "push"):
+        attached = t >= 6 * period
+        if kind == "pull":  # extension spring anchored 2 cm below: −k·(q + 2 cm)
+            spring = -SPRING_STIFFNESS * (q[:, 2] + 0.02)
+        else:  # compression spring at rest 2 cm above the top of the travel: +k·(4 cm − q)
+            spring = SPRING_STIFFNESS * (0.04 - q[:, 2])
+        force = np.where(attached, spring, 0.0)
+        mass = np.where(attached, -force / 9.80665, 0.0)  # the equivalent load, for reports
     tm = nominal.transmission_matrix
     refs = np.ascontiguousarray(np.column_stack([q @ tm.T, dq @ tm.T]))
     ext = np.zeros((n, 3))
