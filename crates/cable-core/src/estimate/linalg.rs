@@ -211,6 +211,31 @@ pub fn nearest_spd_factor(p: &[f64], n: usize, floor_rel: f64) -> Vec<f64> {
     })
 }
 
+/// The factor of `saved·savedᵀ + Σ signᵢ·vᵢ·vᵢᵀ`, projected onto the positive definite cone:
+/// the repair after a failed [`cholupdate`] (allocates).
+pub fn repaired_factor(saved: &[f64], n: usize, updates: &[(&[f64], f64)]) -> Vec<f64> {
+    let mut pm = outer_lower(saved, n);
+    for (v, sign) in updates {
+        for j in 0..n {
+            for i in 0..n {
+                pm[i + j * n] += sign * v[i] * v[j];
+            }
+        }
+    }
+    nearest_spd_factor(&pm, n, 1e-12)
+}
+
+/// [`cholupdate`] that repairs instead of failing (offline paths; allocates a copy): returns
+/// whether a repair was needed.
+pub fn cholupdate_or_repair(l: &mut [f64], n: usize, v: &mut [f64], sign: f64) -> bool {
+    let (saved, keep) = (l[..n * n].to_vec(), v[..n].to_vec());
+    if cholupdate(l, n, v, sign).is_ok() {
+        return false;
+    }
+    l[..n * n].copy_from_slice(&repaired_factor(&saved, n, &[(&keep, sign)]));
+    true
+}
+
 /// `P = L·Lᵀ` (column-major, full).
 pub fn outer_lower(l: &[f64], n: usize) -> Vec<f64> {
     let mut p = vec![0.0; n * n];

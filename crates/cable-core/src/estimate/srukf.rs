@@ -1,7 +1,8 @@
 //! The square-root unscented Kalman filter of van der Merwe (seed 001, eqs 3.9–3.25).
 
 use super::linalg::{
-    cholesky_psd, cholupdate, nearest_spd_factor, outer_lower, qr_lower, solve_lower,
+    cholesky_psd, cholupdate, cholupdate_or_repair, nearest_spd_factor, outer_lower, qr_lower,
+    repaired_factor, solve_lower,
 };
 use super::models::{Observe, Process};
 use crate::error::{check, CableError, Result};
@@ -264,16 +265,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
 
     /// Record a failed downdate and rebuild `S` from `S_saved·S_savedᵀ + Σ signᵢ·vᵢ·vᵢᵀ`.
     fn recover(&mut self, updates: &[(&[f64], f64)]) {
-        let n = self.n;
-        let mut pm = outer_lower(&self.s_saved, n);
-        for (v, sign) in updates {
-            for j in 0..n {
-                for i in 0..n {
-                    pm[i + j * n] += sign * v[i] * v[j];
-                }
-            }
-        }
-        self.s = nearest_spd_factor(&pm, n, 1e-12);
+        self.s = repaired_factor(&self.s_saved, self.n, updates);
         self.health.recovered += 1;
         self.health.recoveries_total += 1;
     }
@@ -632,18 +624,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                 for r in 0..n {
                     dv[r] = a * (chp[r] - xp[r]);
                 }
-                let saved = sp.clone();
-                let keep = dv.clone();
-                if cholupdate(&mut sp, n, &mut dv, wc0.signum()).is_err() {
-                    let mut pm = outer_lower(&saved, n);
-                    for j in 0..n {
-                        for i in 0..n {
-                            pm[i + j * n] += wc0.signum() * keep[i] * keep[j];
-                        }
-                    }
-                    sp = nearest_spd_factor(&pm, n, 1e-12);
-                    recovered += 1;
-                }
+                recovered += u64::from(cholupdate_or_repair(&mut sp, n, &mut dv, wc0.signum()));
             }
             // cross covariance C = Σ W (χ − x_k)(χ⁻ − x⁻)ᵀ, then G = C·S⁻⁻ᵀ·S⁻⁻¹ row by row
             gain.fill(0.0);
@@ -711,18 +692,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                 for v in &mut dev0 {
                     *v *= a;
                 }
-                let saved = snew.clone();
-                let keep = dev0.clone();
-                if cholupdate(&mut snew, n, &mut dev0, wc0.signum()).is_err() {
-                    let mut pm = outer_lower(&saved, n);
-                    for j in 0..n {
-                        for i in 0..n {
-                            pm[i + j * n] += wc0.signum() * keep[i] * keep[j];
-                        }
-                    }
-                    snew = nearest_spd_factor(&pm, n, 1e-12);
-                    recovered += 1;
-                }
+                recovered += u64::from(cholupdate_or_repair(&mut snew, n, &mut dev0, wc0.signum()));
             }
             so[k * n * n..(k + 1) * n * n].copy_from_slice(&snew);
         }
