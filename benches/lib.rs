@@ -1,4 +1,4 @@
-//! Shared fixtures for the criterion benches in `dynamics.rs`.
+//! Shared fixtures for the criterion benches (`dynamics.rs`, `srukf.rs`, `nn.rs`).
 #![allow(missing_docs)]
 
 use cable_core::dynamics::{raven2, CableTransmission, Model};
@@ -18,4 +18,39 @@ pub fn raven_fixture() -> (CableTransmission, Vec<f64>, Vec<f64>) {
     }
     let u = vec![0.1, -0.05, 0.2, 0.0, 0.0, 0.0];
     (model, x, u)
+}
+
+/// A `sizes` network (tansig hidden layers, linear output) with fixed pseudo-random weights,
+/// as the PSO-BPNN paper's 4-10-4 (seed 000, Table 1).
+pub fn mlp_fixture(sizes: &[usize]) -> cable_core::nn::Mlp {
+    use cable_core::nn::{Activation, Layer, MapMinMax, Mlp, MlpInfo};
+    let mut s: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut next = move || {
+        s = s
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        ((s >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    };
+    let last = sizes.len() - 2;
+    let layers = (0..sizes.len() - 1)
+        .map(|l| Layer {
+            weight: (0..sizes[l] * sizes[l + 1]).map(|_| next()).collect(),
+            bias: (0..sizes[l + 1]).map(|_| next()).collect(),
+            n_in: sizes[l],
+            n_out: sizes[l + 1],
+            activation: if l == last {
+                Activation::Purelin
+            } else {
+                Activation::Tansig
+            },
+        })
+        .collect();
+    let (n0, nl) = (sizes[0], sizes[sizes.len() - 1]);
+    Mlp::new(
+        layers,
+        MapMinMax::new(vec![-1.0; n0], vec![1.0; n0]),
+        MapMinMax::new(vec![0.0; nl], vec![20.0; nl]),
+        MlpInfo::default(),
+    )
+    .expect("fixture network is valid")
 }

@@ -64,6 +64,42 @@ pub enum CableError {
         /// Time of that sample, s.
         time_s: f64,
     },
+    /// A weight file is unreadable or does not describe a valid network.
+    #[error("invalid weight file ({kind}) at {item}: {reason}")]
+    Weights {
+        /// What kind of defect (corrupt file, metadata, shape, non-finite value).
+        kind: WeightsErrorKind,
+        /// The offending tensor or metadata key (`"layers.0.weight"`, `"architecture"`, `"file"`).
+        item: String,
+        /// What is wrong, in words.
+        reason: String,
+    },
+}
+
+/// The kinds of defect a weight file can have; each maps to its own Python exception class.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum WeightsErrorKind {
+    /// Not a safetensors file: truncated, bad header, overlapping or short data, wrong dtype.
+    Corrupt,
+    /// `__metadata__` missing, a required key missing or unparsable, an unknown activation or
+    /// format version.
+    Metadata,
+    /// A tensor is missing or its shape disagrees with the architecture in the metadata.
+    Shape,
+    /// A weight, bias or normalisation bound is NaN or infinite, or a range is reversed.
+    Value,
+}
+
+impl std::fmt::Display for WeightsErrorKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Corrupt => "corrupt",
+            Self::Metadata => "metadata",
+            Self::Shape => "shape",
+            Self::Value => "value",
+        })
+    }
 }
 
 /// Result alias used throughout the core.

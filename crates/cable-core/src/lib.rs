@@ -2,9 +2,9 @@
 //!
 //! Pure-Rust numerical core of cablekit: dynamics of cable-driven robots (friction, cable laws,
 //! cable-driven transmissions, antagonistic joints), a fixed-step RK4 integrator with
-//! sub-stepping and a stability advisor. Later modules (square-root UKF, neural-network
-//! inference, tension distribution) plug into the same [`Model`](dynamics::Model) trait and
-//! [`CableError`] type.
+//! sub-stepping and a stability advisor, the square-root UKF ([`estimate`]) and multilayer
+//! perceptron inference ([`nn`]). Later modules (tension distribution) plug into the same
+//! [`Model`](dynamics::Model) trait and [`CableError`] type.
 //!
 //! This crate knows nothing of Python; `crates/cable-py` converts arrays and errors at the edge.
 //!
@@ -21,6 +21,7 @@ pub mod estimate;
 pub mod friction;
 pub mod identify;
 pub mod integrate;
+pub mod nn;
 
 pub use dynamics::Model;
-pub use error::{check, CableError, Result};
+pub use error::{check, CableError, Result, WeightsErrorKind};

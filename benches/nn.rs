@@ -1,0 +1,50 @@
+//! criterion benches of network inference (issue #5); budgets in `budgets.toml`, checked by
+//! `check_budgets.py`. Python-side figures and the torch/NumPy ratios: `nn_bench.py`.
+
+use std::hint::black_box;
+
+use cable_bench::mlp_fixture;
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+
+fn single(c: &mut Criterion) {
+    let mut g = c.benchmark_group("mlp");
+    g.throughput(Throughput::Elements(1));
+    for sizes in [&[4usize, 10, 4][..], &[14, 20, 8][..]] {
+        let mut m = mlp_fixture(sizes);
+        let x: Vec<f64> = (0..sizes[0]).map(|i| 0.1 * i as f64 - 0.3).collect();
+        let mut out = vec![0.0; sizes[sizes.len() - 1]];
+        let name = format!(
+            "forward_{}",
+            sizes
+                .iter()
+                .map(|s| s.to_string())
+                .collect::<Vec<_>>()
+                .join("_")
+        );
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                m.forward(black_box(&x), &mut out).unwrap();
+                black_box(&out);
+            })
+        });
+    }
+    g.finish();
+
+    let mut g = c.benchmark_group("mlp_batch");
+    g.sample_size(20);
+    let rows = 1_000_000;
+    g.throughput(Throughput::Elements(rows as u64));
+    let m = mlp_fixture(&[4, 10, 4]);
+    let x: Vec<f64> = (0..rows * 4).map(|i| ((i as f64) * 1e-3).sin()).collect();
+    let mut out = vec![0.0; rows * 4];
+    g.bench_function("forward_4_10_4_1e6", |b| {
+        b.iter(|| {
+            m.forward_batch(black_box(&x), &mut out).unwrap();
+            black_box(&out);
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, single);
+criterion_main!(benches);
