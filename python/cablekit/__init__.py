@@ -11,6 +11,7 @@ from cablekit._cablekit import (
     CableTransmission,
     DahlElement,
     DualSrUkf,
+    Mlp,
     Model,
     SrUkf,
     __version__,
@@ -30,6 +31,7 @@ from cablekit.errors import (
     ParameterError,
     ShapeError,
     SimulationDivergedError,
+    WeightsFormatError,
 )
 from cablekit.estimate import JointStateEstimate, estimate_joint_states, kinematic_joint_angles
 from cablekit.simulation import (
@@ -52,6 +54,7 @@ __all__ = [
     "InternalError",
     "JointStateEstimate",
     "LayoutError",
+    "Mlp",
     "Model",
     "MotorPD",
     "NotFiniteError",
@@ -61,6 +64,7 @@ __all__ = [
     "SimulationResult",
     "SrUkf",
     "StepAdvice",
+    "WeightsFormatError",
     "__version__",
     "cable_tension",
     "capstan_ratio",

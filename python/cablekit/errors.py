@@ -40,6 +40,26 @@ class DataError(CablekitError, ValueError):
     """A data file (CSV, TOML) is malformed: missing column, bad time base, unknown unit."""
 
 
+class WeightsFormatError(CablekitError, ValueError):
+    """A weight file is not a valid cablekit network. ``item`` names the tensor or metadata key."""
+
+
+class WeightsCorruptError(WeightsFormatError):
+    """Not a readable safetensors file: truncated, bad header, or a tensor that is not float64."""
+
+
+class WeightsMetadataError(WeightsFormatError):
+    """``__metadata__`` missing, a required key missing or invalid, an unknown activation."""
+
+
+class WeightsShapeError(WeightsFormatError):
+    """A tensor is missing, unexpected, or its shape disagrees with the stored architecture."""
+
+
+class WeightsValueError(WeightsFormatError):
+    """A weight, bias or normalisation bound is NaN/inf, or a normalisation range is reversed."""
+
+
 class InternalError(CablekitError, RuntimeError):
     """A bug inside cablekit (a Rust panic caught at the boundary). Please report it."""
 
@@ -54,4 +74,9 @@ __all__ = [
     "ParameterError",
     "ShapeError",
     "SimulationDivergedError",
+    "WeightsCorruptError",
+    "WeightsFormatError",
+    "WeightsMetadataError",
+    "WeightsShapeError",
+    "WeightsValueError",
 ]

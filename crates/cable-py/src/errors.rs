@@ -6,7 +6,7 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use cable_core::CableError;
+use cable_core::{CableError, WeightsErrorKind};
 use pyo3::prelude::*;
 
 /// Raise `cablekit.errors.<class>(message)` with extra attributes.
@@ -60,6 +60,17 @@ impl From<PyCableError> for PyErr {
                         "SimulationDivergedError",
                         msg,
                         &[("step", int(*step)?), ("time", float(*time_s)?)],
+                    ),
+                    CableError::Weights { kind, item, .. } => raise(
+                        match kind {
+                            WeightsErrorKind::Corrupt => "WeightsCorruptError",
+                            WeightsErrorKind::Metadata => "WeightsMetadataError",
+                            WeightsErrorKind::Shape => "WeightsShapeError",
+                            WeightsErrorKind::Value => "WeightsValueError",
+                            _ => "WeightsFormatError",
+                        },
+                        msg,
+                        &[("item", s(item)?)],
                     ),
                     _ => raise("CablekitError", msg, &[]),
                 })

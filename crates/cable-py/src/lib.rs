@@ -10,6 +10,7 @@ mod estimate;
 mod friction;
 mod identify;
 mod integrate;
+mod nn;
 
 use pyo3::prelude::*;
 
@@ -33,5 +34,6 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<estimate::SrUkf>()?;
     m.add_class::<estimate::DualSrUkf>()?;
     m.add_function(wrap_pyfunction!(identify::effect_catalogue, m)?)?;
+    m.add_class::<nn::Mlp>()?;
     Ok(())
 }

@@ -1,0 +1,260 @@
+//! `Mlp`: a network loaded from a safetensors weight file, evaluated by cable-core.
+
+use std::path::PathBuf;
+
+use cable_core::nn::Mlp as CoreMlp;
+use numpy::ndarray::Array2;
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
+
+use crate::convert::{any_vector, matrix, to_vector};
+use crate::errors::{guarded, raise};
+
+/// `(weight, bias)` of one layer as numpy arrays.
+type LayerArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
+
+/// A multilayer perceptron with `mapminmax` normalisation (seed 000 §2.3.3, seed 002 eq. 9).
+#[pyclass(module = "cablekit._cablekit")]
+pub struct Mlp {
+    inner: CoreMlp,
+}
+
+fn layout_error(name: &str) -> PyErr {
+    raise(
+        "LayoutError",
+        format!("{name} must be C-contiguous; pass np.ascontiguousarray({name})"),
+        &[],
+    )
+}
+
+fn ndim_of(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<usize> {
+    obj.cast::<PyUntypedArray>().map(|a| a.ndim()).map_err(|_| {
+        raise(
+            "DTypeError",
+            format!("{name} must be a numpy.ndarray of float64; pass np.asarray({name}, dtype=np.float64)"),
+            &[],
+        )
+    })
+}
+
+#[pymethods]
+impl Mlp {
+    /// Load a weight file written by `cablekit.nn.export` (safetensors; never pickle).
+    /// Raises `FileNotFoundError`/`OSError` for an unreadable path and a `WeightsFormatError`
+    /// subclass naming the tensor or metadata key for a bad file.
+    #[staticmethod]
+    fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let bytes = py.detach(|| std::fs::read(&path))?;
+        Self::from_bytes(&bytes)
+    }
+
+    /// Load from the bytes of a weight file.
+    #[staticmethod]
+    fn from_bytes(data: &[u8]) -> PyResult<Self> {
+        Ok(Self {
+            inner: guarded(|| CoreMlp::from_safetensors(data))?,
+        })
+    }
+
+    /// The weight file as bytes (what `save` writes).
+    fn to_bytes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        let bytes = guarded(|| self.inner.to_safetensors())?;
+        Ok(PyBytes::new(py, &bytes))
+    }
+
+    /// Write the weight file to `path`.
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let bytes = guarded(|| self.inner.to_safetensors())?;
+        py.detach(|| std::fs::write(&path, bytes))?;
+        Ok(())
+    }
+
+    /// Evaluate: `x` `(n_in,)` → `(n_out,)`, or `x` `(N, n_in)` → `(N, n_out)` (GIL released,
+    /// parallel for large N). Physical units in and out.
+    fn predict<'py>(
+        &mut self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (n_in, n_out) = (self.inner.n_inputs(), self.inner.n_outputs());
+        if ndim_of(x, "x")? == 1 {
+            let xv = any_vector(x, "x")?;
+            let mut out = vec![0.0; n_out];
+            guarded(|| self.inner.forward(&xv, &mut out))?;
+            return Ok(to_vector(py, out).into_any());
+        }
+        let (arr, rows) = matrix(x, "x", Some(n_in))?;
+        let xs = arr.as_slice()?;
+        // numpy allocates the result (recycled, huge-page backed buffers; see convert.rs)
+        let out = PyArray2::<f64>::zeros(py, [rows, n_out], false);
+        {
+            let mut ow = out.readwrite();
+            let os = ow.as_slice_mut()?;
+            let net = &self.inner;
+            py.detach(|| guarded(|| net.forward_batch(xs, os)))?;
+        }
+        Ok(out.into_any())
+    }
+
+    /// Evaluate into a preallocated `out` without allocating (for controllers): `x` `(n_in,)`
+    /// and `out` `(n_out,)`, or `(N, n_in)` and `(N, n_out)`. On error `out` is untouched.
+    fn predict_into(
+        &mut self,
+        py: Python<'_>,
+        x: &Bound<'_, PyAny>,
+        out: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        if let (Ok(xa), Ok(oa)) = (x.cast::<PyArray1<f64>>(), out.cast::<PyArray1<f64>>()) {
+            let xr = xa
+                .try_readonly()
+                .map_err(|_| raise("LayoutError", "x is being written elsewhere".into(), &[]))?;
+            let mut ow = oa.try_readwrite().map_err(|_| {
+                raise(
+                    "LayoutError",
+                    "out must be a writeable array not borrowed elsewhere".into(),
+                    &[],
+                )
+            })?;
+            let xs = xr.as_slice().map_err(|_| layout_error("x"))?;
+            let os = ow.as_slice_mut().map_err(|_| layout_error("out"))?;
+            return guarded(|| self.inner.forward(xs, os));
+        }
+        let (xa, oa) = match (x.cast::<PyArray2<f64>>(), out.cast::<PyArray2<f64>>()) {
+            (Ok(xa), Ok(oa)) => (xa, oa),
+            _ => {
+                let (nx, no) = (ndim_of(x, "x")?, ndim_of(out, "out")?);
+                return Err(raise(
+                    if nx == no { "DTypeError" } else { "ShapeError" },
+                    format!(
+                        "x and out must be float64 arrays, both 1-D or both 2-D; got {nx}-D and {no}-D"
+                    ),
+                    &[],
+                ));
+            }
+        };
+        let xr = xa
+            .try_readonly()
+            .map_err(|_| raise("LayoutError", "x is being written elsewhere".into(), &[]))?;
+        let mut ow = oa.try_readwrite().map_err(|_| {
+            raise(
+                "LayoutError",
+                "out must be a writeable array not borrowed elsewhere".into(),
+                &[],
+            )
+        })?;
+        let n_in = self.inner.n_inputs();
+        if xr.shape()[1] != n_in {
+            return Err(raise(
+                "ShapeError",
+                format!("x must have shape (N, {n_in}), got {:?}", xr.shape()),
+                &[],
+            ));
+        }
+        let xs = xr.as_slice().map_err(|_| layout_error("x"))?;
+        let os = ow.as_slice_mut().map_err(|_| layout_error("out"))?;
+        let net = &self.inner;
+        py.detach(|| guarded(|| net.forward_batch(xs, os)))
+    }
+
+    /// Layer sizes `[n_in, hidden…, n_out]`.
+    #[getter]
+    fn sizes(&self) -> Vec<usize> {
+        self.inner.sizes()
+    }
+
+    /// Activation name of each layer (`logsig`, `tansig`, `purelin`).
+    #[getter]
+    fn activations(&self) -> Vec<&'static str> {
+        self.inner
+            .layers()
+            .iter()
+            .map(|l| l.activation.name())
+            .collect()
+    }
+
+    /// Number of inputs.
+    #[getter]
+    fn n_inputs(&self) -> usize {
+        self.inner.n_inputs()
+    }
+
+    /// Number of outputs.
+    #[getter]
+    fn n_outputs(&self) -> usize {
+        self.inner.n_outputs()
+    }
+
+    /// Input names from the file (empty if none were stored).
+    #[getter]
+    fn input_names(&self) -> Vec<String> {
+        self.inner.info().input_names.clone()
+    }
+
+    /// Input units from the file.
+    #[getter]
+    fn input_units(&self) -> Vec<String> {
+        self.inner.info().input_units.clone()
+    }
+
+    /// Output names from the file.
+    #[getter]
+    fn output_names(&self) -> Vec<String> {
+        self.inner.info().output_names.clone()
+    }
+
+    /// Output units from the file.
+    #[getter]
+    fn output_units(&self) -> Vec<String> {
+        self.inner.info().output_units.clone()
+    }
+
+    /// Every `__metadata__` entry of the file (strings, JSON where structured).
+    #[getter]
+    fn metadata<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (k, v) in &self.inner.info().metadata {
+            d.set_item(k, v)?;
+        }
+        Ok(d)
+    }
+
+    /// `[(weight (n_out, n_in), bias (n_out,)), …]`, copies.
+    fn layers<'py>(&self, py: Python<'py>) -> Vec<LayerArrays<'py>> {
+        self.inner
+            .layers()
+            .iter()
+            .map(|l| {
+                let w = Array2::from_shape_vec((l.n_out, l.n_in), l.weight.clone())
+                    .expect("validated at load")
+                    .into_pyarray(py);
+                (w, to_vector(py, l.bias.clone()))
+            })
+            .collect()
+    }
+
+    /// `(min, max)` training ranges of the inputs (`mapminmax`).
+    fn input_range<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>) {
+        let m = self.inner.input_map();
+        (to_vector(py, m.min.clone()), to_vector(py, m.max.clone()))
+    }
+
+    /// `(min, max)` training ranges of the outputs.
+    fn output_range<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>) {
+        let m = self.inner.output_map();
+        (to_vector(py, m.min.clone()), to_vector(py, m.max.clone()))
+    }
+
+    fn __repr__(&self) -> String {
+        let sizes = self.inner.sizes();
+        format!("Mlp(sizes={sizes:?}, activations={:?})", self.activations())
+    }
+}
