@@ -4,8 +4,10 @@ use std::path::PathBuf;
 
 use cable_core::nn::Mlp as CoreMlp;
 use numpy::ndarray::Array2;
+use numpy::ndarray::Dimension;
 use numpy::{
-    IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods,
+    IntoPyArray, PyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray, PyReadwriteArray,
+    PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
@@ -38,6 +40,24 @@ fn ndim_of(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<usize> {
             &[],
         )
     })
+}
+
+/// Borrow `x` read-only and `out` read-write (`out` must be writeable and not `x` itself).
+fn borrow_pair<'py, D: Dimension>(
+    x: &Bound<'py, PyArray<f64, D>>,
+    out: &Bound<'py, PyArray<f64, D>>,
+) -> PyResult<(PyReadonlyArray<'py, f64, D>, PyReadwriteArray<'py, f64, D>)> {
+    let xr = x
+        .try_readonly()
+        .map_err(|_| raise("LayoutError", "x is being written elsewhere".into(), &[]))?;
+    let ow = out.try_readwrite().map_err(|_| {
+        raise(
+            "LayoutError",
+            "out must be a writeable array not borrowed elsewhere".into(),
+            &[],
+        )
+    })?;
+    Ok((xr, ow))
 }
 
 #[pymethods]
@@ -107,56 +127,42 @@ impl Mlp {
         x: &Bound<'_, PyAny>,
         out: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
+        // typed casts first: the 1-D controller path stays at ~0.25 µs (dynamic-rank arrays
+        // cost ~0.15 µs more per call)
         if let (Ok(xa), Ok(oa)) = (x.cast::<PyArray1<f64>>(), out.cast::<PyArray1<f64>>()) {
-            let xr = xa
-                .try_readonly()
-                .map_err(|_| raise("LayoutError", "x is being written elsewhere".into(), &[]))?;
-            let mut ow = oa.try_readwrite().map_err(|_| {
-                raise(
-                    "LayoutError",
-                    "out must be a writeable array not borrowed elsewhere".into(),
-                    &[],
-                )
-            })?;
+            let (xr, mut ow) = borrow_pair(xa, oa)?;
             let xs = xr.as_slice().map_err(|_| layout_error("x"))?;
             let os = ow.as_slice_mut().map_err(|_| layout_error("out"))?;
             return guarded(|| self.inner.forward(xs, os));
         }
-        let (xa, oa) = match (x.cast::<PyArray2<f64>>(), out.cast::<PyArray2<f64>>()) {
-            (Ok(xa), Ok(oa)) => (xa, oa),
-            _ => {
-                let (nx, no) = (ndim_of(x, "x")?, ndim_of(out, "out")?);
+        if let (Ok(xa), Ok(oa)) = (x.cast::<PyArray2<f64>>(), out.cast::<PyArray2<f64>>()) {
+            let (xr, mut ow) = borrow_pair(xa, oa)?;
+            let n_in = self.inner.n_inputs();
+            if xr.shape()[1] != n_in {
                 return Err(raise(
-                    if nx == no { "DTypeError" } else { "ShapeError" },
-                    format!(
-                        "x and out must be float64 arrays, both 1-D or both 2-D; got {nx}-D and {no}-D"
-                    ),
+                    "ShapeError",
+                    format!("x must have shape (N, {n_in}), got {:?}", xr.shape()),
                     &[],
                 ));
             }
-        };
-        let xr = xa
-            .try_readonly()
-            .map_err(|_| raise("LayoutError", "x is being written elsewhere".into(), &[]))?;
-        let mut ow = oa.try_readwrite().map_err(|_| {
-            raise(
-                "LayoutError",
-                "out must be a writeable array not borrowed elsewhere".into(),
-                &[],
-            )
-        })?;
-        let n_in = self.inner.n_inputs();
-        if xr.shape()[1] != n_in {
-            return Err(raise(
-                "ShapeError",
-                format!("x must have shape (N, {n_in}), got {:?}", xr.shape()),
-                &[],
-            ));
+            let xs = xr.as_slice().map_err(|_| layout_error("x"))?;
+            let os = ow.as_slice_mut().map_err(|_| layout_error("out"))?;
+            let net = &self.inner;
+            return py.detach(|| guarded(|| net.forward_batch(xs, os)));
         }
-        let xs = xr.as_slice().map_err(|_| layout_error("x"))?;
-        let os = ow.as_slice_mut().map_err(|_| layout_error("out"))?;
-        let net = &self.inner;
-        py.detach(|| guarded(|| net.forward_batch(xs, os)))
+        let (nx, no) = (ndim_of(x, "x")?, ndim_of(out, "out")?);
+        let same_rank = nx == no && (nx == 1 || nx == 2);
+        Err(raise(
+            if same_rank {
+                "DTypeError"
+            } else {
+                "ShapeError"
+            },
+            format!(
+                "x and out must be float64 arrays, both 1-D or both 2-D; got {nx}-D and {no}-D"
+            ),
+            &[],
+        ))
     }
 
     /// Layer sizes `[n_in, hidden…, n_out]`.

@@ -9,7 +9,6 @@ Deterministic for a given seed (one ``torch.Generator``, one NumPy ``Generator``
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -127,7 +126,6 @@ def train_mlp(x: F64, y: F64, config: TrainConfig | None = None, **overrides: ob
     cfg = replace(config or TrainConfig(), **overrides)  # type: ignore[arg-type]
     cfg.check()
     x, y = _checked(x, y)
-    torch.set_default_dtype(torch.float64)
     split = split_indices(x.shape[0], cfg)
     if split["train"].size < 2:
         raise ParameterError("the split leaves fewer than 2 training samples")
@@ -210,7 +208,3 @@ def train_mlp(x: F64, y: F64, config: TrainConfig | None = None, **overrides: ob
         result.test_mse_per_output = np.mean(err**2, axis=0)
         result.test_mse = float(np.mean(err**2))
     return result
-
-
-def predict_sizes(hidden: Sequence[int], n_in: int, n_out: int) -> list[int]:
-    return [n_in, *hidden, n_out]
