@@ -58,3 +58,24 @@ def test_split_holds_out_new_frequencies_and_loads():
 def test_missing_bench_file_is_a_data_error(tmp_path):
     with pytest.raises(ck.DataError, match="no such bench file"):
         load_bench_run(tmp_path / "99.TXT.gz")
+
+
+def test_jaw_torque_network_from_drive_side_signals_beats_the_linear_map_on_unseen_frequencies(tmp_path):
+    pytest.importorskip("torch")
+    from cablekit.nn import Mlp, export, train_mlp
+    from cablekit.nn.datasets import davinci_jaw_torque
+
+    data = davinci_jaw_torque(_data_dir())
+    # 12 training runs (0.1/0.3/0.5 Hz x 4 loads) and 8 held-out runs, 19 s at 25 Hz each
+    assert data.x.shape == (12 * 475, 4) and data.x_test is not None and data.x_test.shape == (8 * 475, 4)
+    assert data.y_test is not None and data.baseline_test is not None
+    # jaw torque: tens of mN·m; the spindle velocity peaks near 2π·0.5 Hz·30° ≈ 1.6 rad/s
+    assert 5 < np.abs(data.y).mean() < 60 and 1.2 < np.abs(data.x[:, 1]).max() < 2.2
+    base = float(np.mean((data.baseline_test - data.y_test) ** 2))
+    res = train_mlp(data.x, data.y, method="br", seed=0, progress=False)
+    mse = float(np.mean((res.predict(data.x_test) - data.y_test) ** 2))
+    assert mse < base / 10, (mse, base)
+    # the exported file gives the same held-out predictions from Rust
+    mlp = Mlp.load(export(res, tmp_path / "jaw.safetensors", output_units=data.output_units))
+    np.testing.assert_allclose(mlp.predict(data.x_test), res.predict(data.x_test), rtol=0, atol=1e-10)
+    assert mlp.output_units == ["mN·m"]

@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import cablekit
-from cablekit.nn import MapMinMax, Mlp, PsoConfig, TrainConfig, export, flat, train_mlp
+from cablekit.nn import MapMinMax, Mlp, PsoConfig, TrainConfig, export, export_onnx, flat, train_mlp
 from cablekit.nn.datasets import forceps_free_motion, noisy_sine
 from cablekit.nn.export import write_weights
 from cablekit.nn.pso import pso
@@ -70,6 +70,56 @@ def test_rust_numpy_and_torch_forward_agree(tmp_path_factory, net):
     t_out = ref.mapminmax_reverse(flat.forward_one(theta, a, sizes, acts).numpy(), olo, ohi)
     np.testing.assert_allclose(got, t_out, rtol=0, atol=ATOL * max(1.0, np.abs(want).max()))
     assert mlp.sizes == sizes and mlp.activations == acts
+
+
+@settings(max_examples=30, deadline=None)
+@given(net=networks())
+def test_onnx_export_runs_in_onnxruntime_like_the_rust_core(tmp_path_factory, net):
+    import onnxruntime as ort
+
+    sizes, acts, weights, biases, (lo, hi, olo, ohi), x = net
+    d = tmp_path_factory.mktemp("onnx")
+    mlp = Mlp.load(_write(d, net))
+    want = ref.forward(x, weights, biases, acts, lo, hi, olo, ohi)
+    scale = max(1.0, np.abs(want).max())
+    for dtype, atol in (("float64", ATOL), ("float32", 1e-4)):
+        path = export_onnx(mlp, d / f"net_{dtype}.onnx", dtype=dtype)
+        sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+        (got,) = sess.run(None, {"x": x.astype(dtype)})
+        assert got.dtype == np.dtype(dtype) and got.shape == want.shape
+        np.testing.assert_allclose(got, want, rtol=0, atol=atol * scale)
+        meta = sess.get_modelmeta().custom_metadata_map
+        assert json.loads(meta["architecture"]) == {"sizes": sizes, "activations": acts}
+        assert meta["onnx_dtype"] == dtype
+
+
+def test_onnx_export_takes_a_path_keeps_names_and_rejects_bad_options(tmp_path):
+    import onnx
+
+    rng = np.random.default_rng(1)
+    path = write_weights(
+        tmp_path / "n.safetensors",
+        [rng.normal(size=(5, 2)), rng.normal(size=(1, 5))],
+        [rng.normal(size=5), rng.normal(size=1)],
+        ["logsig", "purelin"],
+        MapMinMax(np.array([0.0, -1.0]), np.array([2.0, 1.0])),
+        MapMinMax(np.array([-3.0]), np.array([3.0])),
+        input_names=["x_m", "v_m"],
+        input_units=["m", "m/s"],
+        output_names=["T"],
+        output_units=["N"],
+        metadata={"training_data_sha256": "abc"},
+    )
+    model = onnx.load(str(export_onnx(path, tmp_path / "n.onnx", opset=13)))
+    props = {p.key: p.value for p in model.metadata_props}
+    assert props["training_data_sha256"] == "abc" and json.loads(props["input_units"]) == ["m", "m/s"]
+    assert "x_m [m]" in model.graph.doc_string and model.opset_import[0].version == 13
+    for kwargs in ({"dtype": "float16"}, {"opset": 12}, {"opset": 17.0}):
+        with pytest.raises(cablekit.errors.OnnxExportError):
+            export_onnx(path, tmp_path / "bad.onnx", **kwargs)
+    assert not (tmp_path / "bad.onnx").exists()
+    with pytest.raises(cablekit.errors.WeightsCorruptError):
+        export_onnx(tmp_path / "n.onnx", tmp_path / "bad.onnx")
 
 
 def test_large_batches_run_in_parallel_and_equal_single_rows(tmp_path):

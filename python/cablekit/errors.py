@@ -60,6 +60,10 @@ class WeightsValueError(WeightsFormatError):
     """A weight, bias or normalisation bound is NaN/inf, or a normalisation range is reversed."""
 
 
+class OnnxExportError(CablekitError, ValueError):
+    """A network cannot be exported to ONNX as asked: unknown dtype, opset too old, no ``onnx``."""
+
+
 class InternalError(CablekitError, RuntimeError):
     """A bug inside cablekit (a Rust panic caught at the boundary). Please report it."""
 
@@ -71,6 +75,7 @@ __all__ = [
     "InternalError",
     "LayoutError",
     "NotFiniteError",
+    "OnnxExportError",
     "ParameterError",
     "ShapeError",
     "SimulationDivergedError",

@@ -145,6 +145,7 @@ pub mod check {
     }
 
     /// Every element of `data` must be finite; `cols` (> 0) renders the index as (row, col).
+    #[inline]
     pub fn all_finite(what: &str, data: &[f64], cols: usize) -> Result<()> {
         match data.iter().position(|v| !v.is_finite()) {
             None => Ok(()),
@@ -162,6 +163,7 @@ pub mod check {
     }
 
     /// `data` must hold exactly `expected` values.
+    #[inline]
     pub fn len(what: &str, data: &[f64], expected: usize) -> Result<()> {
         if data.len() == expected {
             Ok(())

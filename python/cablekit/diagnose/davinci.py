@@ -54,10 +54,10 @@ LOADS = (10, 20, 30, 40)
 def load_bench_run(path: str | Path, jaw_reference: float | None = None) -> Run:
     """One ``XY.TXT.gz`` file → a run with ``t``, ``x_m`` (m), ``theta`` (rad), ``net_motor_force``
     (N), ``tau_load`` (N·m) and the raw SI signals ``spindle_angle``, ``spindle_torque``,
-    ``jaw_angle``, ``jaw_torque``. ``jaw_reference`` (rad, raw encoder angle) is the jaw angle
-    taken as ``theta = 0``; by default the run's first sample. The spindle encoder is zeroed at
-    the start of every run by the bench; the jaw encoder is not, so one reference for all runs
-    keeps their jaw angles comparable."""
+    ``jaw_angle``, ``jaw_torque``, ``motor_current`` (back-end, A). ``jaw_reference`` (rad, raw
+    encoder angle) is the jaw angle taken as ``theta = 0``; by default the run's first sample.
+    The spindle encoder is zeroed at the start of every run by the bench; the jaw encoder is
+    not, so one reference for all runs keeps their jaw angles comparable."""
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: no such bench file")
@@ -82,6 +82,7 @@ def load_bench_run(path: str | Path, jaw_reference: float | None = None) -> Run:
         "spindle_torque": tau_s,
         "jaw_angle": th_j,
         "jaw_torque": tau_j,
+        "motor_current": d[:, 3],
     }
     name = path.name.split(".")[0]
     notes = [] if keep.all() else [f"removed {int((~keep).sum())} rows with non-increasing time"]

@@ -4,7 +4,8 @@
 * :func:`train_mlp` (torch): PSO-BPNN (seed 000, Table 1), Levenberg–Marquardt, Bayesian
   regularisation (MacKay; MATLAB ``trainbr``, seed 002), Adam, L-BFGS, with MATLAB
   ``mapminmax`` normalisation, a seeded 90/10 split and validation early stopping.
-* :func:`export` writes the trained network as safetensors with its metadata (no pickle).
+* :func:`export` writes the trained network as safetensors with its metadata (no pickle);
+  :func:`export_onnx` writes any network as ONNX for other runtimes (the ``onnx`` extra).
 * :mod:`cablekit.nn.datasets`: the forceps free-motion and CDPR pulley-friction twins.
 * :func:`compare_trainers`: the comparison table of the trainers over seeds.
 
@@ -16,6 +17,7 @@ from __future__ import annotations
 from cablekit._cablekit import Mlp
 from cablekit.nn.export import export, network_arrays
 from cablekit.nn.mapminmax import MapMinMax
+from cablekit.nn.onnx_export import export_onnx, onnx_model
 from cablekit.nn.spec import METHODS, PsoConfig, TrainConfig, TrainResult
 
 __all__ = [
@@ -27,7 +29,9 @@ __all__ = [
     "TrainResult",
     "compare_trainers",
     "export",
+    "export_onnx",
     "network_arrays",
+    "onnx_model",
     "train_mlp",
 ]
 

@@ -45,6 +45,10 @@ class Comparison:
     n_train: int
     n_test: int
     n_heldout: int
+    #: what a user would use without a network, and its held-out (or test) MSE
+    baseline: str = ""
+    baseline_mse: float | None = None
+    output_units: str = "N"
 
     def best(self, metric: str = "auto") -> str:
         key = "heldout_mse" if (metric == "auto" and self.n_heldout) or metric == "heldout" else "test_mse"
@@ -54,10 +58,10 @@ class Comparison:
         lines = [
             f"**{self.dataset}** — network {'-'.join(map(str, self.sizes))}, seeds {self.seeds}, "
             f"{self.n_train} training / {self.n_test} test samples"
-            + (f", {self.n_heldout} on held-out paths" if self.n_heldout else ""),
+            + (f", {self.n_heldout} held out (paths or runs the fit never saw)" if self.n_heldout else ""),
             "",
             "| method | test MSE, median [IQR] | "
-            + ("held-out paths MSE, median [IQR] | " if self.n_heldout else "")
+            + ("held-out MSE, median [IQR] | " if self.n_heldout else "")
             + "time s, median | epochs, median |",
             "|---|---|" + ("---|" if self.n_heldout else "") + "---|---|",
         ]
@@ -69,6 +73,10 @@ class Comparison:
                 cells.append(f"{h:.4g} [{h1:.4g}, {h3:.4g}]")
             cells += [f"{r.stats(r.time_s)[0]:.2f}", f"{int(np.median(r.epochs))}"]
             lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+        lines.append(f"MSE in ({self.output_units})².")
+        if self.baseline_mse is not None:
+            lines.append(f"Without a network — {self.baseline}: MSE {self.baseline_mse:.4g}.")
         return "\n".join(lines)
 
     def to_json(self, path: str | Path) -> Path:
@@ -106,4 +114,10 @@ def compare_trainers(
         rows.append(row)
     sizes = [data.x.shape[1], *cfg.hidden, data.y.shape[1]]
     n_held = 0 if data.x_test is None else int(data.x_test.shape[0])
-    return Comparison(data.name, sizes, list(seeds), rows, n_train, n_test, n_held)
+    base = None
+    if data.baseline_test is not None and data.y_test is not None:
+        base = float(np.mean((data.baseline_test - data.y_test) ** 2))
+    units = sorted(set(data.output_units))
+    return Comparison(
+        data.name, sizes, list(seeds), rows, n_train, n_test, n_held, data.baseline, base, ", ".join(units)
+    )

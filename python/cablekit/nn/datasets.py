@@ -14,6 +14,11 @@
   0.1 N noise. Inputs ``[x, y, z, ẋ, ẏ, ż, f_PUL1…8]`` (14), outputs ``f_EE1…8`` (8). Training
   paths: four cube diagonals and three circles (xy, xz, yz); test paths: a circle with a line,
   and lines through 20 random points — both unseen in training, as in the seed.
+* :func:`davinci_jaw_torque` — real data (da Vinci Maryland bipolar forceps bench, O'Neill et al.
+  2018, ODbL 1.0 / DbCL 1.0, read from where the user keeps it, never copied): the jaw (grip)
+  torque from drive-side signals only — spindle angle, spindle velocity, spindle torque and
+  back-end motor current — trained on the 0.1, 0.3 and 0.5 Hz runs at all four loads, scored on
+  the 0.2 and 0.4 Hz runs the fit never saw. Baseline: the best linear map of the same signals.
 * :func:`noisy_sine` — MATLAB's ``trainbr`` example: ``t = sin(2πp) + 0.1·ε`` on 41 points.
 """
 
@@ -21,6 +26,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,6 +48,9 @@ class Dataset:
     output_units: tuple[str, ...]
     x_test: F64 | None = None
     y_test: F64 | None = None
+    #: what a user would use without a network, and its predictions of ``y_test``
+    baseline: str = ""
+    baseline_test: F64 | None = None
 
 
 def _s_curve_sweep(x_max: float, speed: float, ramp: float, dt: float) -> tuple[F64, F64]:
@@ -195,6 +204,63 @@ def cdpr_pulley_friction(seed: int = 0, dt: float = 0.01) -> Dataset:
         ("N",) * 8,
         xt,
         yt,
+        baseline="uncompensated: f_EE = f_PUL (the winch-side sensor reading)",
+        baseline_test=xt[:, 6:14].copy(),
+    )
+
+
+#: the bench's frequency indices (0.1 … 0.5 Hz) fitted and held out by :func:`davinci_jaw_torque`
+DAVINCI_TRAIN_FREQS, DAVINCI_HELDOUT_FREQS = (0, 2, 4), (1, 3)
+
+
+def davinci_jaw_torque(
+    directory: str | Path,
+    every: int = 40,
+    train_freqs: tuple[int, ...] = DAVINCI_TRAIN_FREQS,
+    heldout_freqs: tuple[int, ...] = DAVINCI_HELDOUT_FREQS,
+    warmup: float = 1.0,
+) -> Dataset:
+    """Jaw torque (mN·m) from the drive-side signals of the real bench runs in ``directory``
+    (``tool4_load_sweep/XY.TXT.gz``; X the frequency index, Y the load index 0..3). The
+    spindle velocity is the central difference of the angle after a 21 ms moving average
+    (computed at 1 kHz, then every ``every``-th sample is kept, 25 Hz by default, after
+    ``warmup`` s)."""
+    from cablekit.diagnose.davinci import load_bench_run
+    from cablekit.errors import DataError
+
+    directory = Path(directory)
+    sub = directory / "tool4_load_sweep" if (directory / "tool4_load_sweep").is_dir() else directory
+    if every < 1:
+        raise DataError(f"every must be >= 1, got {every}")
+
+    def features(freqs: tuple[int, ...]) -> tuple[F64, F64]:
+        xs, ys = [], []
+        for f, load in itertools.product(freqs, range(4)):
+            run = load_bench_run(sub / f"{f}{load}.TXT.gz")
+            angle = run.column("spindle_angle")
+            smooth = np.convolve(angle, np.ones(21) / 21, mode="same")
+            keep = slice(int(warmup / run.dt), None, every)
+            velocity = np.gradient(smooth, run.dt)
+            cols = [angle, velocity, run.column("spindle_torque"), run.column("motor_current")]
+            xs.append(np.column_stack(cols)[keep])
+            ys.append(1e3 * run.column("jaw_torque")[keep, None])
+        return np.vstack(xs), np.vstack(ys)
+
+    x, y = features(train_freqs)
+    xt, yt = features(heldout_freqs)
+    lin = np.linalg.lstsq(np.column_stack([x, np.ones(len(x))]), y, rcond=None)[0]
+    return Dataset(
+        "da Vinci Maryland forceps, real bench (O'Neill et al. 2018): jaw torque from drive-side signals",
+        x,
+        y,
+        ("spindle_angle", "spindle_velocity", "spindle_torque", "motor_current"),
+        ("rad", "rad/s", "N·m", "A"),
+        ("jaw_torque",),
+        ("mN·m",),
+        xt,
+        yt,
+        baseline="linear least squares on the same four signals (fitted on the training runs)",
+        baseline_test=np.column_stack([xt, np.ones(len(xt))]) @ lin,
     )
 
 

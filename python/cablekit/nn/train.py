@@ -53,7 +53,8 @@ def _adam(theta, tr, val, sizes, acts, cfg: TrainConfig, gen, bar):  # type: ign
     x, t = tr
     p = torch.nn.Parameter(theta.clone())
     opt = torch.optim.Adam([p], lr=cfg.lr)
-    history, best, best_theta, fails, reason = [], np.inf, p.detach().clone(), 0, "epochs"
+    history: list[dict[str, float]] = []
+    best, best_theta, fails, reason = np.inf, p.detach().clone(), 0, "epochs"
     for _ in range(cfg.epochs):
         order = torch.randperm(x.shape[0], generator=gen)
         for k in range(0, x.shape[0], cfg.batch_size):
@@ -81,7 +82,8 @@ def _lbfgs(theta, tr, val, sizes, acts, cfg: TrainConfig, bar):  # type: ignore[
         loss.backward()
         return loss
 
-    history, best, best_theta, fails, reason = [], np.inf, p.detach().clone(), 0, "epochs"
+    history: list[dict[str, float]] = []
+    best, best_theta, fails, reason = np.inf, p.detach().clone(), 0, "epochs"
     for _ in range(cfg.epochs):
         opt.step(closure)
         reason, stop, best, best_theta, fails = _epoch_end(

@@ -43,15 +43,33 @@ impl Activation {
     /// `f64::tanh` and `1/(1+f64::exp(−n))` to ~1e-16 absolute (tested below).
     #[inline(always)]
     pub fn apply(self, z: &mut [f64]) {
+        let f = self.fold_factor();
+        z.iter_mut().for_each(|v| *v *= f);
+        self.apply_folded(z);
+    }
+
+    /// The factor a layer's weights and bias are multiplied by so that its net inputs arrive
+    /// as the argument of `exp` (exact: ±1 and 2 are powers of two).
+    pub(crate) fn fold_factor(self) -> f64 {
+        match self {
+            Self::Logsig => -1.0,
+            Self::Tansig => 2.0,
+            Self::Purelin => 1.0,
+        }
+    }
+
+    /// [`Activation::apply`] on net inputs already multiplied by [`Activation::fold_factor`].
+    #[inline(always)]
+    pub(crate) fn apply_folded(self, z: &mut [f64]) {
         match self {
             // 1/(1 + e⁻ⁿ) with e⁻ⁿ = s·N/D  →  D / (D + s·N)
             Self::Logsig => z.iter_mut().for_each(|v| {
-                let (num, den, scale) = exp_parts(-*v);
+                let (num, den, scale) = exp_parts(*v);
                 *v = den / (den + scale * num);
             }),
             // tanh n = (e²ⁿ − 1)/(e²ⁿ + 1) with e²ⁿ = s·N/D  →  (s·N − D)/(s·N + D)
             Self::Tansig => z.iter_mut().for_each(|v| {
-                let (num, den, scale) = exp_parts(2.0 * *v);
+                let (num, den, scale) = exp_parts(*v);
                 let sn = scale * num;
                 *v = (sn - den) / (sn + den);
             }),

@@ -34,7 +34,10 @@ type Block = [f64; LANES];
 /// A layer as evaluated: outputs grouped in zero-padded blocks of four, each block's weights
 /// stored input by input (`(blocks, n_in)` of `[f64; 4]`), so a block accumulates in
 /// registers over the inputs with a fixed-length multiply-add across SIMD lanes, as two
-/// partial sums `(b + w₀x₀ + w₂x₂ + …) + (w₁x₁ + w₃x₃ + …)`.
+/// partial sums `(b + w₀x₀ + w₂x₂ + …) + (w₁x₁ + w₃x₃ + …)`, and goes through the activation
+/// while still in registers. The affine maps around the layer (input normalisation, the
+/// activation's argument scaling, output de-normalisation) are folded into its weights, which
+/// takes their latency off the real-time path.
 #[derive(Debug, Clone, PartialEq)]
 struct Dense {
     weight_b: Vec<Block>,
@@ -45,15 +48,20 @@ struct Dense {
 }
 
 impl Dense {
-    fn new(layer: &Layer) -> Self {
+    /// Fold inputs `aᵢ = gᵢ·uᵢ + dᵢ` and net inputs `z′ⱼ = sⱼ·zⱼ + tⱼ` into the layer:
+    /// `z′ⱼ = Σᵢ (sⱼ Wⱼᵢ gᵢ) uᵢ + sⱼ (bⱼ + Σᵢ Wⱼᵢ dᵢ) + tⱼ`. Every product is one rounding
+    /// of a stored value (no cancellation is introduced: `uᵢ` stays the centred input).
+    fn new(layer: &Layer, g: &[f64], d: &[f64], s: &[f64], t: &[f64]) -> Self {
         let (n_in, n_out) = (layer.n_in, layer.n_out);
         let blocks = n_out.div_ceil(LANES);
         let mut weight_b = vec![[0.0; LANES]; n_in * blocks];
         let mut bias = vec![[0.0; LANES]; blocks];
         for j in 0..n_out {
-            bias[j / LANES][j % LANES] = layer.bias[j];
-            for i in 0..n_in {
-                weight_b[(j / LANES) * n_in + i][j % LANES] = layer.weight[j * n_in + i];
+            let row = &layer.weight[j * n_in..(j + 1) * n_in];
+            let shift: f64 = row.iter().zip(d).map(|(w, d)| w * d).sum();
+            bias[j / LANES][j % LANES] = s[j] * (layer.bias[j] + shift) + t[j];
+            for (i, (w, gi)) in row.iter().zip(g).enumerate() {
+                weight_b[(j / LANES) * n_in + i][j % LANES] = s[j] * w * gi;
             }
         }
         Self {
@@ -65,17 +73,15 @@ impl Dense {
         }
     }
 
-    /// `x` holds the layer's `n_in` inputs; `out` its `blocks` output blocks (padding lanes
-    /// carry σ(0) and are never read as inputs).
+    /// `x` holds the layer's `n_in` inputs; each output block `k` is handed to `emit(k, ·)`
+    /// (padding lanes carry σ(0) and are never read as inputs).
     #[inline(always)]
-    fn forward(&self, x: &[f64], out: &mut [Block]) {
-        for ((o, b), ws) in out
-            .iter_mut()
-            .zip(&self.bias)
-            .zip(self.weight_b.chunks_exact(self.n_in))
-        {
+    fn forward(&self, x: &[f64], mut emit: impl FnMut(usize, Block)) {
+        let n_in = self.n_in;
+        for k in 0..self.blocks {
+            let ws = &self.weight_b[k * n_in..(k + 1) * n_in];
             // Two interleaved partial sums halve the add-latency chain of long rows.
-            let (mut even, mut odd) = (*b, [0.0; LANES]);
+            let (mut even, mut odd) = (self.bias[k], [0.0; LANES]);
             let mut pairs = ws.chunks_exact(2).zip(x.chunks_exact(2));
             for (w, xi) in &mut pairs {
                 for l in 0..LANES {
@@ -83,17 +89,18 @@ impl Dense {
                     odd[l] += w[1][l] * xi[1];
                 }
             }
-            if ws.len() % 2 == 1 {
-                let (w, xi) = (ws[ws.len() - 1], x[ws.len() - 1]);
+            if n_in % 2 == 1 {
+                let (w, xi) = (ws[n_in - 1], x[n_in - 1]);
                 for l in 0..LANES {
                     even[l] += w[l] * xi;
                 }
             }
             for l in 0..LANES {
-                o[l] = even[l] + odd[l];
+                even[l] += odd[l];
             }
+            self.activation.apply_folded(&mut even);
+            emit(k, even);
         }
-        self.activation.apply(out.as_flattened_mut());
     }
 }
 
@@ -119,6 +126,9 @@ struct Net {
     dense: Vec<Dense>,
     input: MapMinMax,
     output: MapMinMax,
+    /// De-normalisation `y = a·h + c` when the last layer is not `purelin` (otherwise it is
+    /// folded into that layer).
+    out_affine: Option<(Vec<Block>, Vec<Block>)>,
     /// Scratch blocks a row needs.
     width: usize,
     /// The CPU has AVX2 (checked once, at construction).
@@ -126,53 +136,90 @@ struct Net {
 }
 
 impl Net {
-    /// Evaluate the rows of `xs` into the rows of `os`; `a`, `b` hold at least `width`
+    /// Evaluate the `rows` rows of `xs` into the rows of `os`; `a`, `b` hold at least `width`
     /// blocks. On x86-64 CPUs with AVX2 the same code runs compiled for 256-bit lanes (one
     /// block per instruction); the operations and their order are identical, so are the
     /// results, bit for bit (no FMA contraction: Rust never fuses `a + w·x`).
     #[inline]
-    fn eval_rows(&self, xs: &[f64], os: &mut [f64], a: &mut [Block], b: &mut [Block]) {
+    fn eval_rows(&self, xs: &[f64], os: &mut [f64], rows: usize, a: &mut [Block], b: &mut [Block]) {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is set only when `is_x86_feature_detected!("avx2")` reported the
             // feature on this CPU (see `Net::new`), which is all `eval_rows_avx2` requires.
             #[allow(unsafe_code)]
             unsafe {
-                return eval_rows_avx2(self, xs, os, a, b);
+                return eval_rows_avx2(self, xs, os, rows, a, b);
             }
         }
-        self.eval_rows_portable(xs, os, a, b);
+        self.eval_rows_portable(xs, os, rows, a, b);
     }
 
+    /// Rows are addressed by multiplication (`chunks_exact` would divide per call).
     #[inline(always)]
-    fn eval_rows_portable(&self, xs: &[f64], os: &mut [f64], a: &mut [Block], b: &mut [Block]) {
+    fn eval_rows_portable(
+        &self,
+        xs: &[f64],
+        os: &mut [f64],
+        rows: usize,
+        a: &mut [Block],
+        b: &mut [Block],
+    ) {
         let (n0, nl) = (self.input.len(), self.output.len());
-        for (x, out) in xs.chunks_exact(n0).zip(os.chunks_exact_mut(nl)) {
-            self.eval(x, out, a, b);
+        for r in 0..rows {
+            self.eval(
+                &xs[r * n0..(r + 1) * n0],
+                &mut os[r * nl..(r + 1) * nl],
+                a,
+                b,
+            );
         }
     }
 
     /// Evaluate one row.
     #[inline(always)]
     fn eval(&self, x: &[f64], out: &mut [f64], a: &mut [Block], b: &mut [Block]) {
-        let n0 = self.input.len();
-        self.input.apply(x, &mut a.as_flattened_mut()[..n0]);
+        // The centred input; the gain and the −1 of `mapminmax` are in the first layer.
+        for ((u, v), lo) in a.as_flattened_mut().iter_mut().zip(x).zip(&self.input.min) {
+            *u = v - lo;
+        }
         let (mut cur, mut nxt) = (a, b);
-        let mut n_in = n0;
-        for (layer, dense) in self.layers.iter().zip(&self.dense) {
-            dense.forward(&cur.as_flattened()[..n_in], &mut nxt[..dense.blocks]);
+        let mut n_in = x.len();
+        let (hidden, last) = self.dense.split_at(self.dense.len() - 1);
+        for (layer, dense) in self.layers.iter().zip(hidden) {
+            dense.forward(&cur.as_flattened()[..n_in], |k, v| nxt[k] = v);
             n_in = layer.n_out;
             std::mem::swap(&mut cur, &mut nxt);
         }
-        self.output
-            .reverse(&cur.as_flattened()[..self.output.len()], out);
+        // The last layer writes `out` directly: whole blocks as one store, the tail by lanes.
+        let write = |out: &mut [f64], k: usize, v: Block| {
+            let end = out.len().min((k + 1) * LANES);
+            let lanes = &mut out[k * LANES..end];
+            match <&mut Block>::try_from(&mut *lanes) {
+                Ok(full) => *full = v,
+                Err(_) => lanes.iter_mut().zip(v).for_each(|(o, v)| *o = v),
+            }
+        };
+        let x_last = &cur.as_flattened()[..n_in];
+        match &self.out_affine {
+            None => last[0].forward(x_last, |k, v| write(out, k, v)),
+            Some((h, c)) => last[0].forward(x_last, |k, v| {
+                write(out, k, std::array::from_fn(|l| v[l] * h[k][l] + c[k][l]));
+            }),
+        }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn eval_rows_avx2(net: &Net, xs: &[f64], os: &mut [f64], a: &mut [Block], b: &mut [Block]) {
-    net.eval_rows_portable(xs, os, a, b);
+fn eval_rows_avx2(
+    net: &Net,
+    xs: &[f64],
+    os: &mut [f64],
+    rows: usize,
+    a: &mut [Block],
+    b: &mut [Block],
+) {
+    net.eval_rows_portable(xs, os, rows, a, b);
 }
 
 /// A multilayer perceptron with `mapminmax` normalisation, ready for real-time evaluation.
@@ -298,9 +345,15 @@ impl Mlp {
             .max()
             .unwrap_or(0)
             .div_ceil(LANES);
+        let dense = fold_layers(&layers, &input, &output);
+        let out_affine = (layers[layers.len() - 1].activation != Activation::Purelin).then(|| {
+            let (h, c) = denormalisation(&output);
+            (blocks_of(&h), blocks_of(&c))
+        });
         Ok(Self {
             net: Net {
-                dense: layers.iter().map(Dense::new).collect(),
+                dense,
+                out_affine,
                 layers,
                 input,
                 output,
@@ -357,8 +410,15 @@ impl Mlp {
         check::len("out", out, self.n_outputs())?;
         check::all_finite("x", x, 1)?;
         self.net
-            .eval_rows(x, out, &mut self.scratch_a, &mut self.scratch_b);
+            .eval_rows(x, out, 1, &mut self.scratch_a, &mut self.scratch_b);
         Ok(())
+    }
+
+    /// [`Mlp::forward`] forced onto the portable (non-AVX2) path, to test that both agree.
+    #[cfg(test)]
+    pub(super) fn forward_portable(&mut self, x: &[f64], out: &mut [f64]) {
+        self.net
+            .eval_rows_portable(x, out, 1, &mut self.scratch_a, &mut self.scratch_b);
     }
 
     /// Rows of `x` `(N, n⁰)` row-major → rows of `out` `(N, nᴸ)`. Parallel (rayon) for
@@ -399,7 +459,7 @@ impl Mlp {
         let run = |xs: &[f64], os: &mut [f64]| {
             let mut a = vec![[0.0; LANES]; self.net.width];
             let mut b = vec![[0.0; LANES]; self.net.width];
-            self.net.eval_rows(xs, os, &mut a, &mut b);
+            self.net.eval_rows(xs, os, os.len() / nl, &mut a, &mut b);
         };
         if rows >= PARALLEL_MIN_ROWS {
             x.par_chunks(CHUNK_ROWS * n0)
@@ -410,6 +470,46 @@ impl Mlp {
         }
         Ok(())
     }
+}
+
+/// The evaluated layers with the affine maps folded in (see [`Dense::new`]): the first layer
+/// takes `x − x_min` and applies `mapminmax`'s gain and −1; each layer scales its net input
+/// to the argument of `exp`; a `purelin` last layer also de-normalises its output,
+/// `y = (a + 1)·h + y_min` with `h = 1/g`.
+fn fold_layers(layers: &[Layer], input: &MapMinMax, output: &MapMinMax) -> Vec<Dense> {
+    let last = layers.len() - 1;
+    layers
+        .iter()
+        .enumerate()
+        .map(|(l, layer)| {
+            let (g, d) = if l == 0 {
+                (input.gain().to_vec(), vec![-1.0; layer.n_in])
+            } else {
+                (vec![1.0; layer.n_in], vec![0.0; layer.n_in])
+            };
+            let (s, t) = if l == last && layer.activation == Activation::Purelin {
+                denormalisation(output)
+            } else {
+                let f = layer.activation.fold_factor();
+                (vec![f; layer.n_out], vec![0.0; layer.n_out])
+            };
+            Dense::new(layer, &g, &d, &s, &t)
+        })
+        .collect()
+}
+
+/// `mapminmax`'s reverse as `y = a·h + c`: `h = 1/g`, `c = h + y_min`.
+fn denormalisation(output: &MapMinMax) -> (Vec<f64>, Vec<f64>) {
+    let h: Vec<f64> = output.gain().iter().map(|g| 1.0 / g).collect();
+    let c = h.iter().zip(&output.min).map(|(h, lo)| h + lo).collect();
+    (h, c)
+}
+
+/// Values in zero-padded blocks of four.
+fn blocks_of(v: &[f64]) -> Vec<Block> {
+    v.chunks(LANES)
+        .map(|c| std::array::from_fn(|l| c.get(l).copied().unwrap_or(0.0)))
+        .collect()
 }
 
 fn cpu_has_avx2() -> bool {

@@ -43,6 +43,11 @@ impl MapMinMax {
         self.min.len()
     }
 
+    /// Per-feature gain `g` (`2 / (x_max − x_min)`, or 1 for an empty range).
+    pub fn gain(&self) -> &[f64] {
+        &self.gain
+    }
+
     /// True when there are no features.
     pub fn is_empty(&self) -> bool {
         self.min.is_empty()

@@ -78,22 +78,37 @@ fn kind_and_item(e: CableError) -> (WeightsErrorKind, String) {
 }
 
 #[test]
-fn forward_matches_the_equations_for_every_activation() {
+fn forward_matches_the_equations_for_every_activation_and_shape() {
     use Activation::*;
-    for acts in [[Tansig, Purelin], [Logsig, Purelin], [Tansig, Tansig]] {
-        let mut m = net(&[4, 10, 4], &acts, 3);
-        for (r, x) in lcg(9, 40).chunks(4).enumerate() {
-            let mut out = [0.0; 4];
+    // Output tails of 1–3 lanes, odd input counts, two hidden layers, a sigmoid last layer
+    // (de-normalised outside the folded weights).
+    let cases: [(&[usize], &[Activation]); 6] = [
+        (&[4, 10, 4], &[Tansig, Purelin]),
+        (&[4, 10, 4], &[Logsig, Purelin]),
+        (&[4, 10, 4], &[Tansig, Tansig]),
+        (&[3, 7, 5, 2], &[Logsig, Tansig, Purelin]),
+        (&[5, 9, 6], &[Tansig, Logsig]),
+        (&[1, 1, 1], &[Tansig, Purelin]),
+    ];
+    for (sizes, acts) in cases {
+        let mut m = net(sizes, acts, 3);
+        let (n0, nl) = (sizes[0], sizes[sizes.len() - 1]);
+        for (r, x) in lcg(9, 10 * n0).chunks(n0).enumerate() {
+            let mut out = vec![0.0; nl];
             m.forward(x, &mut out).unwrap();
             let want = naive(&m, x);
-            for k in 0..4 {
+            for k in 0..nl {
                 assert!(
                     (out[k] - want[k]).abs() < 1e-12,
-                    "row {r} out {k}: {} vs {}",
+                    "{sizes:?} row {r} out {k}: {} vs {}",
                     out[k],
                     want[k]
                 );
             }
+            // The AVX2 build of the same code gives the same bits.
+            let mut portable = vec![0.0; nl];
+            m.forward_portable(x, &mut portable);
+            assert_eq!(out, portable, "{sizes:?} row {r}");
         }
     }
 }
