@@ -6,7 +6,7 @@ use std::hint::black_box;
 
 use cable_bench::raven_fixture;
 use cable_core::dynamics::Model;
-use cable_core::estimate::{LinearObserve, ModelProcess, SigmaScaling, SrUkf};
+use cable_core::estimate::{LinearObserve, ModelProcess, Process, SigmaScaling, SrUkf};
 use cable_core::integrate::{simulate, InputHold, SimOptions};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 
@@ -84,6 +84,30 @@ fn srukf(c: &mut Criterion) {
             let y = [x0[0] + 1e-4 * f64::from(k % 7), x0[4], x0[8]];
             f.step(&[], black_box(&y), None).expect("finite");
             black_box(f.x());
+        })
+    });
+    // the time update's propagation alone: 25 sigma points through one RK4 step, four at a
+    // time in SIMD lanes (what the filter does) vs one at a time
+    let (model, x0, u) = raven_fixture();
+    let mut process = ModelProcess::new(model, 1e-4, 1).expect("valid");
+    let points: Vec<f64> = (0..2 * n + 1)
+        .flat_map(|i| x0.iter().map(move |v| v + 1e-6 * i as f64))
+        .collect();
+    let mut work = points.clone();
+    g.bench_function("propagate_25_lanes", |b| {
+        b.iter(|| {
+            work.copy_from_slice(&points);
+            process.propagate_many(black_box(&mut work), &u);
+            black_box(&work);
+        })
+    });
+    g.bench_function("propagate_25_one_by_one", |b| {
+        b.iter(|| {
+            work.copy_from_slice(&points);
+            for x in work.chunks_exact_mut(n) {
+                process.propagate(black_box(x), &u);
+            }
+            black_box(&work);
         })
     });
     g.finish();

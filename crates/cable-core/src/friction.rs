@@ -22,6 +22,7 @@
 //!   carries `exp(μφ)` times the tension of the other side.
 
 use crate::error::{check, Result};
+use crate::lanes::Lanes;
 
 /// Smoothed sign `v / sqrt(v² + ε²)`; see the module docs. `eps` > 0 (m/s or rad/s).
 #[inline]
@@ -155,6 +156,18 @@ impl StaticFriction {
             )
         };
         dry + viscous(v, self.viscous)
+    }
+
+    /// [`StaticFriction::force`] of four velocities (same operations, SIMD lanes for the
+    /// Coulomb + viscous form; the Stribeck form goes lane by lane).
+    #[inline(always)]
+    pub fn force_lanes(&self, v: &Lanes) -> Lanes {
+        #[allow(clippy::float_cmp)]
+        if self.static_level != self.coulomb {
+            return v.map(|v| self.force(v));
+        }
+        let (c, e2, b) = (self.coulomb, self.smoothing * self.smoothing, self.viscous);
+        std::array::from_fn(|l| c * (v[l] / (v[l] * v[l] + e2).sqrt()) + b * v[l])
     }
 
     /// Largest slope `|dF/dv|` (at `v = 0`), used to bound the stiffness this friction adds.

@@ -21,6 +21,7 @@ pub mod estimate;
 pub mod friction;
 pub mod identify;
 pub mod integrate;
+pub mod lanes;
 pub mod nn;
 
 pub use dynamics::Model;

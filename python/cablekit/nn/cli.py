@@ -26,7 +26,7 @@ DATASETS = {
 def _every(d: Dataset, k: int) -> Dataset:
     from dataclasses import replace
 
-    return replace(d, x=d.x[::k], y=d.y[::k])
+    return replace(d, x=np.ascontiguousarray(d.x[::k]), y=np.ascontiguousarray(d.y[::k]))
 
 
 def _plot(comparisons: list, path: Path) -> Path | None:  # type: ignore[type-arg]

@@ -14,6 +14,8 @@ pub use dahl::DahlElement;
 pub use raven2::raven2;
 pub use transmission::{CableTransmission, Gravity, JointKind, TransmissionLink, MAX_LINKS};
 
+use crate::lanes::{Lanes, LANES};
+
 /// A continuous-time state-space model `ẋ = f(x, u)`, `y = h(x, u)`.
 ///
 /// Implementations must be pure functions of their arguments (no interior state), so that a
@@ -36,6 +38,32 @@ pub trait Model {
     fn input_names(&self) -> Vec<String>;
     /// Names of the outputs, in layout order.
     fn output_names(&self) -> Vec<String>;
+    /// `f` at [`LANES`] states at once, structure of arrays: `x[s][l]` is state `s` of point
+    /// `l`, `dx` likewise; the input `u` is shared. The default calls
+    /// [`Model::derivative`] once per lane; models override it with vectorised arithmetic
+    /// that performs the same operations, so both give the same bits (tested per model).
+    fn derivative_lanes(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
+        const STACK: usize = 64;
+        let n = x.len();
+        let (mut xs_stack, mut ds_stack) = ([0.0; STACK], [0.0; STACK]);
+        let (mut xs_heap, mut ds_heap) = (Vec::new(), Vec::new());
+        let (xs, ds) = if n <= STACK {
+            (&mut xs_stack[..n], &mut ds_stack[..n])
+        } else {
+            xs_heap.resize(n, 0.0);
+            ds_heap.resize(n, 0.0);
+            (&mut xs_heap[..], &mut ds_heap[..])
+        };
+        for l in 0..LANES {
+            for (v, xl) in xs.iter_mut().zip(x) {
+                *v = xl[l];
+            }
+            self.derivative(xs, u, ds);
+            for (d, dl) in ds.iter().zip(dx.iter_mut()) {
+                dl[l] = *d;
+            }
+        }
+    }
     /// A representative state for step-size advice (equilibrium at rest by default: zeros).
     fn rest_state(&self) -> Vec<f64> {
         vec![0.0; self.n_states()]

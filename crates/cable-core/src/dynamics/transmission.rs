@@ -40,6 +40,7 @@ use super::{Model, GRAVITY};
 use crate::cable::CableLoop;
 use crate::error::{check, CableError, Result};
 use crate::friction::StaticFriction;
+use crate::lanes::{Lanes, LANES};
 
 /// Largest number of coupled links.
 pub const MAX_LINKS: usize = 3;
@@ -330,9 +331,53 @@ impl CableTransmission {
         }
         let mut g = [0.0; N];
         for j in 0..N {
-            g[j] = (j..N).map(|i| self.t[i][j] * self.rho[i] * gamma[i]).sum();
+            for i in j..N {
+                g[j] += self.t[i][j] * self.rho[i] * gamma[i];
+            }
         }
         (tens, gamma, g)
+    }
+
+    /// [`Self::derivative_n`] of four states (structure of arrays), operation for operation.
+    #[inline(always)]
+    fn derivative_lanes_n<const N: usize>(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
+        let mut gamma = [[0.0; LANES]; N];
+        for i in 0..N {
+            let (mut tq, mut tw) = ([0.0; LANES], [0.0; LANES]);
+            for j in 0..=i {
+                for l in 0..LANES {
+                    tq[l] += self.t[i][j] * x[4 * j + 2][l];
+                    tw[l] += self.t[i][j] * x[4 * j + 3][l];
+                }
+            }
+            let d = std::array::from_fn(|l| self.rho[i] * (x[4 * i][l] - tq[l]));
+            let dd = std::array::from_fn(|l| self.rho[i] * (x[4 * i + 1][l] - tw[l]));
+            let (ta, tb) = self.links[i].cable.tensions_lanes(&d, &dd);
+            gamma[i] = std::array::from_fn(|l| ta[l] - tb[l]);
+        }
+        let mut g = [[0.0; LANES]; N];
+        for j in 0..N {
+            for i in j..N {
+                for l in 0..LANES {
+                    g[j][l] += self.t[i][j] * self.rho[i] * gamma[i][l];
+                }
+            }
+        }
+        for i in 0..N {
+            let link = &self.links[i];
+            let (wm, ql, wl) = (x[4 * i + 1], x[4 * i + 2], x[4 * i + 3]);
+            let fm = link.motor_friction.force_lanes(&wm);
+            let fl = link.link_friction.force_lanes(&wl);
+            let grav = ql.map(|q| link.gravity.load(link.kind, q));
+            dx[4 * i] = wm;
+            dx[4 * i + 2] = wl;
+            for l in 0..LANES {
+                dx[4 * i + 1][l] =
+                    (u[i] - fm[l] - self.rho[i] * gamma[i][l]) * self.inv_motor_inertia[i];
+                dx[4 * i + 3][l] =
+                    (g[i][l] - fl[l] - grav[l] + u[N + i]) * self.inv_link_inertia[i];
+            }
+        }
     }
 
     #[inline(always)]
@@ -397,6 +442,13 @@ impl Model for CableTransmission {
         by_links!(self, self.n_links(), derivative_n(x, u, dx))
     }
 
+    // always inlined, so that the AVX2 build of the sigma-point propagation compiles it for
+    // 256-bit lanes (a call would run the SSE2 build)
+    #[inline(always)]
+    fn derivative_lanes(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
+        by_links!(self, self.n_links(), derivative_lanes_n(x, u, dx))
+    }
+
     fn output(&self, x: &[f64], _u: &[f64], y: &mut [f64]) {
         by_links!(self, self.n_links(), output_n(x, y))
     }
@@ -432,5 +484,119 @@ impl Model for CableTransmission {
                 ]
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::float_cmp)] // bit-identity of the lane and scalar paths is the claim under test
+mod lane_tests {
+    use super::*;
+    use crate::cable::{CableLaw, CableRun};
+    use crate::dynamics::raven2;
+
+    fn lcg(seed: u64) -> impl FnMut() -> f64 {
+        let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        move || {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        }
+    }
+
+    /// Raven-II with every branch the lane code has: Stribeck friction (lane by lane), gravity,
+    /// a linear cable law.
+    fn varied() -> CableTransmission {
+        let base = raven2(3).unwrap();
+        let mut links = base.links.clone();
+        links[0].link_friction =
+            StaticFriction::stribeck("l0", 0.5, 0.8, 0.01, 2.0, 0.005, 1e-3).unwrap();
+        links[1].gravity = Gravity {
+            amplitude: 1.3,
+            offset: 0.2,
+        };
+        links[2].cable = CableLoop {
+            run: CableRun::new(CableLaw::Linear { stiffness: 9e3 }, 400.0, 11.0, "l2").unwrap(),
+        };
+        let c: Vec<f64> = (0..9).map(|k| base.coupling[k / 3][k % 3]).collect();
+        CableTransmission::new(links, &c).unwrap()
+    }
+
+    /// The trait's default `derivative_lanes` (per-lane scalar calls).
+    struct Scalar<'a>(&'a CableTransmission);
+    impl Model for Scalar<'_> {
+        fn n_states(&self) -> usize {
+            self.0.n_states()
+        }
+        fn n_inputs(&self) -> usize {
+            self.0.n_inputs()
+        }
+        fn n_outputs(&self) -> usize {
+            self.0.n_outputs()
+        }
+        fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
+            self.0.derivative(x, u, dx)
+        }
+        fn output(&self, x: &[f64], u: &[f64], y: &mut [f64]) {
+            self.0.output(x, u, y)
+        }
+        fn state_names(&self) -> Vec<String> {
+            self.0.state_names()
+        }
+        fn input_names(&self) -> Vec<String> {
+            self.0.input_names()
+        }
+        fn output_names(&self) -> Vec<String> {
+            self.0.output_names()
+        }
+    }
+
+    #[test]
+    fn lane_derivative_is_the_scalar_derivative_bit_for_bit() {
+        let models = [
+            raven2(1).unwrap(),
+            raven2(2).unwrap(),
+            raven2(3).unwrap(),
+            varied(),
+        ];
+        let mut rnd = lcg(7);
+        for model in &models {
+            let (n, m) = (model.n_states(), model.n_inputs());
+            for trial in 0..200 {
+                // motor offsets from 1e-6 rad (Taylor branch of expm1) to 40 rad (libm branch,
+                // slack sides) mixed across lanes; velocities through the friction smoothing
+                let mut x = vec![[0.0; LANES]; n];
+                let mut q_m = [0.0; MAX_LINKS];
+                for l in 0..LANES {
+                    let q_l: Vec<f64> = (0..n / 4).map(|_| rnd()).collect();
+                    model.joint_to_motor(&q_l, &mut q_m[..n / 4]);
+                    let scale = [1e-6, 1e-3, 0.5, 40.0][(trial + l) % 4];
+                    for i in 0..n / 4 {
+                        x[4 * i][l] = q_m[i] + scale * rnd();
+                        x[4 * i + 1][l] = 10.0 * rnd() * rnd().abs().powi(3);
+                        x[4 * i + 2][l] = q_l[i];
+                        x[4 * i + 3][l] = 0.01 * rnd();
+                    }
+                }
+                let u: Vec<f64> = (0..m).map(|_| rnd()).collect();
+                let mut lanes = vec![[f64::NAN; LANES]; n];
+                model.derivative_lanes(&x, &u, &mut lanes);
+                let mut by_default = vec![[f64::NAN; LANES]; n];
+                Scalar(model).derivative_lanes(&x, &u, &mut by_default);
+                for l in 0..LANES {
+                    let xl: Vec<f64> = x.iter().map(|v| v[l]).collect();
+                    let mut want = vec![0.0; n];
+                    model.derivative(&xl, &u, &mut want);
+                    for s in 0..n {
+                        assert_eq!(
+                            lanes[s][l].to_bits(),
+                            want[s].to_bits(),
+                            "state {s} lane {l}"
+                        );
+                        assert_eq!(by_default[s][l].to_bits(), want[s].to_bits());
+                    }
+                }
+            }
+        }
     }
 }

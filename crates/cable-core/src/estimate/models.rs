@@ -3,7 +3,8 @@
 
 use crate::dynamics::Model;
 use crate::error::{check, CableError, Result};
-use crate::integrate::{InputHold, Rk4, SimOptions};
+use crate::integrate::{InputHold, Rk4, Rk4Lanes, SimOptions};
+use crate::lanes::{cpu_has_avx2, Lanes, LANES};
 
 /// A discrete-time process `x_k = F(x_{k−1}, u_{k−1})` (additive noise is the filter's).
 pub trait Process {
@@ -13,6 +14,15 @@ pub trait Process {
     fn n_inputs(&self) -> usize;
     /// Propagates `x` over one filter period in place with input `u` (held over the period).
     fn propagate(&mut self, x: &mut [f64], u: &[f64]);
+    /// Propagates the consecutive states of `xs` (length a multiple of `n`, e.g. all sigma
+    /// points), each exactly as [`Process::propagate`] would. The default calls it per state;
+    /// [`ModelProcess`] runs four states at a time in SIMD lanes.
+    fn propagate_many(&mut self, xs: &mut [f64], u: &[f64]) {
+        let n = self.n_states();
+        for x in xs.chunks_exact_mut(n) {
+            self.propagate(x, u);
+        }
+    }
     /// Projects a mean onto the admissible set (bounded parameters); identity by default.
     fn project(&self, _x: &mut [f64]) {}
 }
@@ -34,6 +44,10 @@ pub struct ModelProcess<M: Model> {
     dt: f64,
     substeps: usize,
     rk4: Rk4,
+    rk4_lanes: Rk4Lanes,
+    /// Four states side by side for `rk4_lanes`.
+    soa: Vec<Lanes>,
+    avx2: bool,
 }
 
 impl<M: Model> ModelProcess<M> {
@@ -41,11 +55,15 @@ impl<M: Model> ModelProcess<M> {
     pub fn new(model: M, dt: f64, substeps: usize) -> Result<Self> {
         SimOptions::new(dt, substeps, InputHold::Zoh)?;
         let rk4 = Rk4::for_model(&model);
+        let n = model.n_states();
         Ok(Self {
             model,
             dt,
             substeps,
             rk4,
+            rk4_lanes: Rk4Lanes::new(n),
+            soa: vec![[0.0; LANES]; n],
+            avx2: cpu_has_avx2(),
         })
     }
 
@@ -74,6 +92,52 @@ impl<M: Model> Process for ModelProcess<M> {
             self.rk4.step(&self.model, x, u, h);
         }
     }
+
+    fn propagate_many(&mut self, xs: &mut [f64], u: &[f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set only when `cpu_has_avx2()` (`is_x86_feature_detected!`)
+            // reported the feature on this CPU, which is all `propagate_many_avx2` requires.
+            #[allow(unsafe_code)]
+            unsafe {
+                return propagate_many_avx2(self, xs, u);
+            }
+        }
+        self.propagate_lanes(xs, u);
+    }
+}
+
+impl<M: Model> ModelProcess<M> {
+    /// States go through RK4 four at a time (the last group padded with copies of its last
+    /// state); the results are those of [`Process::propagate`], bit for bit.
+    #[inline(always)]
+    fn propagate_lanes(&mut self, xs: &mut [f64], u: &[f64]) {
+        let n = self.model.n_states();
+        let count = xs.len() / n;
+        let h = self.dt / self.substeps as f64;
+        for first in (0..count).step_by(LANES) {
+            let used = LANES.min(count - first);
+            for (s, lanes) in self.soa.iter_mut().enumerate() {
+                for (l, v) in lanes.iter_mut().enumerate() {
+                    *v = xs[(first + l.min(used - 1)) * n + s];
+                }
+            }
+            for _ in 0..self.substeps {
+                self.rk4_lanes.step(&self.model, &mut self.soa, u, h);
+            }
+            for (s, lanes) in self.soa.iter().enumerate() {
+                for (l, v) in lanes.iter().enumerate().take(used) {
+                    xs[(first + l) * n + s] = *v;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn propagate_many_avx2<M: Model>(p: &mut ModelProcess<M>, xs: &mut [f64], u: &[f64]) {
+    p.propagate_lanes(xs, u);
 }
 
 /// `x_k = A·x_{k−1} + B·u_{k−1}` (matrices row-major).
@@ -230,6 +294,9 @@ impl<T: Process + ?Sized> Process for Box<T> {
     fn propagate(&mut self, x: &mut [f64], u: &[f64]) {
         (**self).propagate(x, u)
     }
+    fn propagate_many(&mut self, xs: &mut [f64], u: &[f64]) {
+        (**self).propagate_many(xs, u)
+    }
     fn project(&self, x: &mut [f64]) {
         (**self).project(x)
     }
@@ -301,6 +368,46 @@ impl<M: Model> Process for InputStates<M> {
         let h = self.dt / self.substeps as f64;
         for _ in 0..self.substeps {
             self.rk4.step(&self.model, &mut x[..n], &self.u, h);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dynamics::raven2;
+
+    #[test]
+    fn propagating_many_states_in_lanes_equals_one_at_a_time() {
+        let model = raven2(3).unwrap();
+        let n = model.n_states();
+        let u = [0.1, -0.05, 0.2, 0.01, 0.0, -0.02];
+        for (count, substeps) in [(25, 1), (1, 3), (7, 2), (8, 1)] {
+            let mut p = ModelProcess::new(model.clone(), 1e-4, substeps).unwrap();
+            let mut q_m = [0.0; 3];
+            let xs: Vec<f64> = (0..count)
+                .flat_map(|k| {
+                    let q_l = [0.7 - 0.01 * k as f64, 1.5, 0.4 + 0.001 * k as f64];
+                    model.joint_to_motor(&q_l, &mut q_m);
+                    let off = 1e-5 * (k as f64 - 3.0).powi(3);
+                    let mut x = vec![0.0; n];
+                    for i in 0..3 {
+                        x[4 * i] = q_m[i] + off;
+                        x[4 * i + 1] = 5.0 - k as f64;
+                        x[4 * i + 2] = q_l[i];
+                        x[4 * i + 3] = 0.03;
+                    }
+                    x
+                })
+                .collect();
+            let mut many = xs.clone();
+            p.propagate_many(&mut many, &u);
+            let mut one = xs.clone();
+            for x in one.chunks_exact_mut(n) {
+                p.propagate(x, &u);
+            }
+            assert_eq!(many, one, "{count} states, {substeps} substeps");
+            assert_ne!(many, xs);
         }
     }
 }

@@ -283,9 +283,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         let n = self.n;
         let ns = 2 * n + 1;
         self.sigma_points();
-        for i in 0..ns {
-            self.process.propagate(&mut self.chi[i * n..(i + 1) * n], u);
-        }
+        self.process.propagate_many(&mut self.chi[..ns * n], u);
         // mean (eq 3.13) as χ₀ + Σ Wᵢ(χᵢ − χ₀): the weights sum to one, and this form does not
         // cancel the ±1e6-weighted terms of the seed's α = 1e-3 (W₀ ≈ −n/(α²n))
         let wmi = self.w.wm.1;
@@ -599,9 +597,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                 }
             }
             chp.copy_from_slice(&chi);
-            for i in 0..ns {
-                self.process.propagate(&mut chp[i * n..(i + 1) * n], u);
-            }
+            self.process.propagate_many(&mut chp[..ns * n], u);
             // predicted mean and factor (as in the time update)
             for r in 0..n {
                 let c0 = chp[r];

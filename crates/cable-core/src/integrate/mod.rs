@@ -25,6 +25,7 @@ pub use stability::{jacobian, propose_step, rk4_stability_radius, StepAdvice};
 
 use crate::dynamics::Model;
 use crate::error::{check, CableError, Result};
+use crate::lanes::{Lanes, LANES};
 
 /// How inputs behave between samples.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -161,6 +162,57 @@ impl Rk4 {
         self.u_start = u_start;
         self.u_mid = u_mid;
         self.u_end = u_end;
+    }
+}
+
+/// RK4 over [`LANES`] independent states at once (structure of arrays, see
+/// [`Model::derivative_lanes`]): the same operations as [`Rk4::step`] per lane, so the same
+/// bits, with the arithmetic in SIMD lanes. Scratch is sized at construction.
+#[derive(Debug, Clone)]
+pub struct Rk4Lanes {
+    k1: Vec<Lanes>,
+    k2: Vec<Lanes>,
+    k3: Vec<Lanes>,
+    k4: Vec<Lanes>,
+    tmp: Vec<Lanes>,
+}
+
+impl Rk4Lanes {
+    /// Workspace for `n` states.
+    pub fn new(n: usize) -> Self {
+        let z = vec![[0.0; LANES]; n];
+        Self {
+            k1: z.clone(),
+            k2: z.clone(),
+            k3: z.clone(),
+            tmp: z.clone(),
+            k4: z,
+        }
+    }
+
+    /// One RK4 step of size `h` of every lane with the input `u` held (zero-order hold).
+    #[inline(always)]
+    pub fn step<M: Model + ?Sized>(&mut self, model: &M, x: &mut [Lanes], u: &[f64], h: f64) {
+        let stage = |tmp: &mut [Lanes], x: &[Lanes], k: &[Lanes], c: f64| {
+            for ((t, x), k) in tmp.iter_mut().zip(x).zip(k) {
+                for l in 0..LANES {
+                    t[l] = x[l] + c * h * k[l];
+                }
+            }
+        };
+        model.derivative_lanes(x, u, &mut self.k1);
+        stage(&mut self.tmp, x, &self.k1, 0.5);
+        model.derivative_lanes(&self.tmp, u, &mut self.k2);
+        stage(&mut self.tmp, x, &self.k2, 0.5);
+        model.derivative_lanes(&self.tmp, u, &mut self.k3);
+        stage(&mut self.tmp, x, &self.k3, 1.0);
+        model.derivative_lanes(&self.tmp, u, &mut self.k4);
+        for (i, x) in x.iter_mut().enumerate() {
+            let (k1, k2, k3, k4) = (self.k1[i], self.k2[i], self.k3[i], self.k4[i]);
+            for l in 0..LANES {
+                x[l] += h / 6.0 * (k1[l] + 2.0 * k2[l] + 2.0 * k3[l] + k4[l]);
+            }
+        }
     }
 }
 

@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::{Activation, MapMinMax};
 use crate::error::{check, CableError, Result, WeightsErrorKind};
+use crate::lanes::{cpu_has_avx2, Lanes, LANES};
 
 /// Batches with at least this many rows are split across rayon's threads.
 pub const PARALLEL_MIN_ROWS: usize = 4096;
@@ -28,8 +29,7 @@ pub struct Layer {
 }
 
 /// SIMD block: outputs are processed four at a time.
-const LANES: usize = 4;
-type Block = [f64; LANES];
+type Block = Lanes;
 
 /// A layer as evaluated: outputs grouped in zero-padded blocks of four, each block's weights
 /// stored input by input (`(blocks, n_in)` of `[f64; 4]`), so a block accumulates in
@@ -510,17 +510,6 @@ fn blocks_of(v: &[f64]) -> Vec<Block> {
     v.chunks(LANES)
         .map(|c| std::array::from_fn(|l| c.get(l).copied().unwrap_or(0.0)))
         .collect()
-}
-
-fn cpu_has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
 }
 
 fn finite_values(what: &str, data: &[f64]) -> Result<()> {
