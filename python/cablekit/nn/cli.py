@@ -43,7 +43,7 @@ def _plot(comparisons: list, path: Path) -> Path | None:  # type: ignore[type-ar
         ax.boxplot([getattr(r, key) for r in c.rows], tick_labels=[r.method for r in c.rows])
         ax.set_yscale("log")
         ax.set_title(textwrap.fill(c.dataset, 60), fontsize=9)
-        ax.set_ylabel(("held-out" if c.n_heldout else "test") + f" MSE, ({c.output_units})²")
+        ax.set_ylabel(("held-out" if c.n_heldout else "test") + f" MSE, {c.squared_units()}")
         if c.baseline_mse is not None:
             ax.axhline(c.baseline_mse, color="0.4", ls="--", lw=1, label="without a network")
             ax.legend(fontsize=8)

@@ -50,6 +50,11 @@ class Comparison:
     baseline_mse: float | None = None
     output_units: str = "N"
 
+    def squared_units(self) -> str:
+        """``N²``, ``(mN·m)²``: the unit of the MSE columns."""
+        u = self.output_units
+        return f"{u}²" if u.isalpha() else f"({u})²"
+
     def best(self, metric: str = "auto") -> str:
         key = "heldout_mse" if (metric == "auto" and self.n_heldout) or metric == "heldout" else "test_mse"
         return min(self.rows, key=lambda r: r.stats(getattr(r, key))[0]).method
@@ -74,7 +79,7 @@ class Comparison:
             cells += [f"{r.stats(r.time_s)[0]:.2f}", f"{int(np.median(r.epochs))}"]
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
-        lines.append(f"MSE in ({self.output_units})².")
+        lines.append(f"MSE in {self.squared_units()}.")
         if self.baseline_mse is not None:
             lines.append(f"Without a network — {self.baseline}: MSE {self.baseline_mse:.4g}.")
         return "\n".join(lines)
