@@ -61,7 +61,6 @@ def test_missing_bench_file_is_a_data_error(tmp_path):
 
 
 def test_jaw_torque_network_from_drive_side_signals_beats_the_linear_map_on_unseen_frequencies(tmp_path):
-    pytest.importorskip("torch")
     from cablekit.nn import Mlp, export, train_mlp
     from cablekit.nn.datasets import davinci_jaw_torque
 
