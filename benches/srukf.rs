@@ -110,6 +110,47 @@ fn srukf(c: &mut Criterion) {
             black_box(&work);
         })
     });
+    // the two square-root kernels alone at the filter's sizes: the LQ factor of the time
+    // update's compound (12 × 36, triangular tail) and the rank-3 downdate of eq 3.25
+    {
+        use cable_core::estimate::linalg::{cholupdate_columns, lq_lower, padded};
+        let n = 12;
+        let cols = 36;
+        let ld = padded(n);
+        let base: Vec<f64> = (0..ld * cols)
+            .map(|k| {
+                if k % ld < n {
+                    ((k * 7 + 3) % 11) as f64 - 5.0 + 0.01 * k as f64
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let mut work = base.clone();
+        let mut v = vec![0.0; ld];
+        let mut l = vec![0.0; n * n];
+        g.bench_function("lq_12x36", |b| {
+            b.iter(|| {
+                work.copy_from_slice(&base);
+                lq_lower(black_box(&mut work), n, cols, 24, &mut v, &mut l);
+                black_box(&l);
+            })
+        });
+        let mut l0 = vec![0.0; n * n];
+        for i in 0..n {
+            l0[i * (n + 1)] = 10.0;
+        }
+        let vs: Vec<f64> = (0..n * 3).map(|k| 0.1 * (k as f64).sin()).collect();
+        let mut w = vs.clone();
+        g.bench_function("downdate3_12", |b| {
+            b.iter(|| {
+                l.copy_from_slice(&l0);
+                w.copy_from_slice(&vs);
+                cholupdate_columns(black_box(&mut l), n, &mut w, n, 3, -1.0).unwrap();
+                black_box(&l);
+            })
+        });
+    }
     g.finish();
 }
 

@@ -232,48 +232,51 @@ pub struct CableLoop {
     pub run: CableRun,
 }
 
-/// `exp(x) − 1`: for `|x| < 1e-2` by its Taylor polynomial to `x⁸/8!` (the next term is below
-/// `x·3e-22`, under the rounding of the result), otherwise by `f64::exp_m1`. Cable stretches
-/// over their length scale are mostly this small (Raven-II: 1e-5…2e-3), and the polynomial
-/// is a fraction of the libm call and vectorises across SIMD lanes.
+/// `(exp(x) − 1, exp(−x) − 1)`, the two sides of a loop at once. For `|x| < 1e-2` from the
+/// even and odd parts of the Taylor polynomial to `x⁸/8!` (the next term is below `x·3e-22`,
+/// under the rounding of the result): `expm1(±x) = E(x) ± O(x)`, two short polynomials in
+/// `x²` for both signs, no division. Otherwise `m = f64::exp_m1(x)` and
+/// `expm1(−x) = −m/(1 + m)` exactly (the quotient keeps full relative precision). Cable
+/// stretches over their length scale are mostly this small (Raven-II: 1e-5…2e-3), and the
+/// polynomials are a fraction of the libm call and vectorise across SIMD lanes.
 #[inline(always)]
-pub fn expm1_small(x: f64) -> f64 {
+pub fn expm1_pair(x: f64) -> (f64, f64) {
     if x.abs() < EXPM1_TAYLOR_BELOW {
-        expm1_taylor(x)
+        expm1_taylor_pair(x)
     } else {
-        x.exp_m1()
+        let m = x.exp_m1();
+        (m, -m / (1.0 + m))
     }
 }
 
-/// Where [`expm1_small`] switches from its polynomial to `f64::exp_m1`.
+/// Where [`expm1_pair`] switches from its polynomials to `f64::exp_m1`.
 const EXPM1_TAYLOR_BELOW: f64 = 1e-2;
 
 #[inline(always)]
-fn expm1_taylor(x: f64) -> f64 {
-    const C: [f64; 7] = [
-        1.0 / 2.0,
-        1.0 / 6.0,
-        1.0 / 24.0,
-        1.0 / 120.0,
-        1.0 / 720.0,
-        1.0 / 5040.0,
-        1.0 / 40320.0,
-    ];
-    let p = C[5] + x * C[6];
-    let p = C[4] + x * p;
-    let p = C[3] + x * p;
-    let p = C[2] + x * p;
-    let p = C[1] + x * p;
-    let p = C[0] + x * p;
-    x * (1.0 + x * p)
+fn expm1_taylor_pair(x: f64) -> (f64, f64) {
+    let (odd, even) = (taylor_odd(x), taylor_even(x));
+    (even + odd, even - odd)
+}
+
+/// Odd part of the `exp` series to `x⁷/7!`: `x + x³/3! + x⁵/5! + x⁷/7!`.
+#[inline(always)]
+fn taylor_odd(x: f64) -> f64 {
+    let y = x * x;
+    x * (1.0 + y * (1.0 / 6.0 + y * (1.0 / 120.0 + y * (1.0 / 5040.0))))
+}
+
+/// Even part of the `exp` series to `x⁸/8!`, less one: `x²/2! + x⁴/4! + x⁶/6! + x⁸/8!`.
+#[inline(always)]
+fn taylor_even(x: f64) -> f64 {
+    let y = x * x;
+    y * (1.0 / 2.0 + y * (1.0 / 24.0 + y * (1.0 / 720.0 + y * (1.0 / 40320.0))))
 }
 
 impl CableLoop {
     /// Side tensions `(T_a, T_b)` (N) at loop stretch `Δ` (m) and rate `Δ̇` (m/s).
     ///
-    /// The exponential law needs one `expm1` per loop, not two: with `m = expm1(Δ/ℓ)`,
-    /// `expm1(−Δ/ℓ) = −m/(1 + m)` exactly, and the quotient keeps full relative precision
-    /// for small stretches (the exponentials are a third of an RK4 step of the Raven model).
+    /// The exponential law evaluates both sides' `expm1(±Δ/ℓ)` together ([`expm1_pair`]):
+    /// the exponentials were a third of an RK4 step of the Raven model.
     #[inline]
     pub fn tensions(&self, delta: f64, delta_rate: f64) -> (f64, f64) {
         let run = &self.run;
@@ -283,9 +286,9 @@ impl CableLoop {
                 stiffness,
                 length_scale,
             } => {
-                let m = expm1_small(delta / length_scale);
+                let (ma, mb) = expm1_pair(delta / length_scale);
                 let kl = stiffness * length_scale;
-                (kl * m, kl * (-m / (1.0 + m)))
+                (kl * ma, kl * mb)
             }
         };
         let c = run.damping * delta_rate;
@@ -296,7 +299,7 @@ impl CableLoop {
     }
 
     /// [`CableLoop::tensions`] of four stretches at once (same operations; the polynomial
-    /// branch of [`expm1_small`] runs in SIMD lanes when every lane takes it).
+    /// branch of [`expm1_pair`] runs in SIMD lanes when every lane takes it).
     #[inline(always)]
     pub fn tensions_lanes(&self, delta: &Lanes, delta_rate: &Lanes) -> (Lanes, Lanes) {
         let run = &self.run;
@@ -310,15 +313,20 @@ impl CableLoop {
                 length_scale,
             } => {
                 let x: Lanes = std::array::from_fn(|l| delta[l] / length_scale);
-                let m: Lanes = if x.iter().all(|x| x.abs() < EXPM1_TAYLOR_BELOW) {
-                    x.map(expm1_taylor)
+                let (ma, mb): (Lanes, Lanes) = if x.iter().all(|x| x.abs() < EXPM1_TAYLOR_BELOW) {
+                    let (odd, even) = (x.map(taylor_odd), x.map(taylor_even));
+                    (
+                        std::array::from_fn(|l| even[l] + odd[l]),
+                        std::array::from_fn(|l| even[l] - odd[l]),
+                    )
                 } else {
-                    x.map(expm1_small)
+                    let m = x.map(expm1_pair);
+                    (m.map(|m| m.0), m.map(|m| m.1))
                 };
                 let kl = stiffness * length_scale;
                 (
-                    std::array::from_fn(|l| kl * m[l]),
-                    std::array::from_fn(|l| kl * (-m[l] / (1.0 + m[l]))),
+                    std::array::from_fn(|l| kl * ma[l]),
+                    std::array::from_fn(|l| kl * mb[l]),
                 )
             }
         };
@@ -362,15 +370,17 @@ mod tests {
         let mut x = 1e-12;
         while x < 1e-1 {
             for v in [x, -x] {
-                let (got, want) = (expm1_small(v), v.exp_m1());
-                assert!(
-                    (got - want).abs() <= 2.0 * f64::EPSILON * want.abs(),
-                    "x = {v}: {got} vs {want}"
-                );
+                let (got, got_neg) = expm1_pair(v);
+                for (got, want) in [(got, v.exp_m1()), (got_neg, (-v).exp_m1())] {
+                    assert!(
+                        (got - want).abs() <= 2.0 * f64::EPSILON * want.abs(),
+                        "x = {v}: {got} vs {want}"
+                    );
+                }
             }
             x *= 1.37;
         }
-        assert_eq!(expm1_small(0.0), 0.0);
+        assert_eq!(expm1_pair(0.0), (0.0, 0.0));
     }
 
     #[test]

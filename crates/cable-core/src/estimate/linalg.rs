@@ -5,6 +5,8 @@
 
 use nalgebra::{DMatrix, SymmetricEigen};
 
+use crate::lanes::{Lanes, LANES};
+
 /// The rank-one update or downdate of a Cholesky factor lost positive definiteness at `column`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DowndateFailed {
@@ -17,109 +19,267 @@ pub struct DowndateFailed {
 /// or not finite: callers that must recover keep a copy.
 pub fn cholupdate(l: &mut [f64], n: usize, v: &mut [f64], sign: f64) -> Result<(), DowndateFailed> {
     debug_assert!(l.len() >= n * n && v.len() >= n);
+    cholupdate_columns(l, n, v, n, 1, sign)
+}
+
+/// `count` rank-one updates (`sign = 1`) or downdates (`sign = −1`) of the lower factor `L`
+/// (`n × n`, column-major) by the columns of `vs` (`n × count`, column-major with leading
+/// dimension `ld ≥ n`, overwritten), with the same arithmetic as `count` calls of
+/// [`cholupdate`] one after the other. The loops run column by column of `L`, each vector in
+/// turn, so that the independent rotations of the vectors overlap in the pipeline instead of
+/// waiting on one square root and one division per column of each (the rank-`m` downdate
+/// `S ← cholupdate(S, K·S_y, −1)` of the measurement update).
+pub fn cholupdate_columns(
+    l: &mut [f64],
+    n: usize,
+    vs: &mut [f64],
+    ld: usize,
+    count: usize,
+    sign: f64,
+) -> Result<(), DowndateFailed> {
+    debug_assert!(l.len() >= n * n && ld >= n && vs.len() >= ld * count.saturating_sub(1) + n);
     for k in 0..n {
-        let lkk = l[k + k * n];
-        let vk = v[k];
-        if vk == 0.0 {
-            continue; // nothing to rotate into this column
-        }
-        let r2 = lkk * lkk + sign * vk * vk;
-        if !(r2 > 0.0 && r2.is_finite()) || (sign < 0.0 && lkk <= 0.0) {
-            return Err(DowndateFailed { column: k });
-        }
-        let r = r2.sqrt();
         let col = &mut l[k * n..(k + 1) * n];
-        col[k] = r;
-        if sign > 0.0 {
-            // Givens rotation of [L[:,k], v]: defined for a zero pivot too
-            let (c, s) = (lkk / r, vk / r);
-            for i in k + 1..n {
-                let (li, vi) = (col[i], v[i]);
-                col[i] = c * li + s * vi;
-                v[i] = c * vi - s * li;
+        for m in 0..count {
+            let v = &mut vs[m * ld..m * ld + n];
+            let lkk = col[k];
+            let vk = v[k];
+            if vk == 0.0 {
+                continue; // nothing to rotate into this column
             }
-        } else {
-            // hyperbolic rotation
-            let (c, s) = (r / lkk, vk / lkk);
-            let inv_c = lkk / r;
-            for i in k + 1..n {
-                col[i] = (col[i] - s * v[i]) * inv_c;
-                v[i] = c * v[i] - s * col[i];
+            let r2 = lkk * lkk + sign * vk * vk;
+            if !(r2 > 0.0 && r2.is_finite()) || (sign < 0.0 && lkk <= 0.0) {
+                return Err(DowndateFailed { column: k });
+            }
+            // √r2 and 1/r2 are independent: 1/r = √r2 · (1/r2) keeps one long-latency
+            // operation off the chain from one column to the next
+            let r = r2.sqrt();
+            let inv_r = r * (1.0 / r2);
+            col[k] = r;
+            let (head, tail) = (&mut col[k + 1..], &mut v[k + 1..]);
+            if sign > 0.0 {
+                // Givens rotation of [L[:,k], v]: defined for a zero pivot too
+                let (c, s) = (lkk * inv_r, vk * inv_r);
+                for (li, vi) in head.iter_mut().zip(tail.iter_mut()) {
+                    let (a, b) = (*li, *vi);
+                    *li = c * a + s * b;
+                    *vi = c * b - s * a;
+                }
+            } else {
+                // hyperbolic rotation
+                let inv_l = 1.0 / lkk;
+                let (c, s, inv_c) = (r * inv_l, vk * inv_l, lkk * inv_r);
+                for (li, vi) in head.iter_mut().zip(tail.iter_mut()) {
+                    let a = (*li - s * *vi) * inv_c;
+                    *li = a;
+                    *vi = c * *vi - s * a;
+                }
             }
         }
     }
     Ok(())
 }
 
-/// `Σ a[i]·b[i]` with four independent accumulators (vectorisable; the rounding differs from
-/// a sequential sum only in the order of additions).
-#[inline(always)]
-pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len());
-    let (a, b) = (&a[..n], &b[..n]);
-    let mut acc = [0.0; 4];
-    let chunks = n / 4;
-    for c in 0..chunks {
-        let i = 4 * c;
-        acc[0] += a[i] * b[i];
-        acc[1] += a[i + 1] * b[i + 1];
-        acc[2] += a[i + 2] * b[i + 2];
-        acc[3] += a[i + 3] * b[i + 3];
-    }
-    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
-    for i in 4 * chunks..n {
-        s += a[i] * b[i];
-    }
-    s
+/// Rows of an [`lq_lower`] workspace: `n` rounded up to whole SIMD lanes.
+pub const fn padded(n: usize) -> usize {
+    n.div_ceil(LANES) * LANES
 }
 
-/// Lower factor `L = Rᵀ` of the QR decomposition of `a` (`rows × n`, column-major, destroyed),
-/// with the signs chosen so that `L` has a non-negative diagonal: `L·Lᵀ = aᵀ·a`, and `L` is the
-/// Cholesky factor of `aᵀ·a`. Householder reflections; `l` is `n × n` (zeroed above the
-/// diagonal). When the last `tail` rows of `a` form an upper-triangular block (a square root of
-/// a noise covariance, transposed), the reflections skip the rows known to be zero.
-pub fn qr_lower(a: &mut [f64], rows: usize, n: usize, tail: usize, l: &mut [f64]) {
-    debug_assert!(a.len() >= rows * n && l.len() >= n * n && tail <= rows);
-    let steps = n.min(rows);
-    for k in 0..steps {
-        // rows k..end can be non-zero in column k (and in the columns right of it, the
-        // triangular tail has zeros below row rows − tail + k)
-        let end = (rows - tail + k + 1).min(rows);
-        let (head, rest) = a.split_at_mut((k + 1) * rows);
-        let colk = &mut head[k * rows..];
-        let norm = dot(&colk[k..end], &colk[k..end]).sqrt();
-        if norm == 0.0 {
+/// Lower factor `L` (`n × n`, column-major, non-negative diagonal) with `L·Lᵀ = A·Aᵀ`: the
+/// transpose of `R` in the QR decomposition of `Aᵀ`, i.e. the square root that the filter's
+/// `qr([√W·(χ − x̂), √Q])` stands for. `a` is `n × cols`, column-major with leading dimension
+/// [`padded`]`(n)` whose padding rows are zero; it is destroyed. Columns `dense..cols` must
+/// form a lower-triangular block (column `dense + t` zero above row `t`: the square root of a
+/// noise covariance), whose known zeros the reflections skip. `w` is scratch of length
+/// [`padded`]`(n)`.
+///
+/// Householder reflections from the right, one per row. Each column is one weighted
+/// deviation (as the sigma points are stored), so a reflection runs down contiguous columns a
+/// SIMD block at a time with no horizontal sums, and the product `A·x` with the row `x` is
+/// formed before the row's norm is known (`A·v = A·x − α·A·e_k`), so the square root and the
+/// division overlap with it instead of waiting in line (at `n = 12` this kernel is bound by
+/// latency, not by arithmetic). The norm itself is the row's own entry of `A·x`. Up to 24
+/// rows the columns are fixed-size arrays held in registers, with 256-bit lanes when the CPU
+/// has AVX2 (same operations, same bits); larger `n` runs block by block.
+pub fn lq_lower(a: &mut [f64], n: usize, cols: usize, dense: usize, w: &mut [f64], l: &mut [f64]) {
+    let ld = padded(n);
+    assert!(
+        a.len() >= ld * cols && l.len() >= n * n && dense <= cols && w.len() >= ld,
+        "lq_lower: workspace too small"
+    );
+    macro_rules! fixed {
+        ($($ld:literal => $chains:literal),*) => {
+            match ld {
+                $($ld => {
+                    #[cfg(target_arch = "x86_64")]
+                    if crate::lanes::cpu_has_avx2() {
+                        #[allow(unsafe_code)]
+                        // SAFETY: the CPU reported AVX2, all `lq_fixed_avx2` requires
+                        unsafe { lq_fixed_avx2::<$ld, $chains>(a, n, cols, dense, l) };
+                        return;
+                    }
+                    lq_fixed::<$ld, $chains>(a, n, cols, dense, l)
+                })*
+                _ => lq_blocks(a, n, cols, dense, w, l),
+            }
+        };
+    }
+    // independent accumulator chains: as many as the 16 vector registers allow
+    fixed!(4 => 4, 8 => 4, 12 => 4, 16 => 2, 20 => 2, 24 => 2);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn lq_fixed_avx2<const LD: usize, const C: usize>(
+    a: &mut [f64],
+    n: usize,
+    cols: usize,
+    dense: usize,
+    l: &mut [f64],
+) {
+    lq_fixed::<LD, C>(a, n, cols, dense, l);
+}
+
+/// The reflection of row `k` from `s2 = |x|²` and `x_k`: `(α, 1/(vᵀv/2))` with
+/// `v = x − α·e_k`, `α = −sign(x_k)·|x|`; `vᵀv = 2·|x|·(|x| + |x_k|)` (no cancellation).
+#[inline(always)]
+fn reflector(s2: f64, xk: f64) -> (f64, f64) {
+    let norm = s2.sqrt();
+    let alpha = if xk > 0.0 { -norm } else { norm };
+    (alpha, 1.0 / (norm * (norm + xk.abs())))
+}
+
+/// `L[i, k] = sign_k · A[i, k]` for `i ≥ k` (zero columns past the last reflection).
+#[inline(always)]
+fn extract_lower(a: &[f64], ld: usize, n: usize, steps: usize, l: &mut [f64]) {
+    for k in 0..n {
+        let col = &mut l[k * n..(k + 1) * n];
+        if k >= steps {
+            col.fill(0.0);
             continue;
         }
-        let alpha = if colk[k] > 0.0 { -norm } else { norm };
-        colk[k] -= alpha; // v = x − α·e_k, stored in place
-                          // vᵀv = |x|² − 2α·x_k + α² = 2α² − 2α·x_k (x_k the original entry)
-        let vnorm2 = dot(&colk[k..end], &colk[k..end]);
-        if vnorm2 > 0.0 {
-            let scale = 2.0 / vnorm2;
-            let v = &colk[k..end];
-            for j in 0..n - k - 1 {
-                let cj = &mut rest[j * rows + k..j * rows + end];
-                let f = scale * dot(v, cj);
-                for (c, vi) in cj.iter_mut().zip(v) {
-                    *c -= f * vi;
+        let sgn = if a[k + k * ld] < 0.0 { -1.0 } else { 1.0 };
+        for (i, li) in col.iter_mut().enumerate() {
+            *li = if i < k { 0.0 } else { sgn * a[i + k * ld] };
+        }
+    }
+}
+
+/// [`lq_lower`] with the whole padded column (`LD` rows) in registers and `C` accumulator
+/// chains. Rows above `k` are finished: they take part in the reflections but influence no
+/// other row (and what rounding leaves right of their diagonal is never read).
+#[inline(always)]
+fn lq_fixed<const LD: usize, const C: usize>(
+    a: &mut [f64],
+    n: usize,
+    cols: usize,
+    dense: usize,
+    l: &mut [f64],
+) {
+    let steps = n.min(cols);
+    for k in 0..steps {
+        // row k is non-zero in columns k..end only: a tail column dense + t is untouched (and
+        // zero in row k) while t > k
+        let end = (dense + k + 1).min(cols);
+        let block = &mut a[k * LD..end * LD];
+        // A·x over the columns, C chains
+        let mut acc = [[0.0; LD]; C];
+        let mut groups = block.chunks_exact(C * LD);
+        for group in groups.by_ref() {
+            for (acc, col) in acc.iter_mut().zip(group.chunks_exact(LD)) {
+                let col: &[f64; LD] = col.try_into().expect("LD");
+                let xj = col[k];
+                for r in 0..LD {
+                    acc[r] += xj * col[r];
                 }
             }
         }
-        colk[k] = alpha;
-    }
-    // L[j, i] = sign_i · R[i, j] for j ≥ i
-    for i in 0..n {
-        let rii = if i < rows { a[i + i * rows] } else { 0.0 };
-        let sgn = if rii < 0.0 { -1.0 } else { 1.0 };
-        for j in 0..n {
-            l[j + i * n] = if j < i || i >= rows {
-                0.0
-            } else {
-                sgn * a[i + j * rows]
-            };
+        for (acc, col) in acc.iter_mut().zip(groups.remainder().chunks_exact(LD)) {
+            let col: &[f64; LD] = col.try_into().expect("LD");
+            let xj = col[k];
+            for r in 0..LD {
+                acc[r] += xj * col[r];
+            }
         }
+        let ax: [f64; LD] =
+            std::array::from_fn(|r| chain_sum(std::array::from_fn::<f64, C, _>(|c| acc[c][r])));
+        let s2 = ax[k];
+        if s2 == 0.0 {
+            continue; // row k is zero already: L[k,k] = 0, column k stays as it is
+        }
+        let xk = block[k];
+        let (alpha, scale) = reflector(s2, xk);
+        // w = scale·A·v = scale·(A·x − α·A[:,k]); A ← A − w·vᵀ, v_j read before column j changes
+        let colk: &[f64; LD] = block[..LD].try_into().expect("LD");
+        let w: [f64; LD] = std::array::from_fn(|r| scale * (ax[r] - alpha * colk[r]));
+        for (j, col) in block.chunks_exact_mut(LD).enumerate() {
+            let col: &mut [f64; LD] = col.try_into().expect("LD");
+            let vj = if j == 0 { xk - alpha } else { col[k] };
+            for r in 0..LD {
+                col[r] -= vj * w[r];
+            }
+        }
+        // row k is now α·e_kᵀ up to rounding; the rounding right of the diagonal is never read
+        // and is not cleared (a scalar store there would stall the next vector loads)
+        block[k] = alpha;
     }
+    extract_lower(a, LD, n, steps, l);
+}
+
+/// Sum of the chains in a fixed tree order: `((c₀ + c₁) + (c₂ + c₃))`.
+#[inline(always)]
+fn chain_sum<const C: usize>(c: [f64; C]) -> f64 {
+    match C {
+        1 => c[0],
+        2 => c[0] + c[1],
+        4 => (c[0] + c[1]) + (c[2] + c[3]),
+        _ => c.iter().sum(),
+    }
+}
+
+/// [`lq_lower`] for any size, `LANES` rows at a time with four chains (`w` holds `A·x`).
+fn lq_blocks(a: &mut [f64], n: usize, cols: usize, dense: usize, w: &mut [f64], l: &mut [f64]) {
+    let ld = padded(n);
+    let steps = n.min(cols);
+    for k in 0..steps {
+        let end = (dense + k + 1).min(cols);
+        let blk = |a: &[f64], j: usize, r0: usize| -> Lanes {
+            a[j * ld + r0..j * ld + r0 + LANES]
+                .try_into()
+                .expect("LANES")
+        };
+        for r0 in (0..ld).step_by(LANES) {
+            let mut acc = [[0.0; LANES]; 4];
+            for j in k..end {
+                let (c, xj) = (blk(a, j, r0), a[k + j * ld]);
+                let acc = &mut acc[(j - k) % 4];
+                for t in 0..LANES {
+                    acc[t] += xj * c[t];
+                }
+            }
+            for t in 0..LANES {
+                w[r0 + t] = chain_sum([acc[0][t], acc[1][t], acc[2][t], acc[3][t]]);
+            }
+        }
+        let s2 = w[k];
+        if s2 == 0.0 {
+            continue;
+        }
+        let xk = a[k + k * ld];
+        let (alpha, scale) = reflector(s2, xk);
+        for r in 0..ld {
+            w[r] = scale * (w[r] - alpha * a[r + k * ld]);
+        }
+        for j in k..end {
+            let vj = if j == k { xk - alpha } else { a[k + j * ld] };
+            let col = &mut a[j * ld..(j + 1) * ld];
+            for (c, wr) in col.iter_mut().zip(&w[..ld]) {
+                *c -= vj * wr;
+            }
+        }
+        a[k + k * ld] = alpha;
+    }
+    extract_lower(a, ld, n, steps, l);
 }
 
 /// Solve `L·x = b` in place (`L` lower, `n × n` column-major). A zero pivot gives ±inf/NaN:
@@ -311,47 +471,109 @@ mod tests {
         );
     }
 
-    #[test]
-    fn qr_lower_is_the_cholesky_factor_of_the_gram_matrix() {
-        let (rows, n) = (9, 4);
-        let a: Vec<f64> = (0..rows * n)
-            .map(|k| ((k * 7 + 3) % 11) as f64 - 5.0)
-            .collect();
-        let mut gram = vec![0.0; n * n];
-        for i in 0..n {
-            for j in 0..n {
-                gram[i + j * n] = (0..rows).map(|r| a[r + i * rows] * a[r + j * rows]).sum();
-            }
+    /// `a` (`n × cols`, column-major, leading dimension `n`) into an LQ workspace.
+    fn lq_of(a: &[f64], n: usize, cols: usize, dense: usize) -> Vec<f64> {
+        let ld = padded(n);
+        let mut work = vec![0.0; ld * cols];
+        for j in 0..cols {
+            work[j * ld..j * ld + n].copy_from_slice(&a[j * n..(j + 1) * n]);
         }
-        let mut work = a.clone();
-        let mut l = vec![0.0; n * n];
-        qr_lower(&mut work, rows, n, 0, &mut l);
-        let want = cholesky_psd(&gram, n).unwrap();
-        for k in 0..n * n {
-            assert_relative_eq!(l[k], want[k], epsilon = 1e-10, max_relative = 1e-12);
+        let mut w = vec![f64::NAN; ld];
+        let mut l = vec![f64::NAN; n * n];
+        lq_lower(&mut work, n, cols, dense, &mut w, &mut l);
+        l
+    }
+
+    #[test]
+    fn lq_lower_is_the_cholesky_factor_of_the_gram_matrix() {
+        // every remainder of the row blocks and of the column pairs, wide and narrow
+        for (n, cols) in [
+            (4, 9),
+            (5, 11),
+            (7, 21),
+            (12, 36),
+            (3, 27),
+            (6, 4),
+            (1, 3),
+            (15, 47),
+            (21, 60),
+            (30, 70),
+        ] {
+            let a: Vec<f64> = (0..n * cols)
+                .map(|k| ((k * 7 + 3) % 11) as f64 - 5.0 + 0.01 * k as f64)
+                .collect();
+            let mut gram = vec![0.0; n * n];
+            for i in 0..n {
+                for j in 0..n {
+                    gram[i + j * n] = (0..cols).map(|c| a[i + c * n] * a[j + c * n]).sum();
+                }
+            }
+            let l = lq_of(&a, n, cols, cols);
+            let back = outer_lower(&l, n);
+            for k in 0..n * n {
+                let scale = (gram[k % n * (n + 1)] * gram[k / n * (n + 1)]).sqrt();
+                assert!(
+                    (back[k] - gram[k]).abs() <= 1e-13 * scale,
+                    "n={n} cols={cols} k={k}: {} vs {}",
+                    back[k],
+                    gram[k]
+                );
+            }
+            if cols >= n {
+                let want = cholesky_psd(&gram, n).unwrap();
+                for k in 0..n * n {
+                    assert_relative_eq!(l[k], want[k], epsilon = 1e-10, max_relative = 1e-10);
+                }
+            }
+            for i in 0..n {
+                assert!(l[i * (n + 1)] >= 0.0);
+                for j in i + 1..n {
+                    assert!(l[i + j * n].to_bits() == 0, "upper triangle");
+                }
+            }
         }
     }
 
     #[test]
-    fn qr_lower_skips_the_zeros_of_a_triangular_tail() {
-        let (dense, n) = (8, 4);
-        let rows = dense + n;
-        let mut a: Vec<f64> = (0..rows * n)
-            .map(|k| ((k * 5 + 1) % 13) as f64 - 6.0)
-            .collect();
-        for c in 0..n {
-            for j in 0..n {
-                if j > c {
-                    a[dense + j + c * rows] = 0.0; // upper-triangular tail
+    fn lq_lower_skips_the_zeros_of_a_triangular_tail() {
+        for (n, dense) in [(4, 8), (12, 24), (3, 24), (6, 3), (18, 36), (29, 58)] {
+            let cols = dense + n;
+            let mut a: Vec<f64> = (0..n * cols)
+                .map(|k| ((k * 5 + 1) % 13) as f64 - 6.0)
+                .collect();
+            for t in 0..n {
+                for i in 0..t {
+                    a[i + (dense + t) * n] = 0.0; // lower-triangular tail
                 }
             }
+            let (l0, l1) = (lq_of(&a, n, cols, cols), lq_of(&a, n, cols, dense));
+            for k in 0..n * n {
+                assert_relative_eq!(l0[k], l1[k], epsilon = 1e-12, max_relative = 1e-12);
+            }
+            // and a tail that is not triangular is not what the skipping version computes
+            a[(dense + n - 1) * n] = 3.0;
+            let (l0, l1) = (lq_of(&a, n, cols, cols), lq_of(&a, n, cols, dense));
+            assert!(l0.iter().zip(&l1).any(|(x, y)| (x - y).abs() > 1e-6));
         }
-        let (mut w0, mut w1) = (a.clone(), a.clone());
-        let (mut l0, mut l1) = (vec![0.0; n * n], vec![0.0; n * n]);
-        qr_lower(&mut w0, rows, n, 0, &mut l0);
-        qr_lower(&mut w1, rows, n, n, &mut l1);
-        for k in 0..n * n {
-            assert_relative_eq!(l0[k], l1[k], epsilon = 1e-12, max_relative = 1e-12);
+    }
+
+    #[test]
+    fn many_updates_equal_one_at_a_time_bit_for_bit() {
+        let n = 7;
+        let l = cholesky_psd(&spd(n, 5), n).unwrap();
+        let ld = 8;
+        let vs: Vec<f64> = (0..ld * 3)
+            .map(|k| 0.05 * ((k * 3 + 1) as f64).sin())
+            .collect();
+        for sign in [1.0, -1.0] {
+            let (mut one, mut many) = (l.clone(), l.clone());
+            let mut w = vs.clone();
+            cholupdate_columns(&mut many, n, &mut w, ld, 3, sign).unwrap();
+            for m in 0..3 {
+                let mut v = vs[m * ld..m * ld + n].to_vec();
+                cholupdate(&mut one, n, &mut v, sign).unwrap();
+            }
+            assert_eq!(one, many);
         }
     }
 

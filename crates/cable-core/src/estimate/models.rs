@@ -194,6 +194,9 @@ pub struct LinearObserve {
     p: usize,
     n: usize,
     h: Vec<f64>,
+    /// `Some(idx)` when every row of `H` is a unit row `e_idx[i]ᵀ`: the product is a gather
+    /// (the same values for finite states, without the multiplications by zero).
+    pick: Option<Vec<usize>>,
 }
 
 impl LinearObserve {
@@ -201,7 +204,16 @@ impl LinearObserve {
     pub fn new(p: usize, n: usize, h: Vec<f64>) -> Result<Self> {
         check::len("H", &h, p * n)?;
         check::all_finite("H", &h, n)?;
-        Ok(Self { p, n, h })
+        #[allow(clippy::float_cmp)] // exact unit rows only
+        let pick = h
+            .chunks_exact(n.max(1))
+            .map(|row| {
+                let ones: Vec<usize> = (0..n).filter(|&j| row[j] != 0.0).collect();
+                (ones.len() == 1 && row[ones[0]] == 1.0).then(|| ones[0])
+            })
+            .collect::<Option<Vec<usize>>>()
+            .filter(|_| n > 0);
+        Ok(Self { p, n, h, pick })
     }
 
     /// Measures the listed states directly (`y_i = x[idx_i]`).
@@ -232,6 +244,12 @@ impl Observe for LinearObserve {
     }
     #[inline]
     fn observe(&mut self, x: &[f64], _u: &[f64], y: &mut [f64]) {
+        if let Some(pick) = &self.pick {
+            for (yi, &k) in y.iter_mut().zip(pick) {
+                *yi = x[k];
+            }
+            return;
+        }
         let n = self.n;
         for (i, yi) in y.iter_mut().enumerate().take(self.p) {
             *yi = self.h[i * n..(i + 1) * n]

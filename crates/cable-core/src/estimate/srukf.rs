@@ -1,8 +1,8 @@
 //! The square-root unscented Kalman filter of van der Merwe (seed 001, eqs 3.9–3.25).
 
 use super::linalg::{
-    cholesky_psd, cholupdate, cholupdate_or_repair, nearest_spd_factor, outer_lower, qr_lower,
-    repaired_factor, solve_lower,
+    cholesky_psd, cholupdate, cholupdate_columns, cholupdate_or_repair, lq_lower,
+    nearest_spd_factor, outer_lower, padded, repaired_factor, solve_lower,
 };
 use super::models::{Observe, Process};
 use crate::error::{check, CableError, Result};
@@ -108,6 +108,8 @@ pub struct SrUkf<P: Process, H: Observe> {
     chi: Vec<f64>,
     ysig: Vec<f64>,
     comp: Vec<f64>,
+    lqv: Vec<f64>,
+    ucols: Vec<f64>,
     dev: Vec<f64>,
     s_saved: Vec<f64>,
     vsave: Vec<f64>,
@@ -118,6 +120,36 @@ pub struct SrUkf<P: Process, H: Observe> {
     nu: Vec<f64>,
     obs: Vec<usize>,
     last_mask: Vec<bool>,
+}
+
+/// `L = qr([√w·(pᵢ − mean)ᵢ, noise])ᵀ`, the square root of `w·Σᵢ(pᵢ − m)(pᵢ − m)ᵀ + N·Nᵀ`
+/// (eqs 3.14 and 3.19): `points` are the consecutive non-central sigma points (`d` values
+/// each, `d = mean.len()`), `noise` the lower `d × d` square root of the additive noise. The
+/// compound is laid out one column per deviation in `comp` (see [`lq_lower`]).
+fn square_root_of_spread(
+    comp: &mut [f64],
+    points: &[f64],
+    mean: &[f64],
+    w_sqrt: f64,
+    noise: &[f64],
+    scratch: &mut [f64],
+    l: &mut [f64],
+) {
+    let d = mean.len();
+    let (ld, dense) = (padded(d), points.len() / d);
+    let cols = dense + d;
+    for (i, col) in comp[..ld * cols].chunks_exact_mut(ld).enumerate() {
+        let (col, pad) = col.split_at_mut(d);
+        if i < dense {
+            for ((c, v), m) in col.iter_mut().zip(&points[i * d..(i + 1) * d]).zip(mean) {
+                *c = w_sqrt * (v - m);
+            }
+        } else {
+            col.copy_from_slice(&noise[(i - dense) * d..(i - dense + 1) * d]);
+        }
+        pad.fill(0.0);
+    }
+    lq_lower(&mut comp[..ld * cols], d, cols, dense, scratch, l);
 }
 
 fn square(name: &str, m: &[f64], n: usize) -> Result<()> {
@@ -179,7 +211,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         let sr = factor("R", r, p, true)?;
         let w = Weights::new(n, scaling)?;
         let ns = 2 * n + 1;
-        let rows = 2 * n + n.max(p);
+        let cols = 2 * n + n.max(p);
         Ok(Self {
             process,
             observe,
@@ -198,7 +230,9 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             },
             chi: vec![0.0; n * ns],
             ysig: vec![0.0; p * ns],
-            comp: vec![0.0; rows * n.max(p)],
+            comp: vec![0.0; padded(n.max(p)) * cols],
+            lqv: vec![0.0; padded(n.max(p))],
+            ucols: vec![0.0; n * p],
             dev: vec![0.0; n.max(p)],
             s_saved: vec![0.0; n * n],
             vsave: vec![0.0; n.max(p)],
@@ -252,13 +286,18 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     /// Sigma points of the current `(x, S)` into `chi` (column `i` = point `i`).
     fn sigma_points(&mut self) {
         let (n, g) = (self.n, self.w.gamma);
-        self.chi[..n].copy_from_slice(&self.x);
-        for j in 0..n {
-            let sj = &self.s[j * n..(j + 1) * n];
-            let (plus, minus) = (1 + j, 1 + n + j);
-            for i in 0..n {
-                self.chi[i + plus * n] = self.x[i] + g * sj[i];
-                self.chi[i + minus * n] = self.x[i] - g * sj[i];
+        let (c0, rest) = self.chi.split_at_mut(n);
+        c0.copy_from_slice(&self.x);
+        let (plus, minus) = rest.split_at_mut(n * n);
+        for ((sj, p), m) in self
+            .s
+            .chunks_exact(n)
+            .zip(plus.chunks_exact_mut(n))
+            .zip(minus.chunks_exact_mut(n))
+        {
+            for (((p, m), x), s) in p.iter_mut().zip(m.iter_mut()).zip(&self.x).zip(sj) {
+                *p = x + g * s;
+                *m = x - g * s;
             }
         }
     }
@@ -300,19 +339,17 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             }
         }
         self.process.project(&mut self.x);
-        // compound [√Wc·(χ_1:2n − x̂), √Q] transposed: rows are the columns
-        let rows = 2 * n + n;
+        // S = qr([√Wc·(χ_1:2n − x̂), √Q]) (eq 3.14)
         let swc = self.w.wc.1.sqrt();
-        for c in 0..n {
-            for i in 0..2 * n {
-                self.comp[i + c * rows] = swc * (self.chi[c + (i + 1) * n] - self.x[c]);
-            }
-            for j in 0..n {
-                // row 2n + j is column j of √Q
-                self.comp[2 * n + j + c * rows] = self.sq[c + j * n];
-            }
-        }
-        qr_lower(&mut self.comp[..rows * n], rows, n, n, &mut self.s);
+        square_root_of_spread(
+            &mut self.comp,
+            &self.chi[n..ns * n],
+            &self.x,
+            swc,
+            &self.sq,
+            &mut self.lqv,
+            &mut self.s,
+        );
         // 0th point, weight possibly negative: update or downdate (eq 3.15)
         let wc0 = self.w.wc.0;
         if wc0 != 0.0 {
@@ -425,21 +462,14 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             self.yhat[a] = y0 + wmi * acc; // eq 3.18, summed as the mean above
         }
         // S_y = qr([√Wc·(Y − ŷ), √R]) (eq 3.19), then the 0th point (eq 3.20)
-        let rows = 2 * n + q;
         let swc = self.w.wc.1.sqrt();
-        for c in 0..q {
-            for i in 0..2 * n {
-                self.comp[i + c * rows] = swc * (self.ysig[c + (i + 1) * q] - self.yhat[c]);
-            }
-            for j in 0..q {
-                self.comp[2 * n + j + c * rows] = self.sr_obs[c + j * q];
-            }
-        }
-        qr_lower(
-            &mut self.comp[..rows * q],
-            rows,
-            q,
-            q,
+        square_root_of_spread(
+            &mut self.comp,
+            &self.ysig[q..ns * q],
+            &self.yhat[..q],
+            swc,
+            &self.sr_obs[..q * q],
+            &mut self.lqv,
             &mut self.sy[..q * q],
         );
         let wc0 = self.w.wc.0;
@@ -476,14 +506,20 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         // point over contiguous columns
         let (wc0, wci) = self.w.wc;
         self.pxy[..n * q].fill(0.0);
+        let dx = &mut self.ucols[..n]; // scratch until the downdate below
         for i in 0..ns {
             let w = if i == 0 { wc0 } else { wci };
-            let xi = &self.chi[i * n..(i + 1) * n];
-            for c in 0..q {
-                let dy = w * (self.ysig[c + i * q] - self.yhat[c]);
-                let col = &mut self.pxy[c * n..(c + 1) * n];
-                for ((p, xv), xm) in col.iter_mut().zip(xi).zip(&self.x) {
-                    *p += (xv - xm) * dy;
+            for ((d, xv), xm) in dx
+                .iter_mut()
+                .zip(&self.chi[i * n..(i + 1) * n])
+                .zip(&self.x)
+            {
+                *d = w * (xv - xm);
+            }
+            for (c, col) in self.pxy[..n * q].chunks_exact_mut(n).enumerate() {
+                let dy = self.ysig[c + i * q] - self.yhat[c];
+                for (p, d) in col.iter_mut().zip(dx.iter()) {
+                    *p += d * dy;
                 }
             }
         }
@@ -516,17 +552,10 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         }
         self.dev = row;
         self.process.project(&mut self.x);
-        // S ← cholupdate(S, U, −1) column by column (eq 3.25)
+        // S ← cholupdate(S, U, −1), the q columns of U interleaved (eq 3.25)
         self.s_saved.copy_from_slice(&self.s);
-        let mut failed = false;
-        for c in 0..q {
-            self.dev[..n].copy_from_slice(&self.pxy[c * n..(c + 1) * n]);
-            if cholupdate(&mut self.s, n, &mut self.dev[..n], -1.0).is_err() {
-                failed = true;
-                break;
-            }
-        }
-        if failed {
+        self.ucols[..n * q].copy_from_slice(&self.pxy[..n * q]);
+        if cholupdate_columns(&mut self.s, n, &mut self.ucols[..n * q], n, q, -1.0).is_err() {
             let cols: Vec<Vec<f64>> = (0..q)
                 .map(|c| self.pxy[c * n..(c + 1) * n].to_vec())
                 .collect();
@@ -582,8 +611,10 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         let mut gain = vec![0.0; n * n]; // column-major G
         let mut row = vec![0.0; n];
         let mut dv = vec![0.0; n];
-        let rows = 2 * n + 2 * n;
-        let mut comp = vec![0.0; rows * n];
+        // LQ workspace: n rows (padded, the padding stays zero), up to 4n columns
+        let ld = padded(n);
+        let mut comp = vec![0.0; ld * 4 * n];
+        let mut lqv = vec![0.0; ld];
         let mut recovered = 0u64;
         for k in (0..t - 1).rev() {
             let xk = &xs[k * n..(k + 1) * n];
@@ -604,17 +635,8 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                 let acc: f64 = (1..ns).map(|i| chp[r + i * n] - c0).sum();
                 xp[r] = c0 + wm1 * acc;
             }
-            let prow = 3 * n;
             let sw = wc1.sqrt();
-            for c in 0..n {
-                for i in 0..2 * n {
-                    comp[i + c * prow] = sw * (chp[c + (i + 1) * n] - xp[c]);
-                }
-                for j in 0..n {
-                    comp[2 * n + j + c * prow] = self.sq[c + j * n];
-                }
-            }
-            qr_lower(&mut comp[..prow * n], prow, n, n, &mut sp);
+            square_root_of_spread(&mut comp, &chp[n..], &xp, sw, &self.sq, &mut lqv, &mut sp);
             if wc0 != 0.0 {
                 let a = wc0.abs().sqrt();
                 for r in 0..n {
@@ -666,7 +688,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                     if i == 0 {
                         dev0[r] = d;
                     } else {
-                        comp[(i - 1) + r * rows] = sw * d;
+                        comp[r + (i - 1) * ld] = sw * d;
                     }
                 }
             }
@@ -677,12 +699,19 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                         for c in 0..n {
                             acc += gain[r + c * n] * factor[c + j * n];
                         }
-                        comp[block + j + r * rows] = acc;
+                        comp[r + (block + j) * ld] = acc;
                     }
                 }
             }
             let mut snew = vec![0.0; n * n];
-            qr_lower(&mut comp[..rows * n], rows, n, 0, &mut snew);
+            lq_lower(
+                &mut comp[..ld * 4 * n],
+                n,
+                4 * n,
+                4 * n,
+                &mut lqv,
+                &mut snew,
+            );
             if wc0 != 0.0 {
                 let a = wc0.abs().sqrt();
                 for v in &mut dev0 {
