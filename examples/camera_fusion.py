@@ -12,14 +12,12 @@ Usage: python examples/camera_fusion.py [--out out/camera_fusion]
 
 from __future__ import annotations
 
-import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 
 from cablekit.estimate import TransmissionParameters, estimate_joint_states, estimate_parameters
-from cablekit.plotting import pyplot_or_none
+from cablekit.scripts import finish_table, script_options
 from cablekit.twins import ENCODER_LSB, raven_camera_experiment
 
 SIGMA = float(np.hypot(2e-5, ENCODER_LSB / np.sqrt(12)))
@@ -80,12 +78,7 @@ def occlusion_sweep(updated, levels, seconds: float, seed: int):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="out/camera_fusion")
-    ap.add_argument("--seconds", type=float, default=20.0)
-    args = ap.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    args, out = script_options(__doc__, "out/camera_fusion", seconds=20.0)
     t0 = time.perf_counter()
     est, true_r, updated = identify(30.0, 0)
     r_hat = est.values[-1, 0]
@@ -113,10 +106,7 @@ def main() -> None:
             ]
             lines.append("| " + " | ".join(cells) + " |")
     text = "\n".join(lines)
-    print(text)
-    print(f"({time.perf_counter() - t0:.1f} s)")
-    (out / "table.md").write_text(text + "\n")
-    plt = pyplot_or_none()
+    plt = finish_table(out, text, t0)
     if plt is None:
         return
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))

@@ -10,14 +10,12 @@ Usage: python examples/external_force.py [--out out/external_force]
 
 from __future__ import annotations
 
-import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 
 from cablekit.estimate import CableStretchForce, estimate_external_force, stretch_and_rate
-from cablekit.plotting import pyplot_or_none
+from cablekit.scripts import finish_table, script_options
 from cablekit.twins import BASKET, ENCODER_LSB, LINEAR_ENCODER_LSB, raven_force_experiment
 
 SIGMA = float(np.hypot(2e-5, ENCODER_LSB / np.sqrt(12)))
@@ -61,11 +59,7 @@ def per_weight(run, force):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="out/external_force")
-    args = ap.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    _, out = script_options(__doc__, "out/external_force")
     t0 = time.perf_counter()
     runs = {
         "zero force": raven_force_experiment("zero"),
@@ -103,10 +97,7 @@ def main() -> None:
         f"upper {method.upper * 1e6:.1f} µm, σ {method.sigma * 1e6:.1f} µm"
     )
     text = "\n".join(lines)
-    print(text)
-    print(f"({time.perf_counter() - t0:.1f} s)")
-    (out / "table.md").write_text(text + "\n")
-    plt = pyplot_or_none()
+    plt = finish_table(out, text, t0)
     if plt is None:
         return
     fig, axes = plt.subplots(3, 2, figsize=(13, 10), gridspec_kw={"width_ratios": [3, 1]})

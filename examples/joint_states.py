@@ -8,14 +8,12 @@ Writes table.md and joint_states.png (with the report extra) to --out.
 
 from __future__ import annotations
 
-import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 
 from cablekit.estimate import estimate_joint_states
-from cablekit.plotting import pyplot_or_none
+from cablekit.scripts import finish_table, script_options
 from cablekit.twins import ENCODER_LSB, raven_joint_state_experiment
 
 UNITS = [("deg", 180 / np.pi), ("deg", 180 / np.pi), ("cm", 100.0)]
@@ -31,13 +29,7 @@ def errors(est, q_true, dt):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=20.0)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--out", default="out/joint_states")
-    args = ap.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    args, out = script_options(__doc__, "out/joint_states", seconds=20.0, seed=0)
     rows, series = [], {}
     for exp in "ABC":
         t0 = time.perf_counter()
@@ -77,9 +69,7 @@ def main() -> None:
         ak = np.mean([r[2][j] for r in rows])
         lines.append(f"| {j + 1} | {au:.4f} | {ak:.4f} | {100 * (ak - au) / ak:.1f} % | {UNITS[j][0]} |")
     text = "\n".join(lines)
-    print(text)
-    (out / "table.md").write_text(text + "\n")
-    plt = pyplot_or_none()
+    plt = finish_table(out, text)
     if plt is None:
         return
     fig, axes = plt.subplots(3, 2, figsize=(12, 8), gridspec_kw={"width_ratios": [3, 1]})

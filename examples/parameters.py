@@ -7,25 +7,17 @@ Usage: python examples/parameters.py [--seconds 40] [--out out/parameters]
 
 from __future__ import annotations
 
-import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 
 from cablekit.estimate import estimate_parameters
-from cablekit.plotting import pyplot_or_none
+from cablekit.scripts import finish_table, script_options
 from cablekit.twins import raven_parameter_experiment
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=40.0)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--out", default="out/parameters")
-    args = ap.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    args, out = script_options(__doc__, "out/parameters", seconds=40.0, seed=0)
     t0 = time.perf_counter()
     run = raven_parameter_experiment(args.seconds, args.seed)
     est = estimate_parameters(
@@ -46,9 +38,7 @@ def main() -> None:
             f"{e:+.2f} % | {100 * est.std[-1, j] / abs(true[j]):.2f} % |"
         )
     text = "\n".join(lines)
-    print(text)
-    (out / "table.md").write_text(text + "\n")
-    plt = pyplot_or_none()
+    plt = finish_table(out, text)
     if plt is None:
         return
     t = np.arange(len(run.q_m)) * run.dt

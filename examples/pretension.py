@@ -9,14 +9,12 @@ Usage: python examples/pretension.py [--seconds 10] [--out out/pretension]
 
 from __future__ import annotations
 
-import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 
 from cablekit.estimate import PretensionMap, StringCalibration, estimate_stiffness
-from cablekit.plotting import pyplot_or_none
+from cablekit.scripts import finish_table, script_options
 from cablekit.twins import ENCODER_LSB, LINEAR_ENCODER_LSB, raven_pretension_run
 
 SIGMA = float(np.hypot(2e-5, ENCODER_LSB / np.sqrt(12)))
@@ -70,12 +68,7 @@ def study(tensions, seconds: float, seed: int = 0, gauge: int = 5, held_out_ever
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=10.0)
-    ap.add_argument("--out", default="out/pretension")
-    args = ap.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    args, out = script_options(__doc__, "out/pretension", seconds=10.0)
     t0 = time.perf_counter()
     tensions = np.geomspace(4.0, 20.0, 18)
     r = study(tensions, args.seconds)
@@ -103,10 +96,7 @@ def main() -> None:
         f"category correct {100 * acc:.0f} % ({int(right.sum())}/{h.sum()})",
     ]
     text = "\n".join(lines)
-    print(text)
-    print(f"({time.perf_counter() - t0:.1f} s)")
-    (out / "table.md").write_text(text + "\n")
-    plt = pyplot_or_none()
+    plt = finish_table(out, text, t0)
     if plt is None:
         return
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))

@@ -188,19 +188,15 @@ impl SrUkf {
             ));
         }
         let process: DynProcess = guarded(|| {
-            Ok::<DynProcess, CableError>(match any.clone() {
-                AnyModel::Transmission(t) => Box::new(ModelProcess::new(t, dt, substeps)?),
-                AnyModel::Antagonistic(j) => Box::new(ModelProcess::new(j, dt, substeps)?),
-                AnyModel::Dahl(d) => Box::new(ModelProcess::new(d, dt, substeps)?),
-            })
+            Ok::<DynProcess, CableError>(
+                with_model!(any.clone(), m => Box::new(ModelProcess::new(m, dt, substeps)?)),
+            )
         })?;
         let observe: DynObserve = if let Some(idx) = outputs {
             guarded(|| {
-                Ok::<DynObserve, CableError>(match any {
-                    AnyModel::Transmission(t) => Box::new(ModelOutputs::new(t, idx)?),
-                    AnyModel::Antagonistic(j) => Box::new(ModelOutputs::new(j, idx)?),
-                    AnyModel::Dahl(d) => Box::new(ModelOutputs::new(d, idx)?),
-                })
+                Ok::<DynObserve, CableError>(
+                    with_model!(any, m => Box::new(ModelOutputs::new(m, idx)?)),
+                )
             })?
         } else {
             linear_observe(n, states, H)?
@@ -282,11 +278,10 @@ impl SrUkf {
         kappa: f64,
     ) -> PyResult<Self> {
         let process: DynProcess = guarded(|| {
-            Ok::<DynProcess, CableError>(match model.get().inner.clone() {
-                AnyModel::Transmission(t) => Box::new(InputStates::new(t, inputs, dt, substeps)?),
-                AnyModel::Antagonistic(j) => Box::new(InputStates::new(j, inputs, dt, substeps)?),
-                AnyModel::Dahl(d) => Box::new(InputStates::new(d, inputs, dt, substeps)?),
-            })
+            Ok::<DynProcess, CableError>(with_model!(
+                model.get().inner.clone(),
+                m => Box::new(InputStates::new(m, inputs, dt, substeps)?)
+            ))
         })?;
         let observe = linear_observe(process.n_states(), states, H)?;
         Self::build(process, observe, x0, P0, Q, R, scaling(alpha, beta, kappa))
