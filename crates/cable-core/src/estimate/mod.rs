@@ -23,7 +23,8 @@ mod params;
 mod srukf;
 
 pub use models::{
-    InputStates, LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe, Process,
+    InputStates, LinearObserve, LinearProcess, LinearRows, ModelOutputs, ModelProcess, Observe,
+    Process,
 };
 pub use params::{
     with_params, DualSrUkf, ParamObserve, ParamTransmission, RandomWalk, TransmissionParam,

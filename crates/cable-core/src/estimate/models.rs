@@ -33,6 +33,23 @@ pub trait Observe {
     fn n_outputs(&self) -> usize;
     /// Writes `H(x, u)` into `y`.
     fn observe(&mut self, x: &[f64], u: &[f64], y: &mut [f64]);
+    /// `Some` when `H(x, u) = H·x` is linear (and ignores `u`). Sigma points through a
+    /// linear map reproduce `H·x̂`, `H·P·Hᵀ` and `P·Hᵀ` exactly, so the filter then forms
+    /// the measurement update's sums (eqs 3.17–3.21) in closed form from `S`: the same
+    /// update, without the `2n + 1` measured points. `None` (the default) runs the
+    /// sigma-point update.
+    fn linear(&self) -> Option<LinearRows<'_>> {
+        None
+    }
+}
+
+/// The matrix of a linear measurement ([`Observe::linear`]).
+#[derive(Debug, Clone, Copy)]
+pub struct LinearRows<'a> {
+    /// `H`, `p × n` row-major.
+    pub h: &'a [f64],
+    /// `Some(idx)` when row `i` of `H` is the unit row `e_idx[i]ᵀ` (a selection).
+    pub pick: Option<&'a [usize]>,
 }
 
 /// A cable-core model integrated over the filter period `dt` by `substeps` RK4 steps with the
@@ -242,6 +259,12 @@ impl Observe for LinearObserve {
     fn n_outputs(&self) -> usize {
         self.p
     }
+    fn linear(&self) -> Option<LinearRows<'_>> {
+        Some(LinearRows {
+            h: &self.h,
+            pick: self.pick.as_deref(),
+        })
+    }
     #[inline]
     fn observe(&mut self, x: &[f64], _u: &[f64], y: &mut [f64]) {
         if let Some(pick) = &self.pick {
@@ -327,6 +350,9 @@ impl<T: Observe + ?Sized> Observe for Box<T> {
     #[inline]
     fn observe(&mut self, x: &[f64], u: &[f64], y: &mut [f64]) {
         (**self).observe(x, u, y)
+    }
+    fn linear(&self) -> Option<LinearRows<'_>> {
+        (**self).linear()
     }
 }
 

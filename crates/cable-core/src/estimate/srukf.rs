@@ -4,7 +4,7 @@ use super::linalg::{
     cholesky_psd, cholupdate, cholupdate_columns, cholupdate_or_repair, lq_lower,
     nearest_spd_factor, outer_lower, padded, repaired_factor, solve_lower,
 };
-use super::models::{Observe, Process};
+use super::models::{LinearRows, Observe, Process};
 use crate::error::{check, CableError, Result};
 
 /// Sigma-point scaling (seed 001: α = 1e-3, β = 2, κ = 0).
@@ -150,6 +150,65 @@ fn square_root_of_spread(
         pad.fill(0.0);
     }
     lq_lower(&mut comp[..ld * cols], d, cols, dense, scratch, l);
+}
+
+/// `ŷ`, `S_y` and `P_xy` of a linear measurement `y = H·x` in closed form, for the rows
+/// `obs` of `H`. Sigma points `x̂ ± γ·S_j` through `H` give `Yᵢ − ŷ = ±γ·(H·S)_j` and
+/// `Y₀ − ŷ = 0` (eqs 3.16–3.18), so with `2·W_c·γ² = 1` the compound of eq 3.19 holds each
+/// column of `H·S` twice, scaled by `±1/√2`: `S_y = qr([H·S, √R])` (eq 3.20's 0th point adds
+/// nothing) and `P_xy = S·(H·S)ᵀ` (eq 3.21). Exact arithmetic gives the sigma-point result;
+/// rounding is smaller (no `±γ` deviations from `x̂` to subtract).
+fn linear_spread(
+    lin: LinearRows<'_>,
+    obs: &[usize],
+    x: &[f64],
+    s: &[f64],
+    sr: &[f64],
+    comp: &mut [f64],
+    scratch: &mut [f64],
+    yhat: &mut [f64],
+    sy: &mut [f64],
+    pxy: &mut [f64],
+) {
+    let (n, q) = (x.len(), obs.len());
+    let ld = padded(q);
+    // H·S into the first n columns of the compound (column j of H·S: row a = H[obs[a], :]·S[:, j])
+    for (j, col) in comp[..ld * n].chunks_exact_mut(ld).enumerate() {
+        let sj = &s[j * n..(j + 1) * n];
+        for (a, &k) in obs.iter().enumerate() {
+            col[a] = match lin.pick {
+                Some(pick) => sj[pick[k]],
+                None => (j..n).map(|i| lin.h[k * n + i] * sj[i]).sum(),
+            };
+        }
+        col[q..].fill(0.0);
+    }
+    for (a, &k) in obs.iter().enumerate() {
+        yhat[a] = match lin.pick {
+            Some(pick) => x[pick[k]],
+            None => lin.h[k * n..(k + 1) * n]
+                .iter()
+                .zip(x)
+                .map(|(h, x)| h * x)
+                .sum(),
+        };
+    }
+    // P_xy = S·(H·S)ᵀ, column-major n × q (S lower: row r sums columns j ≤ r)
+    pxy.fill(0.0);
+    for j in 0..n {
+        let hs = &comp[j * ld..j * ld + q];
+        let sj = &s[j * n..(j + 1) * n];
+        for (a, h) in hs.iter().enumerate() {
+            for (p, v) in pxy[a * n + j..(a + 1) * n].iter_mut().zip(&sj[j..]) {
+                *p += v * h;
+            }
+        }
+    }
+    for (t, col) in comp[ld * n..ld * (n + q)].chunks_exact_mut(ld).enumerate() {
+        col[..q].copy_from_slice(&sr[t * q..(t + 1) * q]);
+        col[q..].fill(0.0);
+    }
+    lq_lower(&mut comp[..ld * (n + q)], q, n + q, n, scratch, sy);
 }
 
 fn square(name: &str, m: &[f64], n: usize) -> Result<()> {
@@ -431,15 +490,10 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         self.sr_obs[..q * q].copy_from_slice(&l);
     }
 
-    fn update_unchecked(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) {
-        self.set_mask(mask);
-        let (n, p) = (self.n, self.p);
-        let q = self.obs.len();
-        self.health.measured = q;
-        if q == 0 {
-            self.health.nis = f64::NAN;
-            return;
-        }
+    /// `ŷ`, `S_y` and `P_xy` from the sigma points of the predicted `(x, S)` (eqs 3.16–3.21)
+    /// for the observed channels `obs`.
+    fn sigma_spread(&mut self, u: &[f64]) {
+        let (n, p, q) = (self.n, self.p, self.obs.len());
         let ns = 2 * n + 1;
         // redraw sigma points from the predicted (x, S) (eq 3.16) and measure them (eq 3.17)
         self.sigma_points();
@@ -522,6 +576,33 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                     *p += d * dy;
                 }
             }
+        }
+    }
+
+    fn update_unchecked(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) {
+        self.set_mask(mask);
+        let n = self.n;
+        let q = self.obs.len();
+        self.health.measured = q;
+        if q == 0 {
+            self.health.nis = f64::NAN;
+            return;
+        }
+        if let Some(lin) = self.observe.linear() {
+            linear_spread(
+                lin,
+                &self.obs,
+                &self.x,
+                &self.s,
+                &self.sr_obs[..q * q],
+                &mut self.comp,
+                &mut self.lqv,
+                &mut self.yhat[..q],
+                &mut self.sy[..q * q],
+                &mut self.pxy[..n * q],
+            );
+        } else {
+            self.sigma_spread(u);
         }
         // K = (P_xy / S_yᵀ) / S_y (eq 3.22): Z = P_xy·S_y⁻ᵀ row by row, then K = Z·S_y⁻¹
         let sy = &self.sy[..q * q];
@@ -779,6 +860,90 @@ mod tests {
 
     fn dm(r: usize, c: usize, v: &[f64]) -> nalgebra::DMatrix<f64> {
         nalgebra::DMatrix::from_row_slice(r, c, v)
+    }
+
+    /// A linear measurement that does not tell the filter its matrix, so the filter runs the
+    /// sigma-point update (eqs 3.16–3.21) on it.
+    struct Opaque(LinearObserve);
+
+    impl Observe for Opaque {
+        fn n_outputs(&self) -> usize {
+            self.0.n_outputs()
+        }
+        fn observe(&mut self, x: &[f64], u: &[f64], y: &mut [f64]) {
+            self.0.observe(x, u, y)
+        }
+    }
+
+    #[test]
+    fn linear_measurement_in_closed_form_equals_the_sigma_point_update() {
+        let n = 5;
+        // a rotating, slightly damped process with cross-coupling
+        let a: Vec<f64> = (0..n * n)
+            .map(|k| {
+                let (i, j) = (k / n, k % n);
+                if i == j {
+                    0.98
+                } else {
+                    0.05 * ((i * 7 + j * 3) % 5) as f64 - 0.1
+                }
+            })
+            .collect();
+        let q: Vec<f64> = (0..n * n)
+            .map(|k| if k % (n + 1) == 0 { 1e-4 } else { 0.0 })
+            .collect();
+        let p0: Vec<f64> = (0..n * n)
+            .map(|k| if k % (n + 1) == 0 { 0.2 } else { 0.03 })
+            .collect();
+        let x0 = vec![0.3, -0.1, 0.2, 0.0, 0.5];
+        let r = vec![1e-2, 1e-3, 0.0, 1e-3, 2e-2, 0.0, 0.0, 0.0, 5e-3];
+        let dense = vec![
+            1.0, 0.5, 0.0, -0.2, 0.0, //
+            0.0, 0.0, 2.0, 0.0, 0.3, //
+            0.1, 0.1, 0.1, 0.1, 0.1,
+        ];
+        let pick = vec![
+            0.0, 0.0, 0.0, 1.0, 0.0, //
+            1.0, 0.0, 0.0, 0.0, 0.0, //
+            0.0, 0.0, 0.0, 0.0, 1.0,
+        ];
+        // (α, relative tolerance): at α = 1e-3 the sigma-point sums carry ~eps/γ² rounding
+        for (alpha, tol) in [(0.5, 1e-12), (1e-3, 1e-8)] {
+            for h in [&dense, &pick] {
+                let scaling = SigmaScaling {
+                    alpha,
+                    ..SigmaScaling::default()
+                };
+                let process = LinearProcess::new(n, 0, a.clone(), vec![]).unwrap();
+                let observe = LinearObserve::new(3, n, h.clone()).unwrap();
+                assert!(observe.linear().is_some());
+                let mut closed =
+                    SrUkf::new(process.clone(), observe.clone(), &x0, &p0, &q, &r, scaling)
+                        .unwrap();
+                let mut sigma =
+                    SrUkf::new(process, Opaque(observe), &x0, &p0, &q, &r, scaling).unwrap();
+                for k in 0..60 {
+                    let t = k as f64;
+                    let y = [(0.3 * t).sin(), 0.2 * (0.1 * t).cos(), 0.05 * t.sqrt()];
+                    // every fourth step drops the middle channel (the masked path)
+                    let mask = [true, k % 4 != 0, true];
+                    closed.step(&[], &y, Some(&mask)).unwrap();
+                    sigma.step(&[], &y, Some(&mask)).unwrap();
+                    let (pc, ps) = (closed.covariance(), sigma.covariance());
+                    let scale = ps.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+                    for i in 0..n {
+                        assert!(
+                            (closed.x()[i] - sigma.x()[i]).abs() <= tol,
+                            "x[{i}] step {k}"
+                        );
+                    }
+                    for (c, s) in pc.iter().zip(&ps) {
+                        assert!((c - s).abs() <= tol * scale, "P at step {k}");
+                    }
+                    assert!((closed.health().nis - sigma.health().nis).abs() <= tol * 1e3);
+                }
+            }
+        }
     }
 
     #[test]
