@@ -252,6 +252,39 @@ pub fn expm1_pair(x: f64) -> (f64, f64) {
 /// Where [`expm1_pair`] switches from its polynomials to `f64::exp_m1`.
 const EXPM1_TAYLOR_BELOW: f64 = 1e-2;
 
+/// [`expm1_taylor_pair`] of four arguments, written lane-wise (each step one vector
+/// operation over the lanes, in the order [`taylor_odd`] and [`taylor_even`] use).
+#[inline(always)]
+fn taylor_pair_lanes(x: &Lanes) -> (Lanes, Lanes) {
+    let y: Lanes = std::array::from_fn(|l| x[l] * x[l]);
+    // y·(c₀ + y·(c₁ + … + y·c_last)), innermost first
+    let horner = |c: &[f64]| -> Lanes {
+        let (last, rest) = c.split_last().expect("coefficients");
+        let mut t: Lanes = std::array::from_fn(|l| y[l] * last);
+        for k in rest.iter().rev() {
+            t = std::array::from_fn(|l| y[l] * (k + t[l]));
+        }
+        t
+    };
+    // odd = x·(1 + y·(1/6 + y·(1/120 + y·(1/5040))))
+    let odd_tail = horner(&[1.0 / 6.0, 1.0 / 120.0, 1.0 / 5040.0]);
+    let even = horner(&[1.0 / 2.0, 1.0 / 24.0, 1.0 / 720.0, 1.0 / 40320.0]);
+    let odd: Lanes = std::array::from_fn(|l| x[l] * (1.0 + odd_tail[l]));
+    (
+        std::array::from_fn(|l| even[l] + odd[l]),
+        std::array::from_fn(|l| even[l] - odd[l]),
+    )
+}
+
+/// [`expm1_pair`] lane by lane, off the hot path (some `|x|` at or above the polynomials'
+/// range).
+#[cold]
+#[inline(never)]
+fn expm1_pair_lanes_cold(x: &Lanes) -> (Lanes, Lanes) {
+    let m = x.map(expm1_pair);
+    (m.map(|m| m.0), m.map(|m| m.1))
+}
+
 #[inline(always)]
 fn expm1_taylor_pair(x: f64) -> (f64, f64) {
     let (odd, even) = (taylor_odd(x), taylor_even(x));
@@ -313,15 +346,10 @@ impl CableLoop {
                 length_scale,
             } => {
                 let x: Lanes = std::array::from_fn(|l| delta[l] / length_scale);
-                let (ma, mb): (Lanes, Lanes) = if x.iter().all(|x| x.abs() < EXPM1_TAYLOR_BELOW) {
-                    let (odd, even) = (x.map(taylor_odd), x.map(taylor_even));
-                    (
-                        std::array::from_fn(|l| even[l] + odd[l]),
-                        std::array::from_fn(|l| even[l] - odd[l]),
-                    )
+                let (ma, mb) = if x.iter().all(|x| x.abs() < EXPM1_TAYLOR_BELOW) {
+                    taylor_pair_lanes(&x)
                 } else {
-                    let m = x.map(expm1_pair);
-                    (m.map(|m| m.0), m.map(|m| m.1))
+                    expm1_pair_lanes_cold(&x)
                 };
                 let kl = stiffness * length_scale;
                 (

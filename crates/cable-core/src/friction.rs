@@ -164,10 +164,16 @@ impl StaticFriction {
     pub fn force_lanes(&self, v: &Lanes) -> Lanes {
         #[allow(clippy::float_cmp)]
         if self.static_level != self.coulomb {
-            return v.map(|v| self.force(v));
+            return self.force_lanes_stribeck(v);
         }
         let (c, e2, b) = (self.coulomb, self.smoothing * self.smoothing, self.viscous);
         std::array::from_fn(|l| c * (v[l] / (v[l] * v[l] + e2).sqrt()) + b * v[l])
+    }
+
+    /// The Stribeck form lane by lane, out of line (it would bloat the vectorised callers).
+    #[inline(never)]
+    fn force_lanes_stribeck(&self, v: &Lanes) -> Lanes {
+        v.map(|v| self.force(v))
     }
 
     /// Largest slope `|dF/dv|` (at `v = 0`), used to bound the stiffness this friction adds.

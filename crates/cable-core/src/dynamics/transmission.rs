@@ -339,8 +339,17 @@ impl CableTransmission {
     }
 
     /// [`Self::derivative_n`] of four states (structure of arrays), operation for operation.
+    /// `S = 4·N` states as fixed-size arrays, so the link loops unroll with no bounds checks.
     #[inline(always)]
-    fn derivative_lanes_n<const N: usize>(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
+    fn derivative_lanes_n<const N: usize, const S: usize>(
+        &self,
+        x: &[Lanes],
+        u: &[f64],
+        dx: &mut [Lanes],
+    ) {
+        let x: &[Lanes; S] = x.try_into().expect("4 states per link");
+        let dx: &mut [Lanes; S] = dx.try_into().expect("4 states per link");
+        let u = &u[..2 * N];
         let mut gamma = [[0.0; LANES]; N];
         for i in 0..N {
             let (mut tq, mut tw) = ([0.0; LANES], [0.0; LANES]);
@@ -368,7 +377,12 @@ impl CableTransmission {
             let (wm, ql, wl) = (x[4 * i + 1], x[4 * i + 2], x[4 * i + 3]);
             let fm = link.motor_friction.force_lanes(&wm);
             let fl = link.link_friction.force_lanes(&wl);
-            let grav = ql.map(|q| link.gravity.load(link.kind, q));
+            #[allow(clippy::float_cmp)] // exact zero: no gravity (as `Gravity::load`)
+            let grav = if link.gravity.amplitude == 0.0 {
+                [0.0; LANES]
+            } else {
+                ql.map(|q| link.gravity.load(link.kind, q))
+            };
             dx[4 * i] = wm;
             dx[4 * i + 2] = wl;
             for l in 0..LANES {
@@ -446,7 +460,11 @@ impl Model for CableTransmission {
     // 256-bit lanes (a call would run the SSE2 build)
     #[inline(always)]
     fn derivative_lanes(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
-        by_links!(self, self.n_links(), derivative_lanes_n(x, u, dx))
+        match self.n_links() {
+            1 => self.derivative_lanes_n::<1, 4>(x, u, dx),
+            2 => self.derivative_lanes_n::<2, 8>(x, u, dx),
+            _ => self.derivative_lanes_n::<3, 12>(x, u, dx),
+        }
     }
 
     fn output(&self, x: &[f64], _u: &[f64], y: &mut [f64]) {
