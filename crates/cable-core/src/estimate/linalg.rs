@@ -38,28 +38,44 @@ pub fn cholupdate_columns(
     sign: f64,
 ) -> Result<(), DowndateFailed> {
     debug_assert!(l.len() >= n * n && ld >= n && vs.len() >= ld * count.saturating_sub(1) + n);
-    for k in 0..n {
-        let col = &mut l[k * n..(k + 1) * n];
+    if sign > 0.0 {
+        rotate_columns::<true>(l, n, vs, ld, count)
+    } else {
+        rotate_columns::<false>(l, n, vs, ld, count)
+    }
+}
+
+/// [`cholupdate_columns`] for one sign (`UP`: update), the branch on it hoisted.
+#[inline(always)]
+fn rotate_columns<const UP: bool>(
+    l: &mut [f64],
+    n: usize,
+    vs: &mut [f64],
+    ld: usize,
+    count: usize,
+) -> Result<(), DowndateFailed> {
+    let sign = if UP { 1.0 } else { -1.0 };
+    for (k, col) in l[..n * n].chunks_exact_mut(n).enumerate() {
+        let (lkk, head) = col[k..].split_first_mut().expect("k < n");
         for m in 0..count {
-            let v = &mut vs[m * ld..m * ld + n];
-            let lkk = col[k];
-            let vk = v[k];
-            if vk == 0.0 {
+            let (vk, tail) = vs[m * ld + k..m * ld + n].split_first_mut().expect("k < n");
+            let (l0, v0) = (*lkk, *vk);
+            if v0 == 0.0 {
                 continue; // nothing to rotate into this column
             }
-            let r2 = lkk * lkk + sign * vk * vk;
-            if !(r2 > 0.0 && r2.is_finite()) || (sign < 0.0 && lkk <= 0.0) {
+            let r2 = l0 * l0 + sign * v0 * v0;
+            // not positive, or not finite (NaN fails both comparisons)
+            if !(r2 > 0.0 && r2 < f64::INFINITY) || (!UP && l0 <= 0.0) {
                 return Err(DowndateFailed { column: k });
             }
             // √r2 and 1/r2 are independent: 1/r = √r2 · (1/r2) keeps one long-latency
             // operation off the chain from one column to the next
             let r = r2.sqrt();
             let inv_r = r * (1.0 / r2);
-            col[k] = r;
-            let (head, tail) = (&mut col[k + 1..], &mut v[k + 1..]);
-            if sign > 0.0 {
+            *lkk = r;
+            if UP {
                 // Givens rotation of [L[:,k], v]: defined for a zero pivot too
-                let (c, s) = (lkk * inv_r, vk * inv_r);
+                let (c, s) = (l0 * inv_r, v0 * inv_r);
                 for (li, vi) in head.iter_mut().zip(tail.iter_mut()) {
                     let (a, b) = (*li, *vi);
                     *li = c * a + s * b;
@@ -67,8 +83,8 @@ pub fn cholupdate_columns(
                 }
             } else {
                 // hyperbolic rotation
-                let inv_l = 1.0 / lkk;
-                let (c, s, inv_c) = (r * inv_l, vk * inv_l, lkk * inv_r);
+                let inv_l = 1.0 / l0;
+                let (c, s, inv_c) = (r * inv_l, v0 * inv_l, l0 * inv_r);
                 for (li, vi) in head.iter_mut().zip(tail.iter_mut()) {
                     let a = (*li - s * *vi) * inv_c;
                     *li = a;
@@ -159,9 +175,10 @@ fn extract_lower(a: &[f64], ld: usize, n: usize, steps: usize, l: &mut [f64]) {
             continue;
         }
         let sgn = if a[k + k * ld] < 0.0 { -1.0 } else { 1.0 };
-        for (i, li) in col.iter_mut().enumerate() {
-            *li = if i < k { 0.0 } else { sgn * a[i + k * ld] };
+        for (li, v) in col.iter_mut().zip(&a[k * ld..k * ld + n]) {
+            *li = sgn * v;
         }
+        col[..k].fill(0.0);
     }
 }
 

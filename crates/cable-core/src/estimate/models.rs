@@ -134,19 +134,36 @@ impl<M: Model> ModelProcess<M> {
         let h = self.dt / self.substeps as f64;
         for first in (0..count).step_by(LANES) {
             let used = LANES.min(count - first);
-            for (s, lanes) in self.soa.iter_mut().enumerate() {
-                for (l, v) in lanes.iter_mut().enumerate() {
-                    *v = xs[(first + l.min(used - 1)) * n + s];
-                }
-            }
+            gather(xs, n, first, used, &mut self.soa);
             for _ in 0..self.substeps {
                 self.rk4_lanes.step(&self.model, &mut self.soa, u, h);
             }
-            for (s, lanes) in self.soa.iter().enumerate() {
-                for (l, v) in lanes.iter().enumerate().take(used) {
-                    xs[(first + l) * n + s] = *v;
-                }
-            }
+            scatter(&self.soa, n, first, used, xs);
+        }
+    }
+}
+
+/// States `first..first + used` of `xs` (`n` values each) into the lanes of `soa`, the unused
+/// lanes filled with copies of the last state.
+#[inline(always)]
+fn gather(xs: &[f64], n: usize, first: usize, used: usize, soa: &mut [Lanes]) {
+    let points: [&[f64]; LANES] =
+        std::array::from_fn(|l| &xs[(first + l.min(used - 1)) * n..][..n]);
+    for (s, lanes) in soa[..n].iter_mut().enumerate() {
+        *lanes = std::array::from_fn(|l| points[l][s]);
+    }
+}
+
+/// The first `used` lanes of `soa` back to states `first..` of `xs`.
+#[inline(always)]
+fn scatter(soa: &[Lanes], n: usize, first: usize, used: usize, xs: &mut [f64]) {
+    let soa = &soa[..n];
+    for (l, x) in xs[first * n..(first + used) * n]
+        .chunks_exact_mut(n)
+        .enumerate()
+    {
+        for (v, lanes) in x.iter_mut().zip(soa) {
+            *v = lanes[l];
         }
     }
 }
