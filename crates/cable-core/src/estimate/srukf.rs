@@ -6,6 +6,7 @@ use super::linalg::{
 };
 use super::models::{LinearRows, Observe, Process};
 use crate::error::{check, CableError, Result};
+use crate::lanes::LANES;
 
 /// Sigma-point scaling (seed 001: α = 1e-3, β = 2, κ = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -193,13 +194,17 @@ fn linear_spread(
                 .sum(),
         };
     }
-    // P_xy = S·(H·S)ᵀ, column-major n × q (S lower: row r sums columns j ≤ r)
-    pxy.fill(0.0);
-    for j in 0..n {
-        let hs = &comp[j * ld..j * ld + q];
-        let sj = &s[j * n..(j + 1) * n];
-        for (a, h) in hs.iter().enumerate() {
-            for (p, v) in pxy[a * n + j..(a + 1) * n].iter_mut().zip(&sj[j..]) {
+    // P_xy = S·(H·S)ᵀ, column-major n × q, whole columns of S (its zeros above the diagonal
+    // add exact zeros)
+    // (and exact zeros of H·S, e.g. a selected state's row right of its diagonal, are skipped)
+    for (a, p) in pxy.chunks_exact_mut(n).enumerate() {
+        p.fill(0.0);
+        for (j, sj) in s.chunks_exact(n).enumerate() {
+            let h = comp[a + j * ld];
+            if h == 0.0 {
+                continue;
+            }
+            for (p, v) in p.iter_mut().zip(sj) {
                 *p += v * h;
             }
         }
@@ -604,18 +609,25 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         } else {
             self.sigma_spread(u);
         }
-        // K = (P_xy / S_yᵀ) / S_y (eq 3.22): Z = P_xy·S_y⁻ᵀ row by row, then K = Z·S_y⁻¹
+        // K = (P_xy / S_yᵀ) / S_y (eq 3.22): Z = P_xy·S_y⁻ᵀ, each row solving S_y·zᵀ = p_xyᵀ
+        // as `solve_lower` would, all rows at once down the columns; then K = Z·S_y⁻¹
         let sy = &self.sy[..q * q];
+        let z = &mut self.pxy[..n * q];
+        for j in 0..q {
+            let (done, rest) = z.split_at_mut((j + 1) * n);
+            let zj = &mut done[j * n..];
+            let d = sy[j + j * q];
+            for v in zj.iter_mut() {
+                *v /= d;
+            }
+            for (i, zi) in rest.chunks_exact_mut(n).enumerate() {
+                let f = sy[j + 1 + i + j * q];
+                for (a, b) in zi.iter_mut().zip(zj.iter()) {
+                    *a -= f * b;
+                }
+            }
+        } // Z = U (eq 3.24: U = K·S_y)
         let mut row = std::mem::take(&mut self.dev);
-        for r in 0..n {
-            for c in 0..q {
-                row[c] = self.pxy[r + c * n];
-            }
-            solve_lower(sy, q, &mut row[..q]); // (S_y·zᵀ = p_xyᵀ)
-            for c in 0..q {
-                self.pxy[r + c * n] = row[c]; // Z = U (eq 3.24: U = K·S_y)
-            }
-        }
         // innovation and NIS = |S_y⁻¹ν|²
         for (a, &k) in self.obs.iter().enumerate() {
             self.nu[a] = y[k] - self.yhat[a];
@@ -623,13 +635,16 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         row[..q].copy_from_slice(&self.nu[..q]);
         solve_lower(sy, q, &mut row[..q]);
         self.health.nis = row[..q].iter().map(|v| v * v).sum();
-        // x += K·ν = Z·(S_y⁻¹ν)   (K·ν = Z·S_y⁻¹·ν)
-        for r in 0..n {
-            let mut acc = 0.0;
-            for c in 0..q {
-                acc += self.pxy[r + c * n] * row[c];
+        // x += K·ν = Z·(S_y⁻¹ν)   (K·ν = Z·S_y⁻¹·ν), summed over the columns of Z
+        let acc = &mut self.ucols[..n]; // scratch until the downdate below
+        acc.fill(0.0);
+        for (zc, rc) in self.pxy[..n * q].chunks_exact(n).zip(&row[..q]) {
+            for (a, v) in acc.iter_mut().zip(zc) {
+                *a += v * rc;
             }
-            self.x[r] += acc;
+        }
+        for (x, a) in self.x.iter_mut().zip(acc.iter()) {
+            *x += a;
         }
         self.dev = row;
         self.process.project(&mut self.x);
@@ -835,7 +850,18 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         } else {
             f64::INFINITY
         };
-        if self.x.iter().chain(&self.s).any(|v| !v.is_finite()) {
+        // v·0 is ±0 for a finite v and NaN otherwise: one vectorisable sum for the whole state
+        let probe = |m: &[f64]| {
+            let mut acc = [0.0; LANES];
+            let mut blocks = m.chunks_exact(LANES);
+            for b in blocks.by_ref() {
+                for l in 0..LANES {
+                    acc[l] += b[l] * 0.0;
+                }
+            }
+            acc.iter().sum::<f64>() + blocks.remainder().iter().map(|v| v * 0.0).sum::<f64>()
+        };
+        if !(probe(&self.x) + probe(&self.s)).is_finite() {
             return Err(CableError::Diverged {
                 step: 0,
                 time_s: f64::NAN,
@@ -943,6 +969,44 @@ mod tests {
                     assert!((closed.health().nis - sigma.health().nis).abs() <= tol * 1e3);
                 }
             }
+        }
+    }
+
+    #[test]
+    fn a_state_that_overflows_is_a_divergence_error_not_a_nan() {
+        // x' = 1e200·x: finite for one step from x = 1, infinite after two; P overflows first
+        for (x0, p0) in [(1.0, 1e-300), (1e-300, 1.0)] {
+            let n = 2;
+            let a = vec![1e200, 0.0, 0.0, 1e200];
+            let mut f = SrUkf::new(
+                LinearProcess::new(n, 0, a, vec![]).unwrap(),
+                LinearObserve::select(n, &[0]).unwrap(),
+                &[x0, x0],
+                &[p0, 0.0, 0.0, p0],
+                &[0.0; 4],
+                &[1e-2],
+                SigmaScaling {
+                    alpha: 0.5,
+                    ..SigmaScaling::default()
+                },
+            )
+            .unwrap();
+            let mut outcome = Ok(());
+            for _ in 0..4 {
+                outcome = f.predict(&[]);
+                if outcome.is_err() {
+                    break;
+                }
+                assert!(f
+                    .x()
+                    .iter()
+                    .chain(f.sqrt_covariance())
+                    .all(|v| v.is_finite()));
+            }
+            assert!(
+                matches!(outcome, Err(CableError::Diverged { .. })),
+                "{outcome:?}"
+            );
         }
     }
 
