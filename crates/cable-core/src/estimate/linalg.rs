@@ -182,9 +182,10 @@ fn extract_lower(a: &[f64], ld: usize, n: usize, steps: usize, l: &mut [f64]) {
     }
 }
 
-/// [`lq_lower`] with the whole padded column (`LD` rows) in registers and `C` accumulator
-/// chains. Rows above `k` are finished: they take part in the reflections but influence no
-/// other row (and what rounding leaves right of their diagonal is never read).
+/// [`lq_lower`] with padded columns (`LD` rows) in registers. Rows are finished four at a
+/// time: a finished block of four rows influences no other row (and what rounding leaves right
+/// of a finished row's diagonal is never read), so each reflection runs over the window of the
+/// last `R` rows only, from the block that holds row `k` down (`R = LD − 4·⌊k/4⌋`).
 #[inline(always)]
 fn lq_fixed<const LD: usize, const C: usize>(
     a: &mut [f64],
@@ -198,49 +199,73 @@ fn lq_fixed<const LD: usize, const C: usize>(
         // row k is non-zero in columns k..end only: a tail column dense + t is untouched (and
         // zero in row k) while t > k
         let end = (dense + k + 1).min(cols);
-        let block = &mut a[k * LD..end * LD];
-        // A·x over the columns, C chains
-        let mut acc = [[0.0; LD]; C];
-        let mut groups = block.chunks_exact(C * LD);
-        for group in groups.by_ref() {
-            for (acc, col) in acc.iter_mut().zip(group.chunks_exact(LD)) {
-                let col: &[f64; LD] = col.try_into().expect("LD");
-                let xj = col[k];
-                for r in 0..LD {
-                    acc[r] += xj * col[r];
+        macro_rules! window {
+            ($($r:literal),*) => {
+                match LD - 4 * (k / 4) {
+                    $($r => reflect_row::<LD, $r, C>(a, k, end),)*
+                    _ => unreachable!("LD is a multiple of 4 up to 24"),
                 }
-            }
+            };
         }
-        for (acc, col) in acc.iter_mut().zip(groups.remainder().chunks_exact(LD)) {
-            let col: &[f64; LD] = col.try_into().expect("LD");
-            let xj = col[k];
-            for r in 0..LD {
+        window!(4, 8, 12, 16, 20, 24);
+    }
+    extract_lower(a, LD, n, steps, l);
+}
+
+/// The reflection of row `k` over columns `k..end`, on the last `R` rows of each column, with
+/// `C` accumulator chains for `A·x`.
+#[inline(always)]
+fn reflect_row<const LD: usize, const R: usize, const C: usize>(
+    a: &mut [f64],
+    k: usize,
+    end: usize,
+) {
+    if R > LD {
+        return; // not a window of this LD (the match above never picks it)
+    }
+    let off = LD - R;
+    let kk = k - off;
+    let block = &mut a[k * LD..end * LD];
+    // A·x over the columns, C chains
+    let mut acc = [[0.0; R]; C];
+    let mut groups = block.chunks_exact(C * LD);
+    for group in groups.by_ref() {
+        for (acc, col) in acc.iter_mut().zip(group.chunks_exact(LD)) {
+            let col: &[f64; R] = col[off..].try_into().expect("R");
+            let xj = col[kk];
+            for r in 0..R {
                 acc[r] += xj * col[r];
             }
         }
-        let ax: [f64; LD] =
-            std::array::from_fn(|r| chain_sum(std::array::from_fn::<f64, C, _>(|c| acc[c][r])));
-        let s2 = ax[k];
-        if s2 == 0.0 {
-            continue; // row k is zero already: L[k,k] = 0, column k stays as it is
-        }
-        let xk = block[k];
-        let (alpha, scale) = reflector(s2, xk);
-        // w = scale·A·v = scale·(A·x − α·A[:,k]); A ← A − w·vᵀ, v_j read before column j changes
-        let colk: &[f64; LD] = block[..LD].try_into().expect("LD");
-        let w: [f64; LD] = std::array::from_fn(|r| scale * (ax[r] - alpha * colk[r]));
-        for (j, col) in block.chunks_exact_mut(LD).enumerate() {
-            let col: &mut [f64; LD] = col.try_into().expect("LD");
-            let vj = if j == 0 { xk - alpha } else { col[k] };
-            for r in 0..LD {
-                col[r] -= vj * w[r];
-            }
-        }
-        // row k is now α·e_kᵀ up to rounding; the rounding right of the diagonal is never read
-        // and is not cleared (a scalar store there would stall the next vector loads)
-        block[k] = alpha;
     }
-    extract_lower(a, LD, n, steps, l);
+    for (acc, col) in acc.iter_mut().zip(groups.remainder().chunks_exact(LD)) {
+        let col: &[f64; R] = col[off..].try_into().expect("R");
+        let xj = col[kk];
+        for r in 0..R {
+            acc[r] += xj * col[r];
+        }
+    }
+    let ax: [f64; R] =
+        std::array::from_fn(|r| chain_sum(std::array::from_fn::<f64, C, _>(|c| acc[c][r])));
+    let s2 = ax[kk];
+    if s2 == 0.0 {
+        return; // row k is zero already: L[k,k] = 0, column k stays as it is
+    }
+    let xk = block[k];
+    let (alpha, scale) = reflector(s2, xk);
+    // w = scale·A·v = scale·(A·x − α·A[:,k]); A ← A − w·vᵀ, v_j read before column j changes
+    let colk: &[f64; R] = block[off..LD].try_into().expect("R");
+    let w: [f64; R] = std::array::from_fn(|r| scale * (ax[r] - alpha * colk[r]));
+    for (j, col) in block.chunks_exact_mut(LD).enumerate() {
+        let col: &mut [f64; R] = (&mut col[off..]).try_into().expect("R");
+        let vj = if j == 0 { xk - alpha } else { col[kk] };
+        for r in 0..R {
+            col[r] -= vj * w[r];
+        }
+    }
+    // row k is now α·e_kᵀ up to rounding; the rounding right of the diagonal is never read
+    // and is not cleared (a scalar store there would stall the next vector loads)
+    block[k] = alpha;
 }
 
 /// Sum of the chains in a fixed tree order: `((c₀ + c₁) + (c₂ + c₃))`.
