@@ -194,9 +194,9 @@ fn linear_spread(
                 .sum(),
         };
     }
-    // P_xy = S·(H·S)ᵀ, column-major n × q, whole columns of S (its zeros above the diagonal
-    // add exact zeros)
-    // (and exact zeros of H·S, e.g. a selected state's row right of its diagonal, are skipped)
+    // P_xy = S·(H·S)ᵀ, column-major n × q, over whole columns of S (the zeros above its
+    // diagonal add exact zeros); exact zeros of H·S (a selected state's row right of its
+    // diagonal) are skipped
     for (a, p) in pxy.chunks_exact_mut(n).enumerate() {
         p.fill(0.0);
         for (j, sj) in s.chunks_exact(n).enumerate() {
