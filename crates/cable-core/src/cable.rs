@@ -266,9 +266,8 @@ fn taylor_pair_lanes(x: &Lanes) -> (Lanes, Lanes) {
         }
         t
     };
-    // odd = x·(1 + y·(1/6 + y·(1/120 + y·(1/5040))))
-    let odd_tail = horner(&[1.0 / 6.0, 1.0 / 120.0, 1.0 / 5040.0]);
-    let even = horner(&[1.0 / 2.0, 1.0 / 24.0, 1.0 / 720.0, 1.0 / 40320.0]);
+    let odd_tail = horner(&ODD_TAIL);
+    let even = horner(&EVEN);
     let odd: Lanes = std::array::from_fn(|l| x[l] * (1.0 + odd_tail[l]));
     (
         std::array::from_fn(|l| even[l] + odd[l]),
@@ -291,18 +290,30 @@ fn expm1_taylor_pair(x: f64) -> (f64, f64) {
     (even + odd, even - odd)
 }
 
+/// `1/3!, 1/5!, 1/7!`: the odd part of the `exp` series is `x·(1 + y·(c₀ + y·(c₁ + y·c₂)))`
+/// with `y = x²`.
+const ODD_TAIL: [f64; 3] = [1.0 / 6.0, 1.0 / 120.0, 1.0 / 5040.0];
+
+/// `1/2!, 1/4!, 1/6!, 1/8!`: the even part less one is `y·(c₀ + y·(c₁ + y·(c₂ + y·c₃)))`.
+const EVEN: [f64; 4] = [1.0 / 2.0, 1.0 / 24.0, 1.0 / 720.0, 1.0 / 40320.0];
+
+/// `y·(c₀ + y·(c₁ + … + y·c_last))`, innermost first (the order the lane version keeps).
+#[inline(always)]
+fn horner(y: f64, c: &[f64]) -> f64 {
+    let (last, rest) = c.split_last().expect("coefficients");
+    rest.iter().rev().fold(y * last, |t, k| y * (k + t))
+}
+
 /// Odd part of the `exp` series to `x⁷/7!`: `x + x³/3! + x⁵/5! + x⁷/7!`.
 #[inline(always)]
 fn taylor_odd(x: f64) -> f64 {
-    let y = x * x;
-    x * (1.0 + y * (1.0 / 6.0 + y * (1.0 / 120.0 + y * (1.0 / 5040.0))))
+    x * (1.0 + horner(x * x, &ODD_TAIL))
 }
 
 /// Even part of the `exp` series to `x⁸/8!`, less one: `x²/2! + x⁴/4! + x⁶/6! + x⁸/8!`.
 #[inline(always)]
 fn taylor_even(x: f64) -> f64 {
-    let y = x * x;
-    y * (1.0 / 2.0 + y * (1.0 / 24.0 + y * (1.0 / 720.0 + y * (1.0 / 40320.0))))
+    horner(x * x, &EVEN)
 }
 
 impl CableLoop {
