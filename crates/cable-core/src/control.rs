@@ -124,7 +124,7 @@ fn validate_servo(
             got: format!("({},)", controller.kp.len()),
         });
     }
-    if references.is_empty() || references.len() % (2 * n) != 0 {
+    if references.is_empty() || !references.len().is_multiple_of(2 * n) {
         return Err(CableError::Shape {
             what: "references".into(),
             expected: format!("(T, {})", 2 * n),

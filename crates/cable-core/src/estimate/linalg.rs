@@ -5,7 +5,7 @@
 
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use crate::lanes::{Lanes, LANES};
+use crate::lanes::{madd, Lanes, LANES};
 
 /// The rank-one update or downdate of a Cholesky factor lost positive definiteness at `column`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -113,10 +113,11 @@ pub const fn padded(n: usize) -> usize {
 /// deviation (as the sigma points are stored), so a reflection runs down contiguous columns a
 /// SIMD block at a time with no horizontal sums, and the product `A·x` with the row `x` is
 /// formed before the row's norm is known (`A·v = A·x − α·A·e_k`), so the square root and the
-/// division overlap with it instead of waiting in line (at `n = 12` this kernel is bound by
-/// latency, not by arithmetic). The norm itself is the row's own entry of `A·x`. Up to 24
-/// rows the columns are fixed-size arrays held in registers, with 256-bit lanes when the CPU
-/// has AVX2 (same operations, same bits); larger `n` runs block by block.
+/// division overlap with it instead of waiting in line. The norm itself is the row's own entry
+/// of `A·x`. Up to 24 rows the columns are fixed-size arrays, with 256-bit lanes and fused
+/// multiply-adds when the CPU has AVX2 and FMA (the same operations with one rounding per
+/// multiply-add, so results differ from the portable build in the last bits); larger `n`
+/// runs block by block.
 pub fn lq_lower(a: &mut [f64], n: usize, cols: usize, dense: usize, w: &mut [f64], l: &mut [f64]) {
     let ld = padded(n);
     assert!(
@@ -128,13 +129,13 @@ pub fn lq_lower(a: &mut [f64], n: usize, cols: usize, dense: usize, w: &mut [f64
             match ld {
                 $($ld => {
                     #[cfg(target_arch = "x86_64")]
-                    if crate::lanes::cpu_has_avx2() {
+                    if crate::lanes::cpu_has_avx2_fma() {
                         #[allow(unsafe_code)]
-                        // SAFETY: the CPU reported AVX2, all `lq_fixed_avx2` requires
+                        // SAFETY: the CPU reported AVX2 and FMA, all `lq_fixed_avx2` requires
                         unsafe { lq_fixed_avx2::<$ld, $chains>(a, n, cols, dense, l) };
                         return;
                     }
-                    lq_fixed::<$ld, $chains>(a, n, cols, dense, l)
+                    lq_fixed::<$ld, $chains, false>(a, n, cols, dense, l)
                 })*
                 _ => lq_blocks(a, n, cols, dense, w, l),
             }
@@ -145,7 +146,7 @@ pub fn lq_lower(a: &mut [f64], n: usize, cols: usize, dense: usize, w: &mut [f64
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn lq_fixed_avx2<const LD: usize, const C: usize>(
     a: &mut [f64],
     n: usize,
@@ -153,7 +154,7 @@ fn lq_fixed_avx2<const LD: usize, const C: usize>(
     dense: usize,
     l: &mut [f64],
 ) {
-    lq_fixed::<LD, C>(a, n, cols, dense, l);
+    lq_fixed::<LD, C, true>(a, n, cols, dense, l);
 }
 
 /// The reflection of row `k` from `s2 = |x|²` and `x_k`: `(α, 1/(vᵀv/2))` with
@@ -187,7 +188,7 @@ fn extract_lower(a: &[f64], ld: usize, n: usize, steps: usize, l: &mut [f64]) {
 /// of a finished row's diagonal is never read), so each reflection runs over the window of the
 /// last `R` rows only, from the block that holds row `k` down (`R = LD − 4·⌊k/4⌋`).
 #[inline(always)]
-fn lq_fixed<const LD: usize, const C: usize>(
+fn lq_fixed<const LD: usize, const C: usize, const FUSED: bool>(
     a: &mut [f64],
     n: usize,
     cols: usize,
@@ -202,7 +203,7 @@ fn lq_fixed<const LD: usize, const C: usize>(
         macro_rules! window {
             ($($r:literal),*) => {
                 match LD - 4 * (k / 4) {
-                    $($r => reflect_row::<LD, $r, C>(a, k, end),)*
+                    $($r => reflect_row::<LD, $r, C, FUSED>(a, k, end),)*
                     _ => unreachable!("LD is a multiple of 4 up to 24"),
                 }
             };
@@ -213,9 +214,9 @@ fn lq_fixed<const LD: usize, const C: usize>(
 }
 
 /// The reflection of row `k` over columns `k..end`, on the last `R` rows of each column, with
-/// `C` accumulator chains for `A·x`.
+/// `C` accumulator chains for `A·x`; products and sums fused when `FUSED`.
 #[inline(always)]
-fn reflect_row<const LD: usize, const R: usize, const C: usize>(
+fn reflect_row<const LD: usize, const R: usize, const C: usize, const FUSED: bool>(
     a: &mut [f64],
     k: usize,
     end: usize,
@@ -224,48 +225,50 @@ fn reflect_row<const LD: usize, const R: usize, const C: usize>(
         return; // not a window of this LD (the match above never picks it)
     }
     let off = LD - R;
-    let kk = k - off;
-    let block = &mut a[k * LD..end * LD];
+    assert!(k >= off && k - off < R, "row k lies in the window");
+    // whole columns as arrays: indices `off + r` need no checks, `k` is checked once above
+    let (block, _) = a[k * LD..end * LD].as_chunks_mut::<LD>();
     // A·x over the columns, C chains
     let mut acc = [[0.0; R]; C];
-    let mut groups = block.chunks_exact(C * LD);
-    for group in groups.by_ref() {
-        for (acc, col) in acc.iter_mut().zip(group.chunks_exact(LD)) {
-            let col: &[f64; R] = col[off..].try_into().expect("R");
-            let xj = col[kk];
+    let (groups, rest) = block.as_chunks::<C>();
+    for group in groups {
+        for (acc, col) in acc.iter_mut().zip(group) {
+            let xj = col[k];
             for r in 0..R {
-                acc[r] += xj * col[r];
+                acc[r] = madd::<FUSED>(xj, col[off + r], acc[r]);
             }
         }
     }
-    for (acc, col) in acc.iter_mut().zip(groups.remainder().chunks_exact(LD)) {
-        let col: &[f64; R] = col[off..].try_into().expect("R");
-        let xj = col[kk];
+    for (acc, col) in acc.iter_mut().zip(rest) {
+        let xj = col[k];
         for r in 0..R {
-            acc[r] += xj * col[r];
+            acc[r] = madd::<FUSED>(xj, col[off + r], acc[r]);
         }
     }
     let ax: [f64; R] =
         std::array::from_fn(|r| chain_sum(std::array::from_fn::<f64, C, _>(|c| acc[c][r])));
-    let s2 = ax[kk];
+    let s2 = ax[k - off];
     if s2 == 0.0 {
         return; // row k is zero already: L[k,k] = 0, column k stays as it is
     }
-    let xk = block[k];
+    let (first, others) = block.split_first_mut().expect("k < end");
+    let xk = first[k];
     let (alpha, scale) = reflector(s2, xk);
     // w = scale·A·v = scale·(A·x − α·A[:,k]); A ← A − w·vᵀ, v_j read before column j changes
-    let colk: &[f64; R] = block[off..LD].try_into().expect("R");
-    let w: [f64; R] = std::array::from_fn(|r| scale * (ax[r] - alpha * colk[r]));
-    for (j, col) in block.chunks_exact_mut(LD).enumerate() {
-        let col: &mut [f64; R] = (&mut col[off..]).try_into().expect("R");
-        let vj = if j == 0 { xk - alpha } else { col[kk] };
+    let w: [f64; R] = std::array::from_fn(|r| scale * madd::<FUSED>(-alpha, first[off + r], ax[r]));
+    let vk = alpha - xk; // −v_k
+    for r in 0..R {
+        first[off + r] = madd::<FUSED>(vk, w[r], first[off + r]);
+    }
+    for col in others {
+        let vj = -col[k];
         for r in 0..R {
-            col[r] -= vj * w[r];
+            col[off + r] = madd::<FUSED>(vj, w[r], col[off + r]);
         }
     }
     // row k is now α·e_kᵀ up to rounding; the rounding right of the diagonal is never read
     // and is not cleared (a scalar store there would stall the next vector loads)
-    block[k] = alpha;
+    first[k] = alpha;
 }
 
 /// Sum of the chains in a fixed tree order: `((c₀ + c₁) + (c₂ + c₃))`.

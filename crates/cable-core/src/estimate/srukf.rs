@@ -679,7 +679,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         us: &[f64],
     ) -> Result<(Vec<f64>, Vec<f64>, u64)> {
         let (n, m) = (self.n, self.process.n_inputs());
-        if n == 0 || xs.len() % n != 0 {
+        if n == 0 || !xs.len().is_multiple_of(n) {
             return Err(CableError::Shape {
                 what: "filtered means".into(),
                 expected: format!("(T, {n})"),

@@ -308,7 +308,7 @@ impl TrajectoryMut<'_> {
 /// Validate shapes and values of a simulation request; returns `T`.
 pub fn validate_request<M: Model + ?Sized>(model: &M, inputs: &[f64], x0: &[f64]) -> Result<usize> {
     let (n, m) = (model.n_states(), model.n_inputs());
-    if m == 0 || inputs.len() % m != 0 || inputs.is_empty() {
+    if m == 0 || !inputs.len().is_multiple_of(m) || inputs.is_empty() {
         return Err(CableError::Shape {
             what: "inputs".into(),
             expected: format!("(T, {m}) with T >= 1"),

@@ -426,7 +426,7 @@ impl Mlp {
     pub fn forward_batch(&self, x: &[f64], out: &mut [f64]) -> Result<()> {
         let (n0, nl) = (self.n_inputs(), self.n_outputs());
         let rows = x.len() / n0;
-        if x.len() % n0 != 0 {
+        if !x.len().is_multiple_of(n0) {
             return Err(CableError::Shape {
                 what: "x".into(),
                 expected: format!("(N, {n0})"),
