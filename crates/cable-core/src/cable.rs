@@ -28,7 +28,7 @@
 //! tension. `expm1` is used so small stretches keep full relative precision.
 
 use crate::error::{check, CableError, Result};
-use crate::lanes::Lanes;
+use crate::lanes::{Lanes, LANES};
 
 /// Elastic tension–stretch law `F(s)` of one cable run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -342,43 +342,80 @@ impl CableLoop {
         )
     }
 
-    /// [`CableLoop::tensions`] of four stretches at once (same operations; the polynomial
-    /// branch of [`expm1_pair`] runs in SIMD lanes when every lane takes it).
-    #[inline(always)]
-    pub fn tensions_lanes(&self, delta: &Lanes, delta_rate: &Lanes) -> (Lanes, Lanes) {
+    /// The loop's parameters broadcast to SIMD lanes, for [`CableLanes::tensions`].
+    pub fn lanes(&self) -> CableLanes {
         let run = &self.run;
-        let (fa, fb): (Lanes, Lanes) = match run.law {
-            CableLaw::Linear { stiffness } => (
-                std::array::from_fn(|l| stiffness * delta[l]),
-                std::array::from_fn(|l| -(stiffness * delta[l])),
-            ),
+        let law = match run.law {
+            CableLaw::Linear { stiffness } => LawLanes::Linear {
+                stiffness: [stiffness; LANES],
+            },
             CableLaw::Exponential {
                 stiffness,
                 length_scale,
-            } => {
-                let x: Lanes = std::array::from_fn(|l| delta[l] / length_scale);
-                let (ma, mb) = if x.iter().all(|x| x.abs() < EXPM1_TAYLOR_BELOW) {
-                    taylor_pair_lanes(&x)
-                } else {
-                    expm1_pair_lanes_cold(&x)
-                };
-                let kl = stiffness * length_scale;
-                (
-                    std::array::from_fn(|l| kl * ma[l]),
-                    std::array::from_fn(|l| kl * mb[l]),
-                )
-            }
+            } => LawLanes::Exponential {
+                length_scale: [length_scale; LANES],
+                kl: [stiffness * length_scale; LANES],
+            },
         };
-        let c: Lanes = std::array::from_fn(|l| run.damping * delta_rate[l]);
-        (
-            std::array::from_fn(|l| (run.pretension + fa[l] + c[l]).max(0.0)),
-            std::array::from_fn(|l| (run.pretension + fb[l] - c[l]).max(0.0)),
-        )
+        CableLanes {
+            law,
+            damping: [run.damping; LANES],
+            pretension: [run.pretension; LANES],
+        }
     }
 
     /// Potential energy of both sides while taut, pretension work excluded (it cancels): J.
     pub fn energy(&self, delta: f64) -> f64 {
         self.run.law.energy(delta) + self.run.law.energy(-delta)
+    }
+}
+
+/// A [`CableLoop`] with its parameters broadcast to [`LANES`] lanes once (at model
+/// construction), so that a vectorised derivative reads them as vector operands.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CableLanes {
+    law: LawLanes,
+    damping: Lanes,
+    pretension: Lanes,
+}
+
+/// [`CableLaw`] in lanes; the exponential law keeps `k_e·ℓ` as one product, as
+/// [`CableLoop::tensions`] forms it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum LawLanes {
+    Linear { stiffness: Lanes },
+    Exponential { length_scale: Lanes, kl: Lanes },
+}
+
+impl CableLanes {
+    /// [`CableLoop::tensions`] of four stretches at once (same operations, so the same bits;
+    /// the polynomial branch of [`expm1_pair`] runs in SIMD lanes when every lane takes it).
+    #[inline(always)]
+    pub fn tensions(&self, delta: &Lanes, delta_rate: &Lanes) -> (Lanes, Lanes) {
+        let (fa, fb): (Lanes, Lanes) = match &self.law {
+            LawLanes::Linear { stiffness: k } => (
+                std::array::from_fn(|l| k[l] * delta[l]),
+                std::array::from_fn(|l| -(k[l] * delta[l])),
+            ),
+            LawLanes::Exponential { length_scale, kl } => {
+                let x: Lanes = std::array::from_fn(|l| delta[l] / length_scale[l]);
+                let (ma, mb) = if x.iter().all(|x| x.abs() < EXPM1_TAYLOR_BELOW) {
+                    taylor_pair_lanes(&x)
+                } else {
+                    expm1_pair_lanes_cold(&x)
+                };
+                (
+                    std::array::from_fn(|l| kl[l] * ma[l]),
+                    std::array::from_fn(|l| kl[l] * mb[l]),
+                )
+            }
+        };
+        let (b, t0) = (&self.damping, &self.pretension);
+        let c: Lanes = std::array::from_fn(|l| b[l] * delta_rate[l]);
+        (
+            std::array::from_fn(|l| (t0[l] + fa[l] + c[l]).max(0.0)),
+            std::array::from_fn(|l| (t0[l] + fb[l] - c[l]).max(0.0)),
+        )
     }
 }
 

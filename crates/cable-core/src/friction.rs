@@ -22,7 +22,7 @@
 //!   carries `exp(μφ)` times the tension of the other side.
 
 use crate::error::{check, Result};
-use crate::lanes::Lanes;
+use crate::lanes::{Lanes, LANES};
 
 /// Smoothed sign `v / sqrt(v² + ε²)`; see the module docs. `eps` > 0 (m/s or rad/s).
 #[inline]
@@ -158,27 +158,54 @@ impl StaticFriction {
         dry + viscous(v, self.viscous)
     }
 
-    /// [`StaticFriction::force`] of four velocities (same operations, SIMD lanes for the
-    /// Coulomb + viscous form; the Stribeck form goes lane by lane).
-    #[inline(always)]
-    pub fn force_lanes(&self, v: &Lanes) -> Lanes {
+    /// The parameters broadcast to SIMD lanes, for [`FrictionLanes::force`].
+    pub fn lanes(&self) -> FrictionLanes {
+        // exact equality is intended, as in `force`
         #[allow(clippy::float_cmp)]
-        if self.static_level != self.coulomb {
-            return self.force_lanes_stribeck(v);
+        let plain = self.static_level == self.coulomb;
+        FrictionLanes {
+            plain,
+            coulomb: [self.coulomb; LANES],
+            eps2: [self.smoothing * self.smoothing; LANES],
+            viscous: [self.viscous; LANES],
+            scalar: *self,
         }
-        let (c, e2, b) = (self.coulomb, self.smoothing * self.smoothing, self.viscous);
-        std::array::from_fn(|l| c * (v[l] / (v[l] * v[l] + e2).sqrt()) + b * v[l])
-    }
-
-    /// The Stribeck form lane by lane, out of line (it would bloat the vectorised callers).
-    #[inline(never)]
-    fn force_lanes_stribeck(&self, v: &Lanes) -> Lanes {
-        v.map(|v| self.force(v))
     }
 
     /// Largest slope `|dF/dv|` (at `v = 0`), used to bound the stiffness this friction adds.
     pub fn max_slope(&self) -> f64 {
         self.coulomb.max(self.static_level) / self.smoothing + self.viscous
+    }
+}
+
+/// [`StaticFriction`] with its parameters broadcast to [`LANES`] lanes once (at model
+/// construction), so that a vectorised derivative reads them as vector operands instead of
+/// broadcasting scalars on every call.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrictionLanes {
+    plain: bool,
+    coulomb: Lanes,
+    eps2: Lanes,
+    viscous: Lanes,
+    scalar: StaticFriction,
+}
+
+impl FrictionLanes {
+    /// [`StaticFriction::force`] of four velocities: the same operations, in SIMD lanes for
+    /// the Coulomb + viscous form, lane by lane for the Stribeck form.
+    #[inline(always)]
+    pub fn force(&self, v: &Lanes) -> Lanes {
+        if !self.plain {
+            return self.force_stribeck(v);
+        }
+        let (c, e2, b) = (&self.coulomb, &self.eps2, &self.viscous);
+        std::array::from_fn(|l| c[l] * (v[l] / (v[l] * v[l] + e2[l]).sqrt()) + b[l] * v[l])
+    }
+
+    /// The Stribeck form lane by lane, out of line (it would bloat the vectorised callers).
+    #[inline(never)]
+    fn force_stribeck(&self, v: &Lanes) -> Lanes {
+        v.map(|v| self.scalar.force(v))
     }
 }
 

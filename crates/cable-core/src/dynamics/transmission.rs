@@ -37,9 +37,9 @@
 //! force applied to the joint, positive in the direction of positive `q_l`.
 
 use super::{Model, GRAVITY};
-use crate::cable::CableLoop;
+use crate::cable::{CableLanes, CableLoop};
 use crate::error::{check, CableError, Result};
-use crate::friction::StaticFriction;
+use crate::friction::{FrictionLanes, StaticFriction};
 use crate::lanes::{Lanes, LANES};
 
 /// Largest number of coupled links.
@@ -194,6 +194,27 @@ pub struct CableTransmission {
     /// `1/I_m`, `1/I_l` per link (multiplications are cheaper than divisions in the hot path).
     inv_motor_inertia: [f64; MAX_LINKS],
     inv_link_inertia: [f64; MAX_LINKS],
+    /// Per link, the parameters broadcast for the lane derivative.
+    lanes: Vec<LinkLanes>,
+}
+
+/// One link's parameters broadcast to [`LANES`] lanes once, at construction: the lane
+/// derivative reads them as vector operands (no broadcasts, and the friction form, cable law
+/// and gravity switch decided here instead of on every call).
+#[derive(Debug, Clone, PartialEq)]
+struct LinkLanes {
+    /// `T[i][j]`, the row of the transmission matrix.
+    t: [Lanes; MAX_LINKS],
+    /// `T[i][j]·ρ_i`, this link's share of `Γ_j = Σᵢ T[i][j]·ρ_i·γ_i`.
+    t_rho: [Lanes; MAX_LINKS],
+    rho: Lanes,
+    inv_motor_inertia: Lanes,
+    inv_link_inertia: Lanes,
+    cable: CableLanes,
+    motor_friction: FrictionLanes,
+    link_friction: FrictionLanes,
+    /// A gravity load (its amplitude is not exactly zero).
+    gravity: bool,
 }
 
 impl CableTransmission {
@@ -251,6 +272,22 @@ impl CableTransmission {
             }
             rho[i] = links[i].capstan_radius / links[i].gear_ratio;
         }
+        let lanes = links
+            .iter()
+            .enumerate()
+            .map(|(i, link)| LinkLanes {
+                t: t[i].map(|t| [t; LANES]),
+                t_rho: t[i].map(|t| [t * rho[i]; LANES]),
+                rho: [rho[i]; LANES],
+                inv_motor_inertia: [inv_im[i]; LANES],
+                inv_link_inertia: [inv_il[i]; LANES],
+                cable: link.cable.lanes(),
+                motor_friction: link.motor_friction.lanes(),
+                link_friction: link.link_friction.lanes(),
+                #[allow(clippy::float_cmp)] // exact zero: no gravity (as `Gravity::load`)
+                gravity: link.gravity.amplitude != 0.0,
+            })
+            .collect();
         Ok(Self {
             links,
             coupling: c,
@@ -258,6 +295,7 @@ impl CableTransmission {
             rho,
             inv_motor_inertia: inv_im,
             inv_link_inertia: inv_il,
+            lanes,
         })
     }
 
@@ -339,7 +377,8 @@ impl CableTransmission {
     }
 
     /// [`Self::derivative_n`] of four states (structure of arrays), operation for operation.
-    /// `S = 4·N` states as fixed-size arrays, so the link loops unroll with no bounds checks.
+    /// `S = 4·N` states as fixed-size arrays, so the link loops unroll with no bounds checks;
+    /// the parameters come broadcast from [`LinkLanes`].
     #[inline(always)]
     fn derivative_lanes_n<const N: usize, const S: usize>(
         &self,
@@ -349,48 +388,52 @@ impl CableTransmission {
     ) {
         let x: &[Lanes; S] = x.try_into().expect("4 states per link");
         let dx: &mut [Lanes; S] = dx.try_into().expect("4 states per link");
+        let p: &[LinkLanes; N] = self.lanes[..N].try_into().expect("N links");
         let u = &u[..2 * N];
         let mut gamma = [[0.0; LANES]; N];
         for i in 0..N {
             let (mut tq, mut tw) = ([0.0; LANES], [0.0; LANES]);
             for j in 0..=i {
+                let t = &p[i].t[j];
                 for l in 0..LANES {
-                    tq[l] += self.t[i][j] * x[4 * j + 2][l];
-                    tw[l] += self.t[i][j] * x[4 * j + 3][l];
+                    tq[l] += t[l] * x[4 * j + 2][l];
+                    tw[l] += t[l] * x[4 * j + 3][l];
                 }
             }
-            let d = std::array::from_fn(|l| self.rho[i] * (x[4 * i][l] - tq[l]));
-            let dd = std::array::from_fn(|l| self.rho[i] * (x[4 * i + 1][l] - tw[l]));
-            let (ta, tb) = self.links[i].cable.tensions_lanes(&d, &dd);
+            let rho = &p[i].rho;
+            let d = std::array::from_fn(|l| rho[l] * (x[4 * i][l] - tq[l]));
+            let dd = std::array::from_fn(|l| rho[l] * (x[4 * i + 1][l] - tw[l]));
+            let (ta, tb) = p[i].cable.tensions(&d, &dd);
             gamma[i] = std::array::from_fn(|l| ta[l] - tb[l]);
         }
         let mut g = [[0.0; LANES]; N];
         for j in 0..N {
             for i in j..N {
+                let tr = &p[i].t_rho[j];
                 for l in 0..LANES {
-                    g[j][l] += self.t[i][j] * self.rho[i] * gamma[i][l];
+                    g[j][l] += tr[l] * gamma[i][l];
                 }
             }
         }
         for i in 0..N {
-            let link = &self.links[i];
-            let (wm, ql, wl) = (x[4 * i + 1], x[4 * i + 2], x[4 * i + 3]);
-            let fm = link.motor_friction.force_lanes(&wm);
-            let fl = link.link_friction.force_lanes(&wl);
-            #[allow(clippy::float_cmp)] // exact zero: no gravity (as `Gravity::load`)
-            let grav = if link.gravity.amplitude == 0.0 {
-                [0.0; LANES]
+            let q = &p[i];
+            let fm = q.motor_friction.force(&x[4 * i + 1]);
+            let fl = q.link_friction.force(&x[4 * i + 3]);
+            dx[4 * i] = x[4 * i + 1];
+            dx[4 * i + 2] = x[4 * i + 3];
+            let (um, ul) = (u[i], u[N + i]);
+            let (rho, inv_m, inv_l) = (&q.rho, &q.inv_motor_inertia, &q.inv_link_inertia);
+            dx[4 * i + 1] = std::array::from_fn(|l| (um - fm[l] - rho[l] * gamma[i][l]) * inv_m[l]);
+            // no gravity: `Γ − F − 0` is `Γ − F` to the bit, the subtraction is skipped
+            let net: Lanes = if q.gravity {
+                let link = &self.links[i];
+                std::array::from_fn(|l| {
+                    g[i][l] - fl[l] - link.gravity.load(link.kind, x[4 * i + 2][l])
+                })
             } else {
-                ql.map(|q| link.gravity.load(link.kind, q))
+                std::array::from_fn(|l| g[i][l] - fl[l])
             };
-            dx[4 * i] = wm;
-            dx[4 * i + 2] = wl;
-            for l in 0..LANES {
-                dx[4 * i + 1][l] =
-                    (u[i] - fm[l] - self.rho[i] * gamma[i][l]) * self.inv_motor_inertia[i];
-                dx[4 * i + 3][l] =
-                    (g[i][l] - fl[l] - grav[l] + u[N + i]) * self.inv_link_inertia[i];
-            }
+            dx[4 * i + 3] = std::array::from_fn(|l| (net[l] + ul) * inv_l[l]);
         }
     }
 
