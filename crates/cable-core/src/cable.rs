@@ -28,7 +28,7 @@
 //! tension. `expm1` is used so small stretches keep full relative precision.
 
 use crate::error::{check, CableError, Result};
-use crate::lanes::{Lanes, LANES};
+use crate::lanes::{madd, Lanes, LANES};
 
 /// Elastic tension–stretch law `F(s)` of one cable run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -253,13 +253,22 @@ pub fn expm1_pair(x: f64) -> (f64, f64) {
 const EXPM1_TAYLOR_BELOW: f64 = 1e-2;
 
 /// [`expm1_taylor_pair`] of four arguments, written lane-wise (each step one vector
-/// operation over the lanes, in the order [`taylor_odd`] and [`taylor_even`] use).
+/// operation over the lanes, in the order [`taylor_odd`] and [`taylor_even`] use). When
+/// `FUSED`, each Horner step `y·(c + t)` becomes `y·q` with `q ← q·y + c` fused (one rounding
+/// per step instead of two; the last bits differ).
 #[inline(always)]
-fn taylor_pair_lanes(x: &Lanes) -> (Lanes, Lanes) {
+fn taylor_pair_lanes<const FUSED: bool>(x: &Lanes) -> (Lanes, Lanes) {
     let y: Lanes = std::array::from_fn(|l| x[l] * x[l]);
     // y·(c₀ + y·(c₁ + … + y·c_last)), innermost first
     let horner = |c: &[f64]| -> Lanes {
         let (last, rest) = c.split_last().expect("coefficients");
+        if FUSED {
+            let mut q: Lanes = [*last; LANES];
+            for k in rest.iter().rev() {
+                q = std::array::from_fn(|l| madd::<true>(q[l], y[l], *k));
+            }
+            return std::array::from_fn(|l| y[l] * q[l]);
+        }
         let mut t: Lanes = std::array::from_fn(|l| y[l] * last);
         for k in rest.iter().rev() {
             t = std::array::from_fn(|l| y[l] * (k + t[l]));
@@ -268,7 +277,11 @@ fn taylor_pair_lanes(x: &Lanes) -> (Lanes, Lanes) {
     };
     let odd_tail = horner(&ODD_TAIL);
     let even = horner(&EVEN);
-    let odd: Lanes = std::array::from_fn(|l| x[l] * (1.0 + odd_tail[l]));
+    let odd: Lanes = if FUSED {
+        std::array::from_fn(|l| madd::<true>(x[l], odd_tail[l], x[l]))
+    } else {
+        std::array::from_fn(|l| x[l] * (1.0 + odd_tail[l]))
+    };
     (
         std::array::from_fn(|l| even[l] + odd[l]),
         std::array::from_fn(|l| even[l] - odd[l]),
@@ -390,31 +403,42 @@ enum LawLanes {
 impl CableLanes {
     /// [`CableLoop::tensions`] of four stretches at once (same operations, so the same bits;
     /// the polynomial branch of [`expm1_pair`] runs in SIMD lanes when every lane takes it).
+    /// With `FUSED` the products and sums are fused (the last bits differ).
     #[inline(always)]
-    pub fn tensions(&self, delta: &Lanes, delta_rate: &Lanes) -> (Lanes, Lanes) {
-        let (fa, fb): (Lanes, Lanes) = match &self.law {
-            LawLanes::Linear { stiffness: k } => (
-                std::array::from_fn(|l| k[l] * delta[l]),
-                std::array::from_fn(|l| -(k[l] * delta[l])),
-            ),
+    pub fn tensions<const FUSED: bool>(&self, delta: &Lanes, delta_rate: &Lanes) -> (Lanes, Lanes) {
+        let (b, t0) = (&self.damping, &self.pretension);
+        let c: Lanes = std::array::from_fn(|l| b[l] * delta_rate[l]);
+        // T₀ + F(±Δ) as one multiply-add when fused
+        let (ta0, tb0): (Lanes, Lanes) = match &self.law {
+            LawLanes::Linear { stiffness: k } => {
+                if FUSED {
+                    (
+                        std::array::from_fn(|l| madd::<true>(k[l], delta[l], t0[l])),
+                        std::array::from_fn(|l| madd::<true>(-k[l], delta[l], t0[l])),
+                    )
+                } else {
+                    (
+                        std::array::from_fn(|l| t0[l] + k[l] * delta[l]),
+                        std::array::from_fn(|l| t0[l] + -(k[l] * delta[l])),
+                    )
+                }
+            }
             LawLanes::Exponential { length_scale, kl } => {
                 let x: Lanes = std::array::from_fn(|l| delta[l] / length_scale[l]);
                 let (ma, mb) = if x.iter().all(|x| x.abs() < EXPM1_TAYLOR_BELOW) {
-                    taylor_pair_lanes(&x)
+                    taylor_pair_lanes::<FUSED>(&x)
                 } else {
                     expm1_pair_lanes_cold(&x)
                 };
                 (
-                    std::array::from_fn(|l| kl[l] * ma[l]),
-                    std::array::from_fn(|l| kl[l] * mb[l]),
+                    std::array::from_fn(|l| madd::<FUSED>(kl[l], ma[l], t0[l])),
+                    std::array::from_fn(|l| madd::<FUSED>(kl[l], mb[l], t0[l])),
                 )
             }
         };
-        let (b, t0) = (&self.damping, &self.pretension);
-        let c: Lanes = std::array::from_fn(|l| b[l] * delta_rate[l]);
         (
-            std::array::from_fn(|l| (t0[l] + fa[l] + c[l]).max(0.0)),
-            std::array::from_fn(|l| (t0[l] + fb[l] - c[l]).max(0.0)),
+            std::array::from_fn(|l| (ta0[l] + c[l]).max(0.0)),
+            std::array::from_fn(|l| (tb0[l] - c[l]).max(0.0)),
         )
     }
 }

@@ -22,7 +22,7 @@
 //!   carries `exp(μφ)` times the tension of the other side.
 
 use crate::error::{check, Result};
-use crate::lanes::{Lanes, LANES};
+use crate::lanes::{madd, Lanes, LANES};
 
 /// Smoothed sign `v / sqrt(v² + ε²)`; see the module docs. `eps` > 0 (m/s or rad/s).
 #[inline]
@@ -193,13 +193,17 @@ pub struct FrictionLanes {
 impl FrictionLanes {
     /// [`StaticFriction::force`] of four velocities: the same operations, in SIMD lanes for
     /// the Coulomb + viscous form, lane by lane for the Stribeck form.
+    /// Products and sums are fused when `FUSED` (one rounding each; the last bits differ).
     #[inline(always)]
-    pub fn force(&self, v: &Lanes) -> Lanes {
+    pub fn force<const FUSED: bool>(&self, v: &Lanes) -> Lanes {
         if !self.plain {
             return self.force_stribeck(v);
         }
         let (c, e2, b) = (&self.coulomb, &self.eps2, &self.viscous);
-        std::array::from_fn(|l| c[l] * (v[l] / (v[l] * v[l] + e2[l]).sqrt()) + b[l] * v[l])
+        std::array::from_fn(|l| {
+            let dry = c[l] * (v[l] / madd::<FUSED>(v[l], v[l], e2[l]).sqrt());
+            madd::<FUSED>(b[l], v[l], dry)
+        })
     }
 
     /// The Stribeck form lane by lane, out of line (it would bloat the vectorised callers).

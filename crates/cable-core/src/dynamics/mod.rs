@@ -64,6 +64,14 @@ pub trait Model {
             }
         }
     }
+    /// [`Model::derivative_lanes`] with products and sums fused into multiply-adds where the
+    /// model has them (one rounding each instead of two, so the results differ from
+    /// [`Model::derivative`] in the last bits). Called from code compiled for CPUs with FMA;
+    /// the default is [`Model::derivative_lanes`].
+    #[inline(always)]
+    fn derivative_lanes_fused(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
+        self.derivative_lanes(x, u, dx)
+    }
     /// A representative state for step-size advice (equilibrium at rest by default: zeros).
     fn rest_state(&self) -> Vec<f64> {
         vec![0.0; self.n_states()]

@@ -4,7 +4,7 @@
 use crate::dynamics::Model;
 use crate::error::{check, CableError, Result};
 use crate::integrate::{InputHold, Rk4, Rk4Lanes, SimOptions};
-use crate::lanes::{cpu_has_avx2, Lanes, LANES};
+use crate::lanes::{cpu_has_avx2_fma, Lanes, LANES};
 
 /// A discrete-time process `x_k = F(x_{k−1}, u_{k−1})` (additive noise is the filter's).
 pub trait Process {
@@ -80,7 +80,7 @@ impl<M: Model> ModelProcess<M> {
             rk4,
             rk4_lanes: Rk4Lanes::new(n),
             soa: vec![[0.0; LANES]; n],
-            avx2: cpu_has_avx2(),
+            avx2: cpu_has_avx2_fma(),
         })
     }
 
@@ -113,22 +113,23 @@ impl<M: Model> Process for ModelProcess<M> {
     fn propagate_many(&mut self, xs: &mut [f64], u: &[f64]) {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
-            // SAFETY: `avx2` is set only when `cpu_has_avx2()` (`is_x86_feature_detected!`)
-            // reported the feature on this CPU, which is all `propagate_many_avx2` requires.
+            // SAFETY: `avx2` is set only when `cpu_has_avx2_fma()` (`is_x86_feature_detected!`)
+            // reported AVX2 and FMA on this CPU, which is all `propagate_many_avx2` requires.
             #[allow(unsafe_code)]
             unsafe {
                 return propagate_many_avx2(self, xs, u);
             }
         }
-        self.propagate_lanes(xs, u);
+        self.propagate_lanes::<false>(xs, u);
     }
 }
 
 impl<M: Model> ModelProcess<M> {
     /// States go through RK4 four at a time (the last group padded with copies of its last
-    /// state); the results are those of [`Process::propagate`], bit for bit.
+    /// state); the results are those of [`Process::propagate`], bit for bit, unless `FUSED`
+    /// (the AVX2 + FMA build: fused multiply-adds, the last bits differ).
     #[inline(always)]
-    fn propagate_lanes(&mut self, xs: &mut [f64], u: &[f64]) {
+    fn propagate_lanes<const FUSED: bool>(&mut self, xs: &mut [f64], u: &[f64]) {
         let n = self.model.n_states();
         let count = xs.len() / n;
         let h = self.dt / self.substeps as f64;
@@ -136,7 +137,11 @@ impl<M: Model> ModelProcess<M> {
             let used = LANES.min(count - first);
             gather(xs, n, first, used, &mut self.soa);
             for _ in 0..self.substeps {
-                self.rk4_lanes.step(&self.model, &mut self.soa, u, h);
+                if FUSED {
+                    self.rk4_lanes.step_fused(&self.model, &mut self.soa, u, h);
+                } else {
+                    self.rk4_lanes.step(&self.model, &mut self.soa, u, h);
+                }
             }
             scatter(&self.soa, n, first, used, xs);
         }
@@ -169,9 +174,9 @@ fn scatter(soa: &[Lanes], n: usize, first: usize, used: usize, xs: &mut [f64]) {
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn propagate_many_avx2<M: Model>(p: &mut ModelProcess<M>, xs: &mut [f64], u: &[f64]) {
-    p.propagate_lanes(xs, u);
+    p.propagate_lanes::<true>(xs, u);
 }
 
 /// `x_k = A·x_{k−1} + B·u_{k−1}` (matrices row-major).
@@ -461,14 +466,32 @@ mod tests {
                     x
                 })
                 .collect();
-            let mut many = xs.clone();
-            p.propagate_many(&mut many, &u);
             let mut one = xs.clone();
             for x in one.chunks_exact_mut(n) {
                 p.propagate(x, &u);
             }
-            assert_eq!(many, one, "{count} states, {substeps} substeps");
-            assert_ne!(many, xs);
+            // the portable lanes: the scalar RK4's operations, so its bits
+            let mut plain = xs.clone();
+            p.propagate_lanes::<false>(&mut plain, &u);
+            assert_eq!(plain, one, "{count} states, {substeps} substeps");
+            assert_ne!(plain, xs);
+            // fused multiply-adds (correctly rounded, so `mul_add` here is the CPU's FMA):
+            // within rounding of the scalar RK4
+            let mut fused = xs.clone();
+            p.propagate_lanes::<true>(&mut fused, &u);
+            for (f, o) in fused.iter().zip(&one) {
+                assert!((f - o).abs() <= 1e-14 * o.abs().max(1.0), "{f} vs {o}");
+            }
+            assert_ne!(fused, one, "the fused build fused nothing");
+            // and `propagate_many` is the one this CPU runs
+            let mut many = xs.clone();
+            p.propagate_many(&mut many, &u);
+            let want = if crate::lanes::cpu_has_avx2_fma() {
+                &fused
+            } else {
+                &plain
+            };
+            assert_eq!(&many, want);
         }
     }
 }
