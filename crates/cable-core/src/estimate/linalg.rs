@@ -114,24 +114,27 @@ impl Rotation {
         })
     }
 
-    /// The rotation of four entry pairs `(l, v)`, whole blocks loaded before and stored after
-    /// (so that the four lanes are one vector operation each).
+    /// The rotation of one entry pair `(l, v)`.
+    #[inline(always)]
+    fn apply_one<const UP: bool, const FUSED: bool>(&self, l: f64, v: f64) -> (f64, f64) {
+        let (c, s) = (self.c, self.s);
+        if UP {
+            (madd::<FUSED>(s, v, c * l), madd::<FUSED>(-s, l, c * v))
+        } else {
+            let l2 = madd::<FUSED>(-s, v, l) * self.inv_c;
+            (l2, madd::<FUSED>(-s, l2, c * v))
+        }
+    }
+
+    /// [`Rotation::apply_one`] on four entry pairs, whole blocks loaded before and stored
+    /// after (so that the four lanes are one vector operation each).
     #[inline(always)]
     fn apply<const UP: bool, const FUSED: bool>(&self, lb: &mut Lanes, vb: &mut Lanes) {
-        let (l, v, c, s) = (*lb, *vb, self.c, self.s);
-        let (l2, v2): (Lanes, Lanes) = if UP {
-            (
-                std::array::from_fn(|t| madd::<FUSED>(s, v[t], c * l[t])),
-                std::array::from_fn(|t| madd::<FUSED>(-s, l[t], c * v[t])),
-            )
-        } else {
-            let l2: Lanes = std::array::from_fn(|t| madd::<FUSED>(-s, v[t], l[t]) * self.inv_c);
-            (
-                l2,
-                std::array::from_fn(|t| madd::<FUSED>(-s, l2[t], c * v[t])),
-            )
-        };
-        (*lb, *vb) = (l2, v2);
+        let (l, v) = (*lb, *vb);
+        let r: [(f64, f64); LANES] =
+            std::array::from_fn(|t| self.apply_one::<UP, FUSED>(l[t], v[t]));
+        *lb = std::array::from_fn(|t| r[t].0);
+        *vb = std::array::from_fn(|t| r[t].1);
     }
 }
 
@@ -226,7 +229,8 @@ fn rotate_group<const G: usize, const UP: bool, const FUSED: bool>(
     Ok(())
 }
 
-/// [`cholupdate_columns`] for one sign (`UP`: update), the branch on it hoisted.
+/// [`cholupdate_columns`] for one sign (`UP`: update), the branch on it hoisted: any `n`,
+/// one vector at a time per column, scalar.
 #[inline(always)]
 fn rotate_columns<const UP: bool>(
     l: &mut [f64],
@@ -235,42 +239,17 @@ fn rotate_columns<const UP: bool>(
     ld: usize,
     count: usize,
 ) -> Result<(), DowndateFailed> {
-    let sign = if UP { 1.0 } else { -1.0 };
     for (k, col) in l[..n * n].chunks_exact_mut(n).enumerate() {
         let (lkk, head) = col[k..].split_first_mut().expect("k < n");
         for m in 0..count {
             let (vk, tail) = vs[m * ld + k..m * ld + n].split_first_mut().expect("k < n");
-            let (l0, v0) = (*lkk, *vk);
-            if v0 == 0.0 {
+            if *vk == 0.0 {
                 continue; // nothing to rotate into this column
             }
-            let r2 = l0 * l0 + sign * v0 * v0;
-            // not positive, or not finite (NaN fails both comparisons)
-            if !(r2 > 0.0 && r2 < f64::INFINITY) || (!UP && l0 <= 0.0) {
-                return Err(DowndateFailed { column: k });
-            }
-            // √r2 and 1/r2 are independent: 1/r = √r2 · (1/r2) keeps one long-latency
-            // operation off the chain from one column to the next
-            let r = r2.sqrt();
-            let inv_r = r * (1.0 / r2);
+            let (rot, r) = Rotation::new::<UP>(*lkk, *vk).ok_or(DowndateFailed { column: k })?;
             *lkk = r;
-            if UP {
-                // Givens rotation of [L[:,k], v]: defined for a zero pivot too
-                let (c, s) = (l0 * inv_r, v0 * inv_r);
-                for (li, vi) in head.iter_mut().zip(tail.iter_mut()) {
-                    let (a, b) = (*li, *vi);
-                    *li = c * a + s * b;
-                    *vi = c * b - s * a;
-                }
-            } else {
-                // hyperbolic rotation
-                let inv_l = 1.0 / l0;
-                let (c, s, inv_c) = (r * inv_l, v0 * inv_l, l0 * inv_r);
-                for (li, vi) in head.iter_mut().zip(tail.iter_mut()) {
-                    let a = (*li - s * *vi) * inv_c;
-                    *li = a;
-                    *vi = c * *vi - s * a;
-                }
+            for (li, vi) in head.iter_mut().zip(tail.iter_mut()) {
+                (*li, *vi) = rot.apply_one::<UP, false>(*li, *vi);
             }
         }
     }
