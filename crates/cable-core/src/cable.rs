@@ -410,19 +410,11 @@ impl CableLanes {
         let c: Lanes = std::array::from_fn(|l| b[l] * delta_rate[l]);
         // T₀ + F(±Δ) as one multiply-add when fused
         let (ta0, tb0): (Lanes, Lanes) = match &self.law {
-            LawLanes::Linear { stiffness: k } => {
-                if FUSED {
-                    (
-                        std::array::from_fn(|l| madd::<true>(k[l], delta[l], t0[l])),
-                        std::array::from_fn(|l| madd::<true>(-k[l], delta[l], t0[l])),
-                    )
-                } else {
-                    (
-                        std::array::from_fn(|l| t0[l] + k[l] * delta[l]),
-                        std::array::from_fn(|l| t0[l] + -(k[l] * delta[l])),
-                    )
-                }
-            }
+            // unfused, `(−k)·Δ + T₀` is `T₀ + −(k·Δ)` to the bit (negation is exact)
+            LawLanes::Linear { stiffness: k } => (
+                std::array::from_fn(|l| madd::<FUSED>(k[l], delta[l], t0[l])),
+                std::array::from_fn(|l| madd::<FUSED>(-k[l], delta[l], t0[l])),
+            ),
             LawLanes::Exponential { length_scale, kl } => {
                 let x: Lanes = std::array::from_fn(|l| delta[l] / length_scale[l]);
                 let (ma, mb) = if x.iter().all(|x| x.abs() < EXPM1_TAYLOR_BELOW) {

@@ -140,10 +140,7 @@ impl StaticFriction {
     /// Friction force/torque opposing velocity `v`.
     #[inline]
     pub fn force(&self, v: f64) -> f64 {
-        // exact equality is intended: the two levels are equal only when built that way
-        #[allow(clippy::float_cmp)]
-        let plain = self.static_level == self.coulomb;
-        let dry = if plain {
+        let dry = if self.is_coulomb_viscous() {
             coulomb(v, self.coulomb, self.smoothing)
         } else {
             stribeck(
@@ -158,13 +155,17 @@ impl StaticFriction {
         dry + viscous(v, self.viscous)
     }
 
+    /// No Stribeck bump: the static level equals the Coulomb level, so the exponential is
+    /// skipped (exact equality is intended: the two are equal only when built that way).
+    #[allow(clippy::float_cmp)]
+    fn is_coulomb_viscous(&self) -> bool {
+        self.static_level == self.coulomb
+    }
+
     /// The parameters broadcast to SIMD lanes, for [`FrictionLanes::force`].
     pub fn lanes(&self) -> FrictionLanes {
-        // exact equality is intended, as in `force`
-        #[allow(clippy::float_cmp)]
-        let plain = self.static_level == self.coulomb;
         FrictionLanes {
-            plain,
+            plain: self.is_coulomb_viscous(),
             coulomb: [self.coulomb; LANES],
             eps2: [self.smoothing * self.smoothing; LANES],
             viscous: [self.viscous; LANES],
