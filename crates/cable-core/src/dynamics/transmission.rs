@@ -439,6 +439,21 @@ impl CableTransmission {
         }
     }
 
+    /// [`Self::derivative_lanes_n`] for the model's link count.
+    #[inline(always)]
+    fn derivative_lanes_by_links<const FUSED: bool>(
+        &self,
+        x: &[Lanes],
+        u: &[f64],
+        dx: &mut [Lanes],
+    ) {
+        match self.n_links() {
+            1 => self.derivative_lanes_n::<1, 4, FUSED>(x, u, dx),
+            2 => self.derivative_lanes_n::<2, 8, FUSED>(x, u, dx),
+            _ => self.derivative_lanes_n::<3, 12, FUSED>(x, u, dx),
+        }
+    }
+
     #[inline(always)]
     fn derivative_n<const N: usize>(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
         let (_, gamma, big_gamma) = self.forces::<N>(x);
@@ -505,20 +520,12 @@ impl Model for CableTransmission {
     // 256-bit lanes (a call would run the SSE2 build)
     #[inline(always)]
     fn derivative_lanes(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
-        match self.n_links() {
-            1 => self.derivative_lanes_n::<1, 4, false>(x, u, dx),
-            2 => self.derivative_lanes_n::<2, 8, false>(x, u, dx),
-            _ => self.derivative_lanes_n::<3, 12, false>(x, u, dx),
-        }
+        self.derivative_lanes_by_links::<false>(x, u, dx);
     }
 
     #[inline(always)]
     fn derivative_lanes_fused(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
-        match self.n_links() {
-            1 => self.derivative_lanes_n::<1, 4, true>(x, u, dx),
-            2 => self.derivative_lanes_n::<2, 8, true>(x, u, dx),
-            _ => self.derivative_lanes_n::<3, 12, true>(x, u, dx),
-        }
+        self.derivative_lanes_by_links::<true>(x, u, dx);
     }
 
     fn output(&self, x: &[f64], _u: &[f64], y: &mut [f64]) {

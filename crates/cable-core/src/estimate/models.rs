@@ -64,7 +64,8 @@ pub struct ModelProcess<M: Model> {
     rk4_lanes: Rk4Lanes,
     /// Four states side by side for `rk4_lanes`.
     soa: Vec<Lanes>,
-    avx2: bool,
+    /// The CPU has AVX2 and FMA: `propagate_many` runs the fused AVX2 build.
+    avx2_fma: bool,
 }
 
 impl<M: Model> ModelProcess<M> {
@@ -80,7 +81,7 @@ impl<M: Model> ModelProcess<M> {
             rk4,
             rk4_lanes: Rk4Lanes::new(n),
             soa: vec![[0.0; LANES]; n],
-            avx2: cpu_has_avx2_fma(),
+            avx2_fma: cpu_has_avx2_fma(),
         })
     }
 
@@ -112,9 +113,10 @@ impl<M: Model> Process for ModelProcess<M> {
 
     fn propagate_many(&mut self, xs: &mut [f64], u: &[f64]) {
         #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: `avx2` is set only when `cpu_has_avx2_fma()` (`is_x86_feature_detected!`)
-            // reported AVX2 and FMA on this CPU, which is all `propagate_many_avx2` requires.
+        if self.avx2_fma {
+            // SAFETY: `avx2_fma` is set only when `cpu_has_avx2_fma()`
+            // (`is_x86_feature_detected!`) reported AVX2 and FMA on this CPU, which is all
+            // `propagate_many_avx2` requires.
             #[allow(unsafe_code)]
             unsafe {
                 return propagate_many_avx2(self, xs, u);
