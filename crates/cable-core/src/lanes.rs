@@ -51,3 +51,44 @@ pub fn madd<const FUSED: bool>(a: f64, b: f64, c: f64) -> f64 {
         a * b + c
     }
 }
+
+/// The 4 × 4 transpose `out[t][l] = rows[l][t]`: four states in lanes from four consecutive
+/// blocks of four (and back). With `AVX` (only in code compiled for AVX, where the call is
+/// inlined) it is four unpacks and four lane permutes instead of sixteen scalar moves.
+#[inline(always)]
+pub fn transpose4<const AVX: bool>(rows: &[Lanes; LANES]) -> [Lanes; LANES] {
+    #[cfg(target_arch = "x86_64")]
+    if AVX {
+        #[allow(unsafe_code)]
+        // SAFETY: `AVX` is set only by callers compiled with the `avx` target feature (the
+        // AVX2 + FMA kernels, reached after `cpu_has_avx2_fma`)
+        return unsafe { transpose4_avx(rows) };
+    }
+    std::array::from_fn(|t| std::array::from_fn(|l| rows[l][t]))
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+#[inline]
+fn transpose4_avx(rows: &[Lanes; LANES]) -> [Lanes; LANES] {
+    use std::arch::x86_64::{
+        __m256d, _mm256_permute2f128_pd, _mm256_unpackhi_pd, _mm256_unpacklo_pd,
+    };
+    #[allow(unsafe_code)]
+    // SAFETY: `[f64; 4]` and `__m256d` have the same size and every bit pattern is valid
+    // for both (an unaligned load / store)
+    let r: [__m256d; LANES] = rows.map(|r| unsafe { std::mem::transmute::<Lanes, __m256d>(r) });
+    let lo01 = _mm256_unpacklo_pd(r[0], r[1]); // a0 b0 a2 b2
+    let hi01 = _mm256_unpackhi_pd(r[0], r[1]); // a1 b1 a3 b3
+    let lo23 = _mm256_unpacklo_pd(r[2], r[3]); // c0 d0 c2 d2
+    let hi23 = _mm256_unpackhi_pd(r[2], r[3]); // c1 d1 c3 d3
+    let out = [
+        _mm256_permute2f128_pd::<0x20>(lo01, lo23),
+        _mm256_permute2f128_pd::<0x20>(hi01, hi23),
+        _mm256_permute2f128_pd::<0x31>(lo01, lo23),
+        _mm256_permute2f128_pd::<0x31>(hi01, hi23),
+    ];
+    #[allow(unsafe_code)]
+    // SAFETY: as above
+    out.map(|v| unsafe { std::mem::transmute::<__m256d, Lanes>(v) })
+}

@@ -4,7 +4,7 @@
 use crate::dynamics::Model;
 use crate::error::{check, CableError, Result};
 use crate::integrate::{InputHold, Rk4, Rk4Lanes, SimOptions};
-use crate::lanes::{cpu_has_avx2_fma, Lanes, LANES};
+use crate::lanes::{cpu_has_avx2_fma, transpose4, Lanes, LANES};
 
 /// A discrete-time process `x_k = F(x_{k−1}, u_{k−1})` (additive noise is the filter's).
 pub trait Process {
@@ -122,22 +122,23 @@ impl<M: Model> Process for ModelProcess<M> {
                 return propagate_many_avx2(self, xs, u);
             }
         }
-        self.propagate_lanes::<false>(xs, u);
+        self.propagate_lanes::<false, false>(xs, u);
     }
 }
 
 impl<M: Model> ModelProcess<M> {
     /// States go through RK4 four at a time (the last group padded with copies of its last
     /// state); the results are those of [`Process::propagate`], bit for bit, unless `FUSED`
-    /// (the AVX2 + FMA build: fused multiply-adds, the last bits differ).
+    /// (the AVX2 + FMA build: fused multiply-adds, the last bits differ). `AVX` moves the
+    /// states in and out of lanes with AVX shuffles: only for code compiled with AVX.
     #[inline(always)]
-    fn propagate_lanes<const FUSED: bool>(&mut self, xs: &mut [f64], u: &[f64]) {
+    fn propagate_lanes<const FUSED: bool, const AVX: bool>(&mut self, xs: &mut [f64], u: &[f64]) {
         let n = self.model.n_states();
         let count = xs.len() / n;
         let h = self.dt / self.substeps as f64;
         for first in (0..count).step_by(LANES) {
             let used = LANES.min(count - first);
-            gather(xs, n, first, used, &mut self.soa);
+            gather::<AVX>(xs, n, first, used, &mut self.soa);
             for _ in 0..self.substeps {
                 if FUSED {
                     self.rk4_lanes.step_fused(&self.model, &mut self.soa, u, h);
@@ -145,31 +146,47 @@ impl<M: Model> ModelProcess<M> {
                     self.rk4_lanes.step(&self.model, &mut self.soa, u, h);
                 }
             }
-            scatter(&self.soa, n, first, used, xs);
+            scatter::<AVX>(&self.soa, n, first, used, xs);
         }
     }
 }
 
 /// States `first..first + used` of `xs` (`n` values each) into the lanes of `soa`, the unused
-/// lanes filled with copies of the last state.
+/// lanes filled with copies of the last state: whole blocks of four states by
+/// [`transpose4`] (shuffles when `AVX`), the rest value by value.
 #[inline(always)]
-fn gather(xs: &[f64], n: usize, first: usize, used: usize, soa: &mut [Lanes]) {
+fn gather<const AVX: bool>(xs: &[f64], n: usize, first: usize, used: usize, soa: &mut [Lanes]) {
     let points: [&[f64]; LANES] =
         std::array::from_fn(|l| &xs[(first + l.min(used - 1)) * n..][..n]);
-    for (s, lanes) in soa[..n].iter_mut().enumerate() {
-        *lanes = std::array::from_fn(|l| points[l][s]);
+    let whole = n - n % LANES;
+    let (blocks, _) = soa[..whole].as_chunks_mut::<LANES>();
+    for (b, block) in blocks.iter_mut().enumerate() {
+        let rows: [Lanes; LANES] = std::array::from_fn(|l| {
+            points[l][b * LANES..(b + 1) * LANES]
+                .try_into()
+                .expect("LANES")
+        });
+        *block = transpose4::<AVX>(&rows);
+    }
+    for s in whole..n {
+        soa[s] = std::array::from_fn(|l| points[l][s]);
     }
 }
 
-/// The first `used` lanes of `soa` back to states `first..` of `xs`.
+/// The first `used` lanes of `soa` back to states `first..` of `xs` ([`gather`] reversed).
 #[inline(always)]
-fn scatter(soa: &[Lanes], n: usize, first: usize, used: usize, xs: &mut [f64]) {
-    let soa = &soa[..n];
-    for (l, x) in xs[first * n..(first + used) * n]
-        .chunks_exact_mut(n)
-        .enumerate()
-    {
-        for (v, lanes) in x.iter_mut().zip(soa) {
+fn scatter<const AVX: bool>(soa: &[Lanes], n: usize, first: usize, used: usize, xs: &mut [f64]) {
+    let whole = n - n % LANES;
+    let xs = &mut xs[first * n..(first + used) * n];
+    let (blocks, _) = soa[..whole].as_chunks::<LANES>();
+    for (b, block) in blocks.iter().enumerate() {
+        let states = transpose4::<AVX>(block);
+        for (x, s) in xs.chunks_exact_mut(n).zip(&states) {
+            x[b * LANES..(b + 1) * LANES].copy_from_slice(s);
+        }
+    }
+    for (l, x) in xs.chunks_exact_mut(n).enumerate() {
+        for (v, lanes) in x[whole..].iter_mut().zip(&soa[whole..n]) {
             *v = lanes[l];
         }
     }
@@ -178,7 +195,7 @@ fn scatter(soa: &[Lanes], n: usize, first: usize, used: usize, xs: &mut [f64]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn propagate_many_avx2<M: Model>(p: &mut ModelProcess<M>, xs: &mut [f64], u: &[f64]) {
-    p.propagate_lanes::<true>(xs, u);
+    p.propagate_lanes::<true, true>(xs, u);
 }
 
 /// `x_k = A·x_{k−1} + B·u_{k−1}` (matrices row-major).
@@ -446,6 +463,60 @@ mod tests {
     use crate::dynamics::raven2;
 
     #[test]
+    #[allow(clippy::float_cmp)] // values are moved, not computed: exact equality is the claim
+    fn gather_and_scatter_move_states_through_lanes_for_any_state_count() {
+        let avx = [false, crate::lanes::cpu_has_avx2()];
+        for n in [1, 3, 4, 5, 8, 11, 12, 13] {
+            for count in 1..=9 {
+                let xs: Vec<f64> = (0..n * count).map(|k| k as f64 + 0.5).collect();
+                for first in (0..count).step_by(LANES) {
+                    let used = LANES.min(count - first);
+                    for &with_avx in &avx {
+                        let mut soa = vec![[f64::NAN; LANES]; n];
+                        let mut out = vec![-1.0; n * count];
+                        if with_avx {
+                            #[cfg(target_arch = "x86_64")]
+                            {
+                                #[allow(unsafe_code)]
+                                // SAFETY: the CPU reported AVX2
+                                unsafe {
+                                    round_trip_avx(&xs, n, first, used, &mut soa, &mut out)
+                                };
+                            }
+                        } else {
+                            gather::<false>(&xs, n, first, used, &mut soa);
+                            scatter::<false>(&soa, n, first, used, &mut out);
+                        }
+                        for s in 0..n {
+                            for l in 0..LANES {
+                                // unused lanes hold copies of the last state
+                                let k = first + l.min(used - 1);
+                                assert_eq!(soa[s][l], xs[k * n + s], "n {n} state {s} lane {l}");
+                            }
+                        }
+                        let range = first * n..(first + used) * n;
+                        assert_eq!(out[range.clone()], xs[range], "n {n} count {count}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn round_trip_avx(
+        xs: &[f64],
+        n: usize,
+        first: usize,
+        used: usize,
+        soa: &mut [Lanes],
+        out: &mut [f64],
+    ) {
+        gather::<true>(xs, n, first, used, soa);
+        scatter::<true>(soa, n, first, used, out);
+    }
+
+    #[test]
     fn propagating_many_states_in_lanes_equals_one_at_a_time() {
         let model = raven2(3).unwrap();
         let n = model.n_states();
@@ -474,13 +545,13 @@ mod tests {
             }
             // the portable lanes: the scalar RK4's operations, so its bits
             let mut plain = xs.clone();
-            p.propagate_lanes::<false>(&mut plain, &u);
+            p.propagate_lanes::<false, false>(&mut plain, &u);
             assert_eq!(plain, one, "{count} states, {substeps} substeps");
             assert_ne!(plain, xs);
             // fused multiply-adds (correctly rounded, so `mul_add` here is the CPU's FMA):
             // within rounding of the scalar RK4
             let mut fused = xs.clone();
-            p.propagate_lanes::<true>(&mut fused, &u);
+            p.propagate_lanes::<true, false>(&mut fused, &u);
             for (f, o) in fused.iter().zip(&one) {
                 assert!((f - o).abs() <= 1e-14 * o.abs().max(1.0), "{f} vs {o}");
             }
