@@ -329,17 +329,16 @@ fn reflector(s2: f64, xk: f64) -> (f64, f64) {
 /// `L[i, k] = sign_k · A[i, k]` for `i ≥ k` (zero columns past the last reflection).
 #[inline(always)]
 fn extract_lower(a: &[f64], ld: usize, n: usize, steps: usize, l: &mut [f64]) {
-    for k in 0..n {
-        let col = &mut l[k * n..(k + 1) * n];
+    for (k, col) in l[..n * n].chunks_exact_mut(n).enumerate() {
         if k >= steps {
             col.fill(0.0);
             continue;
         }
         let sgn = if a[k + k * ld] < 0.0 { -1.0 } else { 1.0 };
-        for (li, v) in col.iter_mut().zip(&a[k * ld..k * ld + n]) {
-            *li = sgn * v;
+        // one pass with a select, not a copy and a short fill (a library call per column)
+        for (i, (li, v)) in col.iter_mut().zip(&a[k * ld..k * ld + n]).enumerate() {
+            *li = if i < k { 0.0 } else { sgn * v };
         }
-        col[..k].fill(0.0);
     }
 }
 

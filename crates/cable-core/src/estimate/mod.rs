@@ -29,4 +29,4 @@ pub use models::{
 pub use params::{
     with_params, DualSrUkf, ParamObserve, ParamTransmission, RandomWalk, TransmissionParam,
 };
-pub use srukf::{Health, SigmaScaling, SrUkf, Weights};
+pub use srukf::{Health, SigmaScaling, SrUkf, Weights, SPECIALISED_UP_TO};

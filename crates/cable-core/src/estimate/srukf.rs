@@ -6,7 +6,7 @@ use super::linalg::{
 };
 use super::models::{LinearRows, Observe, Process};
 use crate::error::{check, CableError, Result};
-use crate::lanes::LANES;
+use crate::lanes::{cpu_has_avx2, LANES};
 
 /// Sigma-point scaling (seed 001: α = 1e-3, β = 2, κ = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -121,13 +121,168 @@ pub struct SrUkf<P: Process, H: Observe> {
     nu: Vec<f64>,
     obs: Vec<usize>,
     last_mask: Vec<bool>,
+    avx2: bool,
+}
+
+/// The state count of a filter specialised for `N` states, `n` itself when `N` is 0 (the
+/// general build). The specialised builds ([`SrUkf::step`] picks one by `n`) see every
+/// length as a constant: their loops unroll and vectorise whole, with no remainder code or
+/// bounds checks.
+#[inline(always)]
+const fn dim<const N: usize>(n: usize) -> usize {
+    if N == 0 {
+        n
+    } else {
+        N
+    }
+}
+
+/// Sigma points `[x, x + γ·S_j, x − γ·S_j]` (eq 3.11) into `chi`, one point per `n` values.
+#[inline(always)]
+fn sigma_points<const N: usize>(x: &[f64], s: &[f64], gamma: f64, chi: &mut [f64]) {
+    let n = dim::<N>(x.len());
+    let x = &x[..n];
+    let (c0, rest) = chi.split_at_mut(n);
+    c0.copy_from_slice(x);
+    let (plus, minus) = rest.split_at_mut(n * n);
+    if N > 0 {
+        // whole columns through local copies: no stores between loads that might alias
+        let x: [f64; N] = x.try_into().expect("N values");
+        let (plus, minus) = (plus.as_chunks_mut::<N>().0, minus.as_chunks_mut::<N>().0);
+        for ((sj, p), m) in s.as_chunks::<N>().0.iter().zip(plus).zip(minus) {
+            let sj = *sj;
+            *p = std::array::from_fn(|r| x[r] + gamma * sj[r]);
+            *m = std::array::from_fn(|r| x[r] - gamma * sj[r]);
+        }
+        return;
+    }
+    for ((sj, p), m) in s[..n * n]
+        .chunks_exact(n)
+        .zip(plus.chunks_exact_mut(n))
+        .zip(minus.chunks_exact_mut(n))
+    {
+        for (((p, m), x), s) in p.iter_mut().zip(m.iter_mut()).zip(x).zip(sj) {
+            *p = x + gamma * s;
+            *m = x - gamma * s;
+        }
+    }
+}
+
+/// The mean of sigma points (eq 3.13) as `χ₀ + w·Σᵢ(χᵢ − χ₀)` into `mean` (the weights sum
+/// to one, and this form does not cancel the ±1e6-weighted terms of the seed's α = 1e-3,
+/// `W₀ ≈ −n/(α²n)`); `points` holds `χ₀` first, `w` is the weight of the others.
+#[inline(always)]
+fn sigma_mean<const N: usize>(points: &[f64], w: f64, mean: &mut [f64]) {
+    let n = dim::<N>(mean.len());
+    let mean = &mut mean[..n];
+    let (c0, rest) = points.split_at(n);
+    if N > 0 {
+        let c0: &[f64; N] = c0.try_into().expect("N values");
+        let mut acc = [0.0; N];
+        for col in rest.as_chunks::<N>().0 {
+            for r in 0..N {
+                acc[r] += col[r] - c0[r];
+            }
+        }
+        for r in 0..N {
+            mean[r] = c0[r] + w * acc[r];
+        }
+        return;
+    }
+    mean.fill(0.0);
+    for col in rest.chunks_exact(n) {
+        for ((acc, v), z) in mean.iter_mut().zip(col).zip(c0) {
+            *acc += v - z;
+        }
+    }
+    for (m, z) in mean.iter_mut().zip(c0) {
+        *m = z + w * *m;
+    }
+}
+
+/// `out = a·(v − m)` over the first `n = m.len()` entries.
+#[inline(always)]
+fn scaled_difference<const N: usize>(a: f64, v: &[f64], m: &[f64], out: &mut [f64]) {
+    let n = dim::<N>(m.len());
+    for ((o, v), m) in out[..n].iter_mut().zip(&v[..n]).zip(&m[..n]) {
+        *o = a * (v - m);
+    }
+}
+
+/// `Z ← Z·L⁻ᵀ` for the `n × q` column-major `Z` (`n = z.len() / q`) and the lower `q × q`
+/// `L`: each row of `Z` solves `L·zᵀ = rowᵀ` as [`solve_lower`] would, all rows at once
+/// down the columns (eq 3.22's `P_xy / S_yᵀ`).
+#[inline(always)]
+fn solve_rows_lower_transpose<const N: usize>(l: &[f64], q: usize, z: &mut [f64]) {
+    if N > 0 {
+        let z = z.as_chunks_mut::<N>().0;
+        for j in 0..q {
+            let d = l[j + j * q];
+            let zj = z[j].map(|v| v / d);
+            z[j] = zj;
+            for (i, zi) in z[j + 1..q].iter_mut().enumerate() {
+                let f = l[j + 1 + i + j * q];
+                let mut v = *zi;
+                for r in 0..N {
+                    v[r] -= f * zj[r];
+                }
+                *zi = v;
+            }
+        }
+        return;
+    }
+    let n = z.len() / q;
+    for j in 0..q {
+        let (done, rest) = z.split_at_mut((j + 1) * n);
+        let zj = &mut done[j * n..];
+        let d = l[j + j * q];
+        for v in zj.iter_mut() {
+            *v /= d;
+        }
+        for (i, zi) in rest.chunks_exact_mut(n).enumerate() {
+            let f = l[j + 1 + i + j * q];
+            for (a, b) in zi.iter_mut().zip(zj.iter()) {
+                *a -= f * b;
+            }
+        }
+    }
+}
+
+/// `x += Z·c` for the `n × q` column-major `Z` (`n = x.len()`), the sum formed first
+/// (from zero, column by column) in `acc` (`n` long).
+#[inline(always)]
+fn add_combination<const N: usize>(z: &[f64], c: &[f64], x: &mut [f64], acc: &mut [f64]) {
+    if N > 0 {
+        let mut sum = [0.0; N];
+        for (zc, rc) in z.as_chunks::<N>().0.iter().zip(c) {
+            for r in 0..N {
+                sum[r] += zc[r] * rc;
+            }
+        }
+        for (x, a) in x[..N].iter_mut().zip(sum) {
+            *x += a;
+        }
+        return;
+    }
+    let n = x.len();
+    let acc = &mut acc[..n];
+    acc.fill(0.0);
+    for (zc, rc) in z.chunks_exact(n).zip(c) {
+        for (a, v) in acc.iter_mut().zip(zc) {
+            *a += v * rc;
+        }
+    }
+    for (x, a) in x.iter_mut().zip(acc.iter()) {
+        *x += a;
+    }
 }
 
 /// `L = qr([√w·(pᵢ − mean)ᵢ, noise])ᵀ`, the square root of `w·Σᵢ(pᵢ − m)(pᵢ − m)ᵀ + N·Nᵀ`
 /// (eqs 3.14 and 3.19): `points` are the consecutive non-central sigma points (`d` values
 /// each, `d = mean.len()`), `noise` the lower `d × d` square root of the additive noise. The
 /// compound is laid out one column per deviation in `comp` (see [`lq_lower`]).
-fn square_root_of_spread(
+#[inline(always)]
+fn square_root_of_spread<const D: usize>(
     comp: &mut [f64],
     points: &[f64],
     mean: &[f64],
@@ -136,9 +291,28 @@ fn square_root_of_spread(
     scratch: &mut [f64],
     l: &mut [f64],
 ) {
-    let d = mean.len();
+    let d = dim::<D>(mean.len());
+    let mean = &mean[..d];
     let (ld, dense) = (padded(d), points.len() / d);
     let cols = dense + d;
+    if D > 0 {
+        // whole columns through local copies (as in `sigma_points`)
+        let mean: [f64; D] = mean.try_into().expect("D values");
+        let (dev, tail) = comp[..ld * cols].split_at_mut(ld * dense);
+        for (col, p) in dev.chunks_exact_mut(ld).zip(points.as_chunks::<D>().0) {
+            let p = *p;
+            let c: [f64; D] = std::array::from_fn(|r| w_sqrt * (p[r] - mean[r]));
+            col[..D].copy_from_slice(&c);
+            col[D..].fill(0.0);
+        }
+        for (col, q) in tail.chunks_exact_mut(ld).zip(noise.as_chunks::<D>().0) {
+            let q = *q;
+            col[..D].copy_from_slice(&q);
+            col[D..].fill(0.0);
+        }
+        lq_lower(&mut comp[..ld * cols], d, cols, dense, scratch, l);
+        return;
+    }
     for (i, col) in comp[..ld * cols].chunks_exact_mut(ld).enumerate() {
         let (col, pad) = col.split_at_mut(d);
         if i < dense {
@@ -153,13 +327,45 @@ fn square_root_of_spread(
     lq_lower(&mut comp[..ld * cols], d, cols, dense, scratch, l);
 }
 
+/// `H·S` (`S` is `n × n`) into the first `n` columns of the compound (column `j`: row `a` is
+/// `h_s(obs[a], j, S[:, j])`), a SIMD block of rows at a time with the padding zeros (a
+/// short fill of runtime length would be a library call per column).
+#[inline(always)]
+fn fill_h_s(
+    comp: &mut [f64],
+    ld: usize,
+    n: usize,
+    s: &[f64],
+    obs: &[usize],
+    h_s: impl Fn(usize, usize, &[f64]) -> f64,
+) {
+    let q = obs.len();
+    for (j, (col, sj)) in comp[..ld * n]
+        .chunks_exact_mut(ld)
+        .zip(s.chunks_exact(n))
+        .enumerate()
+    {
+        for (b, block) in col.as_chunks_mut::<LANES>().0.iter_mut().enumerate() {
+            *block = std::array::from_fn(|t| {
+                let a = b * LANES + t;
+                if a < q {
+                    h_s(obs[a], j, sj)
+                } else {
+                    0.0
+                }
+            });
+        }
+    }
+}
+
 /// `ŷ`, `S_y` and `P_xy` of a linear measurement `y = H·x` in closed form, for the rows
 /// `obs` of `H`. Sigma points `x̂ ± γ·S_j` through `H` give `Yᵢ − ŷ = ±γ·(H·S)_j` and
 /// `Y₀ − ŷ = 0` (eqs 3.16–3.18), so with `2·W_c·γ² = 1` the compound of eq 3.19 holds each
 /// column of `H·S` twice, scaled by `±1/√2`: `S_y = qr([H·S, √R])` (eq 3.20's 0th point adds
 /// nothing) and `P_xy = S·(H·S)ᵀ` (eq 3.21). Exact arithmetic gives the sigma-point result;
 /// rounding is smaller (no `±γ` deviations from `x̂` to subtract).
-fn linear_spread(
+#[inline(always)]
+fn linear_spread<const N: usize>(
     lin: LinearRows<'_>,
     obs: &[usize],
     x: &[f64],
@@ -171,18 +377,14 @@ fn linear_spread(
     sy: &mut [f64],
     pxy: &mut [f64],
 ) {
-    let (n, q) = (x.len(), obs.len());
+    let (n, q) = (dim::<N>(x.len()), obs.len());
     let ld = padded(q);
-    // H·S into the first n columns of the compound (column j of H·S: row a = H[obs[a], :]·S[:, j])
-    for (j, col) in comp[..ld * n].chunks_exact_mut(ld).enumerate() {
-        let sj = &s[j * n..(j + 1) * n];
-        for (a, &k) in obs.iter().enumerate() {
-            col[a] = match lin.pick {
-                Some(pick) => sj[pick[k]],
-                None => (j..n).map(|i| lin.h[k * n + i] * sj[i]).sum(),
-            };
-        }
-        col[q..].fill(0.0);
+    // H·S (column j: row a = H[obs[a], :]·S[:, j])
+    match lin.pick {
+        Some(pick) => fill_h_s(comp, ld, n, s, obs, |k, _, sj| sj[pick[k]]),
+        None => fill_h_s(comp, ld, n, s, obs, |k, j, sj| {
+            (j..n).map(|i| lin.h[k * n + i] * sj[i]).sum()
+        }),
     }
     for (a, &k) in obs.iter().enumerate() {
         yhat[a] = match lin.pick {
@@ -196,22 +398,41 @@ fn linear_spread(
     }
     // P_xy = S·(H·S)ᵀ, column-major n × q, over whole columns of S (the zeros above its
     // diagonal add exact zeros); exact zeros of H·S (a selected state's row right of its
-    // diagonal) are skipped
-    for (a, p) in pxy.chunks_exact_mut(n).enumerate() {
-        p.fill(0.0);
-        for (j, sj) in s.chunks_exact(n).enumerate() {
-            let h = comp[a + j * ld];
-            if h == 0.0 {
-                continue;
+    // diagonal) are skipped. For N states each column is summed in a local array.
+    if N > 0 {
+        let s = s.as_chunks::<N>().0;
+        for (a, p) in pxy[..N * q].as_chunks_mut::<N>().0.iter_mut().enumerate() {
+            let mut acc = [0.0; N];
+            for (j, sj) in s.iter().enumerate() {
+                let h = comp[a + j * ld];
+                if h == 0.0 {
+                    continue;
+                }
+                for r in 0..N {
+                    acc[r] += sj[r] * h;
+                }
             }
-            for (p, v) in p.iter_mut().zip(sj) {
-                *p += v * h;
+            *p = acc;
+        }
+    } else {
+        for (a, p) in pxy.chunks_exact_mut(n).enumerate() {
+            p.fill(0.0);
+            for (j, sj) in s.chunks_exact(n).enumerate() {
+                let h = comp[a + j * ld];
+                if h == 0.0 {
+                    continue;
+                }
+                for (p, v) in p.iter_mut().zip(sj) {
+                    *p += v * h;
+                }
             }
         }
     }
     for (t, col) in comp[ld * n..ld * (n + q)].chunks_exact_mut(ld).enumerate() {
-        col[..q].copy_from_slice(&sr[t * q..(t + 1) * q]);
-        col[q..].fill(0.0);
+        let src = &sr[t * q..(t + 1) * q];
+        for (b, block) in col.as_chunks_mut::<LANES>().0.iter_mut().enumerate() {
+            *block = std::array::from_fn(|r| src.get(b * LANES + r).copied().unwrap_or(0.0));
+        }
     }
     lq_lower(&mut comp[..ld * (n + q)], q, n + q, n, scratch, sy);
 }
@@ -306,6 +527,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             nu: vec![0.0; p],
             obs: (0..p).collect(),
             last_mask: vec![true; p],
+            avx2: cpu_has_avx2(),
         })
     }
 
@@ -348,22 +570,9 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     }
 
     /// Sigma points of the current `(x, S)` into `chi` (column `i` = point `i`).
-    fn sigma_points(&mut self) {
-        let (n, g) = (self.n, self.w.gamma);
-        let (c0, rest) = self.chi.split_at_mut(n);
-        c0.copy_from_slice(&self.x);
-        let (plus, minus) = rest.split_at_mut(n * n);
-        for ((sj, p), m) in self
-            .s
-            .chunks_exact(n)
-            .zip(plus.chunks_exact_mut(n))
-            .zip(minus.chunks_exact_mut(n))
-        {
-            for (((p, m), x), s) in p.iter_mut().zip(m.iter_mut()).zip(&self.x).zip(sj) {
-                *p = x + g * s;
-                *m = x - g * s;
-            }
-        }
+    #[inline(always)]
+    fn sigma_points<const N: usize>(&mut self) {
+        sigma_points::<N>(&self.x, &self.s, self.w.gamma, &mut self.chi);
     }
 
     /// Record a failed downdate and rebuild `S` from `S_saved·S_savedᵀ + Σ signᵢ·vᵢ·vᵢᵀ`.
@@ -378,34 +587,23 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         check::len("u", u, self.process.n_inputs())?;
         check::all_finite("u", u, 1)?;
         self.health.recovered = 0;
-        self.predict_unchecked(u);
-        self.check_state()
+        self.predict_unchecked::<0>(u);
+        self.check_state::<0>()
     }
 
-    fn predict_unchecked(&mut self, u: &[f64]) {
-        let n = self.n;
+    #[inline(always)]
+    fn predict_unchecked<const N: usize>(&mut self, u: &[f64]) {
+        let n = dim::<N>(self.n);
         let ns = 2 * n + 1;
-        self.sigma_points();
+        self.sigma_points::<N>();
         self.process.propagate_many(&mut self.chi[..ns * n], u);
         // mean (eq 3.13) as χ₀ + Σ Wᵢ(χᵢ − χ₀): the weights sum to one, and this form does not
         // cancel the ±1e6-weighted terms of the seed's α = 1e-3 (W₀ ≈ −n/(α²n))
-        let wmi = self.w.wm.1;
-        self.dev[..n].fill(0.0);
-        {
-            let (c0, rest) = self.chi.split_at(n);
-            for col in rest.chunks_exact(n) {
-                for ((acc, v), z) in self.dev[..n].iter_mut().zip(col).zip(c0) {
-                    *acc += v - z;
-                }
-            }
-            for ((x, acc), z) in self.x.iter_mut().zip(&self.dev[..n]).zip(c0) {
-                *x = z + wmi * acc;
-            }
-        }
+        sigma_mean::<N>(&self.chi[..ns * n], self.w.wm.1, &mut self.x);
         self.process.project(&mut self.x);
         // S = qr([√Wc·(χ_1:2n − x̂), √Q]) (eq 3.14)
         let swc = self.w.wc.1.sqrt();
-        square_root_of_spread(
+        square_root_of_spread::<N>(
             &mut self.comp,
             &self.chi[n..ns * n],
             &self.x,
@@ -417,10 +615,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         // 0th point, weight possibly negative: update or downdate (eq 3.15)
         let wc0 = self.w.wc.0;
         if wc0 != 0.0 {
-            let a = wc0.abs().sqrt();
-            for r in 0..n {
-                self.dev[r] = a * (self.chi[r] - self.x[r]);
-            }
+            scaled_difference::<N>(wc0.abs().sqrt(), &self.chi[..n], &self.x, &mut self.dev);
             self.rank_one(n, wc0.signum());
         }
     }
@@ -439,6 +634,13 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     /// Measurement update (eqs 3.16–3.25) with the entries of `y` where `mask` is true (all
     /// when `mask` is `None`); `u` is passed to the measurement model.
     pub fn update(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) -> Result<()> {
+        self.check_measurement(y, mask)?;
+        self.update_unchecked::<0>(u, y, mask);
+        self.check_state::<0>()
+    }
+
+    /// `y` and `mask` of the right lengths, `y` finite where measured.
+    fn check_measurement(&self, y: &[f64], mask: Option<&[bool]>) -> Result<()> {
         check::len("y", y, self.p)?;
         if let Some(m) = mask {
             if m.len() != self.p {
@@ -460,8 +662,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                 });
             }
         }
-        self.update_unchecked(u, y, mask);
-        self.check_state()
+        Ok(())
     }
 
     fn set_mask(&mut self, mask: Option<&[bool]>) {
@@ -501,7 +702,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         let (n, p, q) = (self.n, self.p, self.obs.len());
         let ns = 2 * n + 1;
         // redraw sigma points from the predicted (x, S) (eq 3.16) and measure them (eq 3.17)
-        self.sigma_points();
+        self.sigma_points::<0>();
         let mut full = std::mem::take(&mut self.nu); // p-long scratch
         for i in 0..ns {
             self.observe
@@ -522,7 +723,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         }
         // S_y = qr([√Wc·(Y − ŷ), √R]) (eq 3.19), then the 0th point (eq 3.20)
         let swc = self.w.wc.1.sqrt();
-        square_root_of_spread(
+        square_root_of_spread::<0>(
             &mut self.comp,
             &self.ysig[q..ns * q],
             &self.yhat[..q],
@@ -584,9 +785,10 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         }
     }
 
-    fn update_unchecked(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) {
+    #[inline(always)]
+    fn update_unchecked<const N: usize>(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) {
         self.set_mask(mask);
-        let n = self.n;
+        let n = dim::<N>(self.n);
         let q = self.obs.len();
         self.health.measured = q;
         if q == 0 {
@@ -594,7 +796,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             return;
         }
         if let Some(lin) = self.observe.linear() {
-            linear_spread(
+            linear_spread::<N>(
                 lin,
                 &self.obs,
                 &self.x,
@@ -612,21 +814,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         // K = (P_xy / S_yᵀ) / S_y (eq 3.22): Z = P_xy·S_y⁻ᵀ, each row solving S_y·zᵀ = p_xyᵀ
         // as `solve_lower` would, all rows at once down the columns; then K = Z·S_y⁻¹
         let sy = &self.sy[..q * q];
-        let z = &mut self.pxy[..n * q];
-        for j in 0..q {
-            let (done, rest) = z.split_at_mut((j + 1) * n);
-            let zj = &mut done[j * n..];
-            let d = sy[j + j * q];
-            for v in zj.iter_mut() {
-                *v /= d;
-            }
-            for (i, zi) in rest.chunks_exact_mut(n).enumerate() {
-                let f = sy[j + 1 + i + j * q];
-                for (a, b) in zi.iter_mut().zip(zj.iter()) {
-                    *a -= f * b;
-                }
-            }
-        } // Z = U (eq 3.24: U = K·S_y)
+        solve_rows_lower_transpose::<N>(sy, q, &mut self.pxy[..n * q]); // Z = U (eq 3.24: U = K·S_y)
         let mut row = std::mem::take(&mut self.dev);
         // innovation and NIS = |S_y⁻¹ν|²
         for (a, &k) in self.obs.iter().enumerate() {
@@ -636,16 +824,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         solve_lower(sy, q, &mut row[..q]);
         self.health.nis = row[..q].iter().map(|v| v * v).sum();
         // x += K·ν = Z·(S_y⁻¹ν)   (K·ν = Z·S_y⁻¹·ν), summed over the columns of Z
-        let acc = &mut self.ucols[..n]; // scratch until the downdate below
-        acc.fill(0.0);
-        for (zc, rc) in self.pxy[..n * q].chunks_exact(n).zip(&row[..q]) {
-            for (a, v) in acc.iter_mut().zip(zc) {
-                *a += v * rc;
-            }
-        }
-        for (x, a) in self.x.iter_mut().zip(acc.iter()) {
-            *x += a;
-        }
+        add_combination::<N>(&self.pxy[..n * q], &row[..q], &mut self.x, &mut self.ucols);
         self.dev = row;
         self.process.project(&mut self.x);
         // S ← cholupdate(S, U, −1), the q columns of U interleaved (eq 3.25)
@@ -732,7 +911,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                 xp[r] = c0 + wm1 * acc;
             }
             let sw = wc1.sqrt();
-            square_root_of_spread(&mut comp, &chp[n..], &xp, sw, &self.sq, &mut lqv, &mut sp);
+            square_root_of_spread::<0>(&mut comp, &chp[n..], &xp, sw, &self.sq, &mut lqv, &mut sp);
             if wc0 != 0.0 {
                 let a = wc0.abs().sqrt();
                 for r in 0..n {
@@ -827,18 +1006,59 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     }
 
     /// Predict with `u`, then update with `y` (entries where `mask` is true; all if `None`).
+    /// Bad input is refused before anything changes. Filters of up to
+    /// [`SPECIALISED_UP_TO`] states run a build specialised for their size (and for AVX2 + FMA
+    /// CPUs, 256-bit lanes): same operations, same results.
     pub fn step(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) -> Result<()> {
         check::len("u", u, self.process.n_inputs())?;
         check::all_finite("u", u, 1)?;
+        self.check_measurement(y, mask)?;
+        macro_rules! sized {
+            ($($n:literal)*) => {
+                match self.n {
+                    $($n => self.step_sized::<$n>(u, y, mask),)*
+                    _ => self.step_unchecked::<0>(u, y, mask),
+                }
+            };
+        }
+        sized!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24)
+    }
+
+    /// [`Self::step_unchecked`] for `N = n` states, with 256-bit lanes where the CPU has them.
+    fn step_sized<const N: usize>(
+        &mut self,
+        u: &[f64],
+        y: &[f64],
+        mask: Option<&[bool]>,
+    ) -> Result<()> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            #[allow(unsafe_code)]
+            // SAFETY: `avx2` is set only when `cpu_has_avx2()` reported AVX2 on this CPU
+            return unsafe { step_avx2::<P, H, N>(self, u, y, mask) };
+        }
+        self.step_unchecked::<N>(u, y, mask)
+    }
+
+    /// Predict and update, inputs already checked.
+    #[inline(always)]
+    fn step_unchecked<const N: usize>(
+        &mut self,
+        u: &[f64],
+        y: &[f64],
+        mask: Option<&[bool]>,
+    ) -> Result<()> {
         self.health.recovered = 0;
-        self.predict_unchecked(u);
-        self.update(u, y, mask)
+        self.predict_unchecked::<N>(u);
+        self.update_unchecked::<N>(u, y, mask);
+        self.check_state::<N>()
     }
 
     /// Refresh the condition estimate; a non-finite mean or factor is an error (the model
     /// diverged: smaller dt or more substeps).
-    fn check_state(&mut self) -> Result<()> {
-        let n = self.n;
+    #[inline(always)]
+    fn check_state<const N: usize>(&mut self) -> Result<()> {
+        let n = dim::<N>(self.n);
         let (mut lo, mut hi) = (f64::INFINITY, 0.0_f64);
         for i in 0..n {
             let d = self.s[i + i * n].abs();
@@ -871,6 +1091,20 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     }
 }
 
+/// The largest state count with a specialised build of [`SrUkf::step`].
+pub const SPECIALISED_UP_TO: usize = 24;
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn step_avx2<P: Process, H: Observe, const N: usize>(
+    f: &mut SrUkf<P, H>,
+    u: &[f64],
+    y: &[f64],
+    mask: Option<&[bool]>,
+) -> Result<()> {
+    f.step_unchecked::<N>(u, y, mask)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -888,8 +1122,30 @@ mod tests {
         nalgebra::DMatrix::from_row_slice(r, c, v)
     }
 
+    /// `v·I` (`n × n`).
+    fn diag(n: usize, v: f64) -> Vec<f64> {
+        (0..n * n)
+            .map(|k| if k % (n + 1) == 0 { v } else { 0.0 })
+            .collect()
+    }
+
+    /// A slightly damped process matrix with cross-coupling of size `c` (row-major).
+    fn coupled(n: usize, c: f64) -> Vec<f64> {
+        (0..n * n)
+            .map(|k| {
+                let (i, j) = (k / n, k % n);
+                if i == j {
+                    0.98
+                } else {
+                    c * (((i * 7 + j * 3) % 5) as f64 - 2.0)
+                }
+            })
+            .collect()
+    }
+
     /// A linear measurement that does not tell the filter its matrix, so the filter runs the
     /// sigma-point update (eqs 3.16–3.21) on it.
+    #[derive(Clone)]
     struct Opaque(LinearObserve);
 
     impl Observe for Opaque {
@@ -905,16 +1161,7 @@ mod tests {
     fn linear_measurement_in_closed_form_equals_the_sigma_point_update() {
         let n = 5;
         // a rotating, slightly damped process with cross-coupling
-        let a: Vec<f64> = (0..n * n)
-            .map(|k| {
-                let (i, j) = (k / n, k % n);
-                if i == j {
-                    0.98
-                } else {
-                    0.05 * ((i * 7 + j * 3) % 5) as f64 - 0.1
-                }
-            })
-            .collect();
+        let a = coupled(n, 0.05);
         let q: Vec<f64> = (0..n * n)
             .map(|k| if k % (n + 1) == 0 { 1e-4 } else { 0.0 })
             .collect();
@@ -1183,5 +1430,112 @@ mod tests {
             mk(&[1.0, 0.0, 0.0], &[1.0]),
             Err(CableError::Shape { .. })
         ));
+    }
+
+    /// Runs `steps` steps three ways: `step()` (the build specialised for `n`, with the
+    /// CPU's lanes), `step()` with the portable lanes, and `predict()` + `update()` (the
+    /// general build); all three must agree bit for bit.
+    fn three_builds_agree<P: Process + Clone, H: Observe + Clone>(
+        f: SrUkf<P, H>,
+        steps: usize,
+        input: impl Fn(usize) -> Vec<f64>,
+        measure: impl Fn(usize, &[f64]) -> (Vec<f64>, Option<Vec<bool>>),
+    ) {
+        let (mut fast, mut portable, mut general) = (f.clone(), f.clone(), f);
+        portable.avx2 = false;
+        for k in 0..steps {
+            let u = input(k);
+            let (y, mask) = measure(k, general.x());
+            let mask = mask.as_deref();
+            fast.step(&u, &y, mask).unwrap();
+            portable.step(&u, &y, mask).unwrap();
+            general.predict(&u).unwrap();
+            general.update(&u, &y, mask).unwrap();
+            for other in [&fast, &portable] {
+                let bits = |v: &[f64]| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(other.x()), bits(general.x()), "x at step {k}");
+                let (so, sg) = (other.sqrt_covariance(), general.sqrt_covariance());
+                assert_eq!(bits(so), bits(sg), "S at step {k}");
+                assert_eq!(other.health().nis.to_bits(), general.health().nis.to_bits());
+            }
+        }
+        assert!(general.x().iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn specialised_steps_equal_the_general_build_bit_for_bit() {
+        use crate::dynamics::{raven2, Model};
+        use crate::estimate::ModelProcess;
+        // the Raven-II transmission (n = 12), motor encoders, every third step one masked
+        let model = raven2(3).unwrap();
+        let n = model.n_states();
+        let mut x0 = vec![0.0; n];
+        let mut q_m = [0.0; 3];
+        model.joint_to_motor(&[0.2, 1.4, 0.3], &mut q_m);
+        for i in 0..3 {
+            x0[4 * i] = q_m[i];
+            x0[4 * i + 2] = [0.2, 1.4, 0.3][i];
+        }
+        let f = SrUkf::new(
+            ModelProcess::new(model, 1e-4, 1).unwrap(),
+            LinearObserve::select(n, &[0, 4, 8]).unwrap(),
+            &x0,
+            &diag(n, 1e-6),
+            &diag(n, 1e-9),
+            &diag(3, 1e-8),
+            SigmaScaling::default(),
+        )
+        .unwrap();
+        let x_ref = x0.clone();
+        three_builds_agree(
+            f,
+            60,
+            |k| {
+                let s = (k as f64 * 0.3).sin();
+                vec![0.2 * s, -0.1 * s, 0.05 * s, 0.0, 0.0, 0.0]
+            },
+            |k, _| {
+                let y = vec![x_ref[0] + 1e-4 * k as f64, x_ref[4], x_ref[8] - 1e-5];
+                let mask = (k % 3 == 2).then(|| vec![true, false, true]);
+                (y, mask)
+            },
+        );
+        // linear processes of sizes with and without whole SIMD blocks, selections and a
+        // general H (the sigma-point update through an opaque model), past the specialised
+        // sizes too
+        for n in [1, 3, 5, 8, 13, SPECIALISED_UP_TO, SPECIALISED_UP_TO + 1] {
+            let a = coupled(n, 0.01);
+            let p = n.min(3);
+            let picks: Vec<usize> = (0..p).map(|i| (i * 5) % n).collect();
+            let x0: Vec<f64> = (0..n).map(|i| 0.1 * i as f64).collect();
+            fn mk<H: Observe>(
+                n: usize,
+                a: &[f64],
+                x0: &[f64],
+                p: usize,
+                obs: H,
+            ) -> SrUkf<LinearProcess, H> {
+                SrUkf::new(
+                    LinearProcess::new(n, 0, a.to_vec(), vec![]).unwrap(),
+                    obs,
+                    x0,
+                    &diag(n, 0.5),
+                    &diag(n, 1e-3),
+                    &diag(p, 1e-2),
+                    SigmaScaling::default(),
+                )
+                .unwrap()
+            }
+            let measure = |k: usize, _: &[f64]| {
+                let y = (0..p).map(|i| (0.1 * (k + i) as f64).cos()).collect();
+                (y, None)
+            };
+            let picked = LinearObserve::select(n, &picks).unwrap();
+            three_builds_agree(mk(n, &a, &x0, p, picked.clone()), 20, |_| vec![], measure);
+            let h: Vec<f64> = (0..p * n).map(|k| 0.3 + 0.1 * (k % 4) as f64).collect();
+            let general_h = LinearObserve::new(p, n, h).unwrap();
+            three_builds_agree(mk(n, &a, &x0, p, general_h), 20, |_| vec![], measure);
+            three_builds_agree(mk(n, &a, &x0, p, Opaque(picked)), 20, |_| vec![], measure);
+        }
     }
 }
