@@ -40,6 +40,20 @@ pub fn cholupdate_columns(
     count: usize,
     sign: f64,
 ) -> Result<(), DowndateFailed> {
+    cholupdate_columns_sized::<0>(l, n, vs, ld, count, sign)
+}
+
+/// [`cholupdate_columns`] compiled for `n = N` (`N` a multiple of four: the column and block
+/// loops unroll), or for any `n` when `N` is 0. Same operations, same results.
+pub(crate) fn cholupdate_columns_sized<const N: usize>(
+    l: &mut [f64],
+    n: usize,
+    vs: &mut [f64],
+    ld: usize,
+    count: usize,
+    sign: f64,
+) -> Result<(), DowndateFailed> {
+    debug_assert!(N == 0 || (N == n && N.is_multiple_of(LANES)));
     debug_assert!(l.len() >= n * n && ld >= n && vs.len() >= ld * count.saturating_sub(1) + n);
     if !n.is_multiple_of(LANES) {
         return if sign > 0.0 {
@@ -52,9 +66,9 @@ pub fn cholupdate_columns(
     if crate::lanes::cpu_has_avx2_fma() {
         #[allow(unsafe_code)]
         // SAFETY: the CPU reported AVX2 and FMA, all `rotate_blocks_avx2` requires
-        return unsafe { rotate_blocks_avx2(l, n, vs, ld, count, sign) };
+        return unsafe { rotate_blocks_avx2::<N>(l, n, vs, ld, count, sign) };
     }
-    rotate_blocks::<false>(l, n, vs, ld, count, sign)
+    rotate_blocks::<N, false>(l, n, vs, ld, count, sign)
 }
 
 /// Rotations of column `k` by up to this many vectors are applied in one pass down the column.
@@ -140,7 +154,7 @@ impl Rotation {
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn rotate_blocks_avx2(
+fn rotate_blocks_avx2<const N: usize>(
     l: &mut [f64],
     n: usize,
     vs: &mut [f64],
@@ -148,7 +162,7 @@ fn rotate_blocks_avx2(
     count: usize,
     sign: f64,
 ) -> Result<(), DowndateFailed> {
-    rotate_blocks::<true>(l, n, vs, ld, count, sign)
+    rotate_blocks::<N, true>(l, n, vs, ld, count, sign)
 }
 
 /// [`cholupdate_columns`] for `n` a multiple of four, the vectors taken [`ROTATION_GROUP`] at
@@ -159,7 +173,7 @@ fn rotate_blocks_avx2(
 /// `k` in that block hold zeros in `L` and (cleared after their own column) in every `v`,
 /// which the rotations keep exact zeros; row `k` takes the new pivot afterwards.
 #[inline(always)]
-fn rotate_blocks<const FUSED: bool>(
+fn rotate_blocks<const N: usize, const FUSED: bool>(
     l: &mut [f64],
     n: usize,
     vs: &mut [f64],
@@ -172,8 +186,8 @@ fn rotate_blocks<const FUSED: bool>(
         macro_rules! group {
             ($($g:literal),*) => {
                 match ROTATION_GROUP.min(count - first) {
-                    $($g if sign > 0.0 => rotate_group::<$g, true, FUSED>(l, n, vs, ld),)*
-                    $($g => rotate_group::<$g, false, FUSED>(l, n, vs, ld),)*
+                    $($g if sign > 0.0 => rotate_group::<N, $g, true, FUSED>(l, n, vs, ld),)*
+                    $($g => rotate_group::<N, $g, false, FUSED>(l, n, vs, ld),)*
                     _ => unreachable!("groups of 1 to ROTATION_GROUP vectors"),
                 }
             };
@@ -185,12 +199,13 @@ fn rotate_blocks<const FUSED: bool>(
 
 /// One group of `G` vectors (columns `0, ld, …` of `vs`) of [`rotate_blocks`].
 #[inline(always)]
-fn rotate_group<const G: usize, const UP: bool, const FUSED: bool>(
+fn rotate_group<const N: usize, const G: usize, const UP: bool, const FUSED: bool>(
     l: &mut [f64],
     n: usize,
     vs: &mut [f64],
     ld: usize,
 ) -> Result<(), DowndateFailed> {
+    let n = if N == 0 { n } else { N };
     let mut rest = vs;
     // each vector as blocks of four rows
     let mut vcols: [&mut [Lanes]; G] = std::array::from_fn(|g| {
@@ -683,7 +698,7 @@ mod tests {
                 got.push(l2);
                 if n % 4 == 0 {
                     let (mut l2, mut w) = (l.clone(), v.clone());
-                    rotate_blocks::<false>(&mut l2, n, &mut w, n, 1, sign).unwrap();
+                    rotate_blocks::<0, false>(&mut l2, n, &mut w, n, 1, sign).unwrap();
                     got.push(l2);
                 }
                 for l2 in got {

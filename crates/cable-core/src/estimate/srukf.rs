@@ -1,8 +1,9 @@
 //! The square-root unscented Kalman filter of van der Merwe (seed 001, eqs 3.9–3.25).
 
 use super::linalg::{
-    cholesky_psd, cholupdate, cholupdate_columns, cholupdate_or_repair, lq_lower,
-    nearest_spd_factor, outer_lower, padded, repaired_factor, solve_lower,
+    cholesky_psd, cholupdate, cholupdate_columns, cholupdate_columns_sized, cholupdate_or_repair,
+    lq_lower, nearest_spd_factor, outer_lower, padded, repaired_factor, solve_lower,
+    DowndateFailed,
 };
 use super::models::{LinearRows, Observe, Process};
 use crate::error::{check, CableError, Result};
@@ -616,15 +617,16 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         let wc0 = self.w.wc.0;
         if wc0 != 0.0 {
             scaled_difference::<N>(wc0.abs().sqrt(), &self.chi[..n], &self.x, &mut self.dev);
-            self.rank_one(n, wc0.signum());
+            self.rank_one::<N>(n, wc0.signum());
         }
     }
 
     /// `S ← cholupdate(S, dev[..n], sign)`, recovering from a failed downdate.
-    fn rank_one(&mut self, n: usize, sign: f64) {
+    #[inline(always)]
+    fn rank_one<const N: usize>(&mut self, n: usize, sign: f64) {
         self.s_saved.copy_from_slice(&self.s);
         self.vsave[..n].copy_from_slice(&self.dev[..n]);
-        if cholupdate(&mut self.s, n, &mut self.dev[..n], sign).is_err() {
+        if downdate_columns::<N>(&mut self.s, n, &mut self.dev[..n], n, 1, sign).is_err() {
             let v = std::mem::take(&mut self.vsave);
             self.recover(&[(&v[..n], sign)]);
             self.vsave = v;
@@ -830,7 +832,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         // S ← cholupdate(S, U, −1), the q columns of U interleaved (eq 3.25)
         self.s_saved.copy_from_slice(&self.s);
         self.ucols[..n * q].copy_from_slice(&self.pxy[..n * q]);
-        if cholupdate_columns(&mut self.s, n, &mut self.ucols[..n * q], n, q, -1.0).is_err() {
+        if downdate_columns::<N>(&mut self.s, n, &mut self.ucols[..n * q], n, q, -1.0).is_err() {
             let cols: Vec<Vec<f64>> = (0..q)
                 .map(|c| self.pxy[c * n..(c + 1) * n].to_vec())
                 .collect();
@@ -1088,6 +1090,28 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             });
         }
         Ok(())
+    }
+}
+
+/// [`cholupdate_columns`] compiled for `N` states when `N` is a multiple of four (the
+/// block kernel's sizes), else for any `n`.
+#[inline(always)]
+fn downdate_columns<const N: usize>(
+    l: &mut [f64],
+    n: usize,
+    vs: &mut [f64],
+    ld: usize,
+    count: usize,
+    sign: f64,
+) -> std::result::Result<(), DowndateFailed> {
+    match N {
+        4 => cholupdate_columns_sized::<4>(l, n, vs, ld, count, sign),
+        8 => cholupdate_columns_sized::<8>(l, n, vs, ld, count, sign),
+        12 => cholupdate_columns_sized::<12>(l, n, vs, ld, count, sign),
+        16 => cholupdate_columns_sized::<16>(l, n, vs, ld, count, sign),
+        20 => cholupdate_columns_sized::<20>(l, n, vs, ld, count, sign),
+        24 => cholupdate_columns_sized::<24>(l, n, vs, ld, count, sign),
+        _ => cholupdate_columns(l, n, vs, ld, count, sign),
     }
 }
 
