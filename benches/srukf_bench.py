@@ -1,7 +1,12 @@
 """Python-side sr-UKF budgets (issue #4): `SrUkf.step()` on the Raven-II 3-link transmission
 (n = 12, m = 3 motor encoders, RK4), and filterpy's `UnscentedKalmanFilter` with Merwe's points
-on the same model in the same run (ratio printed; its process function calls the same Rust RK4
-step, so the ratio measures the filters, not Python against Rust dynamics).
+on the same model in the same run, two ways:
+
+* the process in NumPy (the test suite's reference RK4), as a Python user of filterpy writes it
+  and as the issue's anchor was measured (filterpy ≈ 1.9 ms per step): the ratio the >= 500x
+  goal is checked on;
+* the process calling cablekit's Rust RK4 step, so that only the filters differ: printed as
+  the filters-only ratio.
 
 Usage (with a release build installed): python benches/srukf_bench.py
 """
@@ -77,7 +82,7 @@ def main() -> int:
     # and as a Python user would write it: the process in NumPy (the test suite's reference)
     ref = TransmissionRef(model.params())
     peer_np_us = peer_step_us(lambda x, dt_, uk: rk4.advance(ref.derivative, x.copy(), uk, uk, dt_, 1), 20)
-    ratio = peer_us / step_us
+    ratio = peer_np_us / step_us
     ok_step = step_us <= budgets["srukf_step_us"]
     ok_ratio = ratio >= budgets["srukf_min_ratio_vs_filterpy"]
     print("sr-UKF, Raven-II 3-link (n = 12, m = 3 motor encoders), 10 kHz, one RK4 step per period")
@@ -86,11 +91,12 @@ def main() -> int:
         f"{'ok' if ok_step else 'OVER BUDGET'}"
     )
     print(f"  SrUkf.run() per step        {run_us:8.2f} us   (GIL released, no per-step conversion)")
-    print(f"  filterpy UKF, same model    {peer_us:8.1f} us   (process: cablekit's Rust RK4 step)")
-    print(f"  filterpy UKF, NumPy model   {peer_np_us:8.1f} us   ratio {peer_np_us / step_us:.0f}x")
+    print(f"  filterpy UKF, NumPy model   {peer_np_us:8.1f} us")
+    print(f"  filterpy UKF, Rust process  {peer_us:8.1f} us   (process: cablekit's RK4 step)")
     goal = budgets["srukf_min_ratio_vs_filterpy"]
     verdict = "ok" if ok_ratio else "BELOW GOAL"
     print(f"  ratio filterpy / cablekit   {ratio:8.0f}x     goal >= {goal:.0f}x   {verdict}")
+    print(f"  ratio, filters only         {peer_us / step_us:8.0f}x     (same Rust process in both)")
     return 0 if ok_step and ok_ratio else 1
 
 

@@ -302,8 +302,13 @@ def test_forced_downdate_failure_is_recovered_and_counted():
 def test_nan_measurement_is_an_error_unless_masked():
     f, b, h, q, r, p0, x0 = linear_system()
     ukf = ck.SrUkf.linear(f, h, x0, p0, q, r, B=b)
+    ukf.step(np.ones(1), np.array([0.1, 0.2]))
+    x_before, p_before = ukf.x.copy(), ukf.P.copy()
     with pytest.raises(ck.NotFiniteError, match="mask"):
-        ukf.step(np.zeros(1), np.array([0.1, np.nan]))
+        ukf.step(np.ones(1), np.array([0.1, np.nan]))
+    # refused before the prediction: the filter is where it was
+    np.testing.assert_array_equal(ukf.x, x_before)
+    np.testing.assert_array_equal(ukf.P, p_before)
     ukf = ck.SrUkf.linear(f, h, x0, p0, q, r, B=b)
     ukf.step(np.zeros(1), np.array([0.1, np.nan]), [True, False])
     assert ukf.health["measured"] == 1 and np.all(np.isfinite(ukf.x))

@@ -400,7 +400,8 @@ impl SrUkf {
         guarded(|| self.inner.update(&u, &y, mask.as_deref()))
     }
 
-    /// Predict with `u`, then update with `y` (see `update`).
+    /// Predict with `u`, then update with `y` (see `update`). Bad input raises before
+    /// anything changes.
     #[pyo3(signature = (u, y, mask = None))]
     fn step(
         &mut self,
