@@ -43,8 +43,10 @@ pub fn cholupdate_columns(
     cholupdate_columns_sized::<0>(l, n, vs, ld, count, sign)
 }
 
-/// [`cholupdate_columns`] compiled for `n = N` (`N` a multiple of four: the column and block
-/// loops unroll), or for any `n` when `N` is 0. Same operations, same results.
+/// [`cholupdate_columns`] for `n = N` (any `n` when `N` is 0): the block kernel is compiled
+/// for `N` when `N` is one of its sizes (a multiple of four up to 24), so its column and
+/// block loops unroll. Same operations, same results.
+#[inline(always)]
 pub(crate) fn cholupdate_columns_sized<const N: usize>(
     l: &mut [f64],
     n: usize,
@@ -53,7 +55,7 @@ pub(crate) fn cholupdate_columns_sized<const N: usize>(
     count: usize,
     sign: f64,
 ) -> Result<(), DowndateFailed> {
-    debug_assert!(N == 0 || (N == n && N.is_multiple_of(LANES)));
+    debug_assert!(N == 0 || N == n);
     debug_assert!(l.len() >= n * n && ld >= n && vs.len() >= ld * count.saturating_sub(1) + n);
     if !n.is_multiple_of(LANES) {
         return if sign > 0.0 {
@@ -62,6 +64,27 @@ pub(crate) fn cholupdate_columns_sized<const N: usize>(
             rotate_columns::<false>(l, n, vs, ld, count)
         };
     }
+    macro_rules! sized {
+        ($($size:literal)*) => {
+            match N {
+                $($size => rotate_blocks_for::<$size>(l, n, vs, ld, count, sign),)*
+                _ => rotate_blocks_for::<0>(l, n, vs, ld, count, sign),
+            }
+        };
+    }
+    sized!(4 8 12 16 20 24)
+}
+
+/// [`rotate_blocks`] for `n` a multiple of four (`N` as in [`cholupdate_columns_sized`]), with
+/// 256-bit lanes and fused multiply-adds where the CPU has them.
+fn rotate_blocks_for<const N: usize>(
+    l: &mut [f64],
+    n: usize,
+    vs: &mut [f64],
+    ld: usize,
+    count: usize,
+    sign: f64,
+) -> Result<(), DowndateFailed> {
     #[cfg(target_arch = "x86_64")]
     if crate::lanes::cpu_has_avx2_fma() {
         #[allow(unsafe_code)]

@@ -1,9 +1,8 @@
 //! The square-root unscented Kalman filter of van der Merwe (seed 001, eqs 3.9–3.25).
 
 use super::linalg::{
-    cholesky_psd, cholupdate, cholupdate_columns, cholupdate_columns_sized, cholupdate_or_repair,
-    lq_lower, nearest_spd_factor, outer_lower, padded, repaired_factor, solve_lower,
-    DowndateFailed,
+    cholesky_psd, cholupdate, cholupdate_columns_sized, cholupdate_or_repair, lq_lower,
+    nearest_spd_factor, outer_lower, padded, repaired_factor, solve_lower,
 };
 use super::models::{LinearRows, Observe, Process};
 use crate::error::{check, CableError, Result};
@@ -626,7 +625,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     fn rank_one<const N: usize>(&mut self, n: usize, sign: f64) {
         self.s_saved.copy_from_slice(&self.s);
         self.vsave[..n].copy_from_slice(&self.dev[..n]);
-        if downdate_columns::<N>(&mut self.s, n, &mut self.dev[..n], n, 1, sign).is_err() {
+        if cholupdate_columns_sized::<N>(&mut self.s, n, &mut self.dev[..n], n, 1, sign).is_err() {
             let v = std::mem::take(&mut self.vsave);
             self.recover(&[(&v[..n], sign)]);
             self.vsave = v;
@@ -832,7 +831,9 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         // S ← cholupdate(S, U, −1), the q columns of U interleaved (eq 3.25)
         self.s_saved.copy_from_slice(&self.s);
         self.ucols[..n * q].copy_from_slice(&self.pxy[..n * q]);
-        if downdate_columns::<N>(&mut self.s, n, &mut self.ucols[..n * q], n, q, -1.0).is_err() {
+        if cholupdate_columns_sized::<N>(&mut self.s, n, &mut self.ucols[..n * q], n, q, -1.0)
+            .is_err()
+        {
             let cols: Vec<Vec<f64>> = (0..q)
                 .map(|c| self.pxy[c * n..(c + 1) * n].to_vec())
                 .collect();
@@ -1090,28 +1091,6 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             });
         }
         Ok(())
-    }
-}
-
-/// [`cholupdate_columns`] compiled for `N` states when `N` is a multiple of four (the
-/// block kernel's sizes), else for any `n`.
-#[inline(always)]
-fn downdate_columns<const N: usize>(
-    l: &mut [f64],
-    n: usize,
-    vs: &mut [f64],
-    ld: usize,
-    count: usize,
-    sign: f64,
-) -> std::result::Result<(), DowndateFailed> {
-    match N {
-        4 => cholupdate_columns_sized::<4>(l, n, vs, ld, count, sign),
-        8 => cholupdate_columns_sized::<8>(l, n, vs, ld, count, sign),
-        12 => cholupdate_columns_sized::<12>(l, n, vs, ld, count, sign),
-        16 => cholupdate_columns_sized::<16>(l, n, vs, ld, count, sign),
-        20 => cholupdate_columns_sized::<20>(l, n, vs, ld, count, sign),
-        24 => cholupdate_columns_sized::<24>(l, n, vs, ld, count, sign),
-        _ => cholupdate_columns(l, n, vs, ld, count, sign),
     }
 }
 
