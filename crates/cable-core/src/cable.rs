@@ -252,24 +252,25 @@ pub fn expm1_pair(x: f64) -> (f64, f64) {
 /// Where [`expm1_pair`] switches from its polynomials to `f64::exp_m1`.
 const EXPM1_TAYLOR_BELOW: f64 = 1e-2;
 
-/// [`expm1_taylor_pair`] of four arguments, written lane-wise (each step one vector
+/// [`expm1_taylor_pair`] of `W` arguments, written lane-wise (each step one vector
 /// operation over the lanes, in the order [`taylor_odd`] and [`taylor_even`] use). When
 /// `FUSED`, each Horner step `y·(c + t)` becomes `y·q` with `q ← q·y + c` fused (one rounding
 /// per step instead of two; the last bits differ).
 #[inline(always)]
-fn taylor_pair_lanes<const FUSED: bool>(x: &Lanes) -> (Lanes, Lanes) {
-    let y: Lanes = std::array::from_fn(|l| x[l] * x[l]);
+fn taylor_pair_lanes<const FUSED: bool, const W: usize>(x: &[f64; W]) -> ([f64; W], [f64; W]) {
+    type V<const W: usize> = [f64; W];
+    let y: V<W> = std::array::from_fn(|l| x[l] * x[l]);
     // y·(c₀ + y·(c₁ + … + y·c_last)), innermost first
-    let horner = |c: &[f64]| -> Lanes {
+    let horner = |c: &[f64]| -> V<W> {
         let (last, rest) = c.split_last().expect("coefficients");
         if FUSED {
-            let mut q: Lanes = [*last; LANES];
+            let mut q: V<W> = [*last; W];
             for k in rest.iter().rev() {
                 q = std::array::from_fn(|l| madd::<true>(q[l], y[l], *k));
             }
             return std::array::from_fn(|l| y[l] * q[l]);
         }
-        let mut t: Lanes = std::array::from_fn(|l| y[l] * last);
+        let mut t: V<W> = std::array::from_fn(|l| y[l] * last);
         for k in rest.iter().rev() {
             t = std::array::from_fn(|l| y[l] * (k + t[l]));
         }
@@ -277,7 +278,7 @@ fn taylor_pair_lanes<const FUSED: bool>(x: &Lanes) -> (Lanes, Lanes) {
     };
     let odd_tail = horner(&ODD_TAIL);
     let even = horner(&EVEN);
-    let odd: Lanes = if FUSED {
+    let odd: V<W> = if FUSED {
         std::array::from_fn(|l| madd::<true>(x[l], odd_tail[l], x[l]))
     } else {
         std::array::from_fn(|l| x[l] * (1.0 + odd_tail[l]))
@@ -292,7 +293,7 @@ fn taylor_pair_lanes<const FUSED: bool>(x: &Lanes) -> (Lanes, Lanes) {
 /// range).
 #[cold]
 #[inline(never)]
-fn expm1_pair_lanes_cold(x: &Lanes) -> (Lanes, Lanes) {
+fn expm1_pair_lanes_cold<const W: usize>(x: &[f64; W]) -> ([f64; W], [f64; W]) {
     let m = x.map(expm1_pair);
     (m.map(|m| m.0), m.map(|m| m.1))
 }
@@ -401,30 +402,36 @@ enum LawLanes {
 }
 
 impl CableLanes {
-    /// [`CableLoop::tensions`] of four stretches at once (same operations, so the same bits;
-    /// the polynomial branch of [`expm1_pair`] runs in SIMD lanes when every lane takes it).
-    /// With `FUSED` the products and sums are fused (the last bits differ).
+    /// [`CableLoop::tensions`] of `W` stretches at once (a multiple of [`LANES`]; same
+    /// operations, so the same bits; the polynomial branch of [`expm1_pair`] runs in SIMD
+    /// lanes when every lane takes it). With `FUSED` the products and sums are fused (the last
+    /// bits differ).
     #[inline(always)]
-    pub fn tensions<const FUSED: bool>(&self, delta: &Lanes, delta_rate: &Lanes) -> (Lanes, Lanes) {
+    pub fn tensions<const FUSED: bool, const W: usize>(
+        &self,
+        delta: &[f64; W],
+        delta_rate: &[f64; W],
+    ) -> ([f64; W], [f64; W]) {
+        type V<const W: usize> = [f64; W];
         let (b, t0) = (&self.damping, &self.pretension);
-        let c: Lanes = std::array::from_fn(|l| b[l] * delta_rate[l]);
+        let c: V<W> = std::array::from_fn(|l| b[l % LANES] * delta_rate[l]);
         // T₀ + F(±Δ) as one multiply-add when fused
-        let (ta0, tb0): (Lanes, Lanes) = match &self.law {
+        let (ta0, tb0): (V<W>, V<W>) = match &self.law {
             // unfused, `(−k)·Δ + T₀` is `T₀ + −(k·Δ)` to the bit (negation is exact)
             LawLanes::Linear { stiffness: k } => (
-                std::array::from_fn(|l| madd::<FUSED>(k[l], delta[l], t0[l])),
-                std::array::from_fn(|l| madd::<FUSED>(-k[l], delta[l], t0[l])),
+                std::array::from_fn(|l| madd::<FUSED>(k[l % LANES], delta[l], t0[l % LANES])),
+                std::array::from_fn(|l| madd::<FUSED>(-k[l % LANES], delta[l], t0[l % LANES])),
             ),
             LawLanes::Exponential { length_scale, kl } => {
-                let x: Lanes = std::array::from_fn(|l| delta[l] / length_scale[l]);
+                let x: V<W> = std::array::from_fn(|l| delta[l] / length_scale[l % LANES]);
                 let (ma, mb) = if x.iter().all(|x| x.abs() < EXPM1_TAYLOR_BELOW) {
-                    taylor_pair_lanes::<FUSED>(&x)
+                    taylor_pair_lanes::<FUSED, W>(&x)
                 } else {
                     expm1_pair_lanes_cold(&x)
                 };
                 (
-                    std::array::from_fn(|l| madd::<FUSED>(kl[l], ma[l], t0[l])),
-                    std::array::from_fn(|l| madd::<FUSED>(kl[l], mb[l], t0[l])),
+                    std::array::from_fn(|l| madd::<FUSED>(kl[l % LANES], ma[l], t0[l % LANES])),
+                    std::array::from_fn(|l| madd::<FUSED>(kl[l % LANES], mb[l], t0[l % LANES])),
                 )
             }
         };

@@ -192,24 +192,26 @@ pub struct FrictionLanes {
 }
 
 impl FrictionLanes {
-    /// [`StaticFriction::force`] of four velocities: the same operations, in SIMD lanes for
-    /// the Coulomb + viscous form, lane by lane for the Stribeck form.
-    /// Products and sums are fused when `FUSED` (one rounding each; the last bits differ).
+    /// [`StaticFriction::force`] of `W` velocities (a multiple of [`LANES`]): the same
+    /// operations, in SIMD lanes for the Coulomb + viscous form, lane by lane for the Stribeck
+    /// form. Products and sums are fused when `FUSED` (one rounding each; the last bits
+    /// differ).
     #[inline(always)]
-    pub fn force<const FUSED: bool>(&self, v: &Lanes) -> Lanes {
+    pub fn force<const FUSED: bool, const W: usize>(&self, v: &[f64; W]) -> [f64; W] {
         if !self.plain {
             return self.force_stribeck(v);
         }
         let (c, e2, b) = (&self.coulomb, &self.eps2, &self.viscous);
         std::array::from_fn(|l| {
-            let dry = c[l] * (v[l] / madd::<FUSED>(v[l], v[l], e2[l]).sqrt());
-            madd::<FUSED>(b[l], v[l], dry)
+            let k = l % LANES;
+            let dry = c[k] * (v[l] / madd::<FUSED>(v[l], v[l], e2[k]).sqrt());
+            madd::<FUSED>(b[k], v[l], dry)
         })
     }
 
     /// The Stribeck form lane by lane, out of line (it would bloat the vectorised callers).
     #[inline(never)]
-    fn force_stribeck(&self, v: &Lanes) -> Lanes {
+    fn force_stribeck<const W: usize>(&self, v: &[f64; W]) -> [f64; W] {
         v.map(|v| self.scalar.force(v))
     }
 }

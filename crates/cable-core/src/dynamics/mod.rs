@@ -14,8 +14,6 @@ pub use dahl::DahlElement;
 pub use raven2::raven2;
 pub use transmission::{CableTransmission, Gravity, JointKind, TransmissionLink, MAX_LINKS};
 
-use crate::lanes::{Lanes, LANES};
-
 /// A continuous-time state-space model `ẋ = f(x, u)`, `y = h(x, u)`.
 ///
 /// Implementations must be pure functions of their arguments (no interior state), so that a
@@ -38,11 +36,15 @@ pub trait Model {
     fn input_names(&self) -> Vec<String>;
     /// Names of the outputs, in layout order.
     fn output_names(&self) -> Vec<String>;
-    /// `f` at [`LANES`] states at once, structure of arrays: `x[s][l]` is state `s` of point
-    /// `l`, `dx` likewise; the input `u` is shared. The default calls
+    /// `f` at `W` states at once ([`LANES`](crate::lanes::LANES), or
+    /// [`WIDE`](crate::lanes::WIDE) for two lane groups side by side), structure of arrays: `x[s][l]` is state
+    /// `s` of point `l`, `dx` likewise; the input `u` is shared. The default calls
     /// [`Model::derivative`] once per lane; models override it with vectorised arithmetic
     /// that performs the same operations, so both give the same bits (tested per model).
-    fn derivative_lanes(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
+    fn derivative_lanes<const W: usize>(&self, x: &[[f64; W]], u: &[f64], dx: &mut [[f64; W]])
+    where
+        Self: Sized,
+    {
         const STACK: usize = 64;
         let n = x.len();
         let (mut xs_stack, mut ds_stack) = ([0.0; STACK], [0.0; STACK]);
@@ -54,7 +56,7 @@ pub trait Model {
             ds_heap.resize(n, 0.0);
             (&mut xs_heap[..], &mut ds_heap[..])
         };
-        for l in 0..LANES {
+        for l in 0..W {
             for (v, xl) in xs.iter_mut().zip(x) {
                 *v = xl[l];
             }
@@ -69,7 +71,10 @@ pub trait Model {
     /// [`Model::derivative`] in the last bits). Called from code compiled for CPUs with FMA;
     /// the default is [`Model::derivative_lanes`].
     #[inline(always)]
-    fn derivative_lanes_fused(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
+    fn derivative_lanes_fused<const W: usize>(&self, x: &[[f64; W]], u: &[f64], dx: &mut [[f64; W]])
+    where
+        Self: Sized,
+    {
         self.derivative_lanes(x, u, dx)
     }
     /// A representative state for step-size advice (equilibrium at rest by default: zeros).

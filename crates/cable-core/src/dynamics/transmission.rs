@@ -376,58 +376,60 @@ impl CableTransmission {
         (tens, gamma, g)
     }
 
-    /// [`Self::derivative_n`] of four states (structure of arrays), operation for operation
+    /// [`Self::derivative_n`] of `W` states (structure of arrays), operation for operation
     /// (or with products and sums fused when `FUSED`). `S = 4·N` states as fixed-size arrays,
     /// so the link loops unroll with no bounds checks; the parameters come broadcast from
-    /// [`LinkLanes`].
+    /// [`LinkLanes`] (lane `l` reads `l % LANES`).
     #[inline(always)]
-    fn derivative_lanes_n<const N: usize, const S: usize, const FUSED: bool>(
+    fn derivative_lanes_n<const N: usize, const S: usize, const FUSED: bool, const W: usize>(
         &self,
-        x: &[Lanes],
+        x: &[[f64; W]],
         u: &[f64],
-        dx: &mut [Lanes],
+        dx: &mut [[f64; W]],
     ) {
-        let x: &[Lanes; S] = x.try_into().expect("4 states per link");
-        let dx: &mut [Lanes; S] = dx.try_into().expect("4 states per link");
+        let x: &[[f64; W]; S] = x.try_into().expect("4 states per link");
+        let dx: &mut [[f64; W]; S] = dx.try_into().expect("4 states per link");
         let p: &[LinkLanes; N] = self.lanes[..N].try_into().expect("N links");
         let u = &u[..2 * N];
-        let mut gamma = [[0.0; LANES]; N];
+        let mut gamma = [[0.0; W]; N];
         for i in 0..N {
-            let (mut tq, mut tw) = ([0.0; LANES], [0.0; LANES]);
+            let (mut tq, mut tw) = ([0.0; W], [0.0; W]);
             for j in 0..=i {
                 let t = &p[i].t[j];
-                for l in 0..LANES {
-                    tq[l] = madd::<FUSED>(t[l], x[4 * j + 2][l], tq[l]);
-                    tw[l] = madd::<FUSED>(t[l], x[4 * j + 3][l], tw[l]);
+                for l in 0..W {
+                    tq[l] = madd::<FUSED>(t[l % LANES], x[4 * j + 2][l], tq[l]);
+                    tw[l] = madd::<FUSED>(t[l % LANES], x[4 * j + 3][l], tw[l]);
                 }
             }
             let rho = &p[i].rho;
-            let d = std::array::from_fn(|l| rho[l] * (x[4 * i][l] - tq[l]));
-            let dd = std::array::from_fn(|l| rho[l] * (x[4 * i + 1][l] - tw[l]));
-            let (ta, tb) = p[i].cable.tensions::<FUSED>(&d, &dd);
+            let d = std::array::from_fn(|l| rho[l % LANES] * (x[4 * i][l] - tq[l]));
+            let dd = std::array::from_fn(|l| rho[l % LANES] * (x[4 * i + 1][l] - tw[l]));
+            let (ta, tb) = p[i].cable.tensions::<FUSED, W>(&d, &dd);
             gamma[i] = std::array::from_fn(|l| ta[l] - tb[l]);
         }
-        let mut g = [[0.0; LANES]; N];
+        let mut g = [[0.0; W]; N];
         for j in 0..N {
             for i in j..N {
                 let tr = &p[i].t_rho[j];
-                for l in 0..LANES {
-                    g[j][l] = madd::<FUSED>(tr[l], gamma[i][l], g[j][l]);
+                for l in 0..W {
+                    g[j][l] = madd::<FUSED>(tr[l % LANES], gamma[i][l], g[j][l]);
                 }
             }
         }
         for i in 0..N {
             let q = &p[i];
-            let fm = q.motor_friction.force::<FUSED>(&x[4 * i + 1]);
-            let fl = q.link_friction.force::<FUSED>(&x[4 * i + 3]);
+            let fm = q.motor_friction.force::<FUSED, W>(&x[4 * i + 1]);
+            let fl = q.link_friction.force::<FUSED, W>(&x[4 * i + 3]);
             dx[4 * i] = x[4 * i + 1];
             dx[4 * i + 2] = x[4 * i + 3];
             let (um, ul) = (u[i], u[N + i]);
             let (rho, inv_m, inv_l) = (&q.rho, &q.inv_motor_inertia, &q.inv_link_inertia);
-            dx[4 * i + 1] =
-                std::array::from_fn(|l| madd::<FUSED>(-rho[l], gamma[i][l], um - fm[l]) * inv_m[l]);
+            dx[4 * i + 1] = std::array::from_fn(|l| {
+                let k = l % LANES;
+                madd::<FUSED>(-rho[k], gamma[i][l], um - fm[l]) * inv_m[k]
+            });
             // no gravity: `Γ − F − 0` is `Γ − F` to the bit, the subtraction is skipped
-            let net: Lanes = if q.gravity {
+            let net: [f64; W] = if q.gravity {
                 let link = &self.links[i];
                 std::array::from_fn(|l| {
                     g[i][l] - fl[l] - link.gravity.load(link.kind, x[4 * i + 2][l])
@@ -435,22 +437,22 @@ impl CableTransmission {
             } else {
                 std::array::from_fn(|l| g[i][l] - fl[l])
             };
-            dx[4 * i + 3] = std::array::from_fn(|l| (net[l] + ul) * inv_l[l]);
+            dx[4 * i + 3] = std::array::from_fn(|l| (net[l] + ul) * inv_l[l % LANES]);
         }
     }
 
     /// [`Self::derivative_lanes_n`] for the model's link count.
     #[inline(always)]
-    fn derivative_lanes_by_links<const FUSED: bool>(
+    fn derivative_lanes_by_links<const FUSED: bool, const W: usize>(
         &self,
-        x: &[Lanes],
+        x: &[[f64; W]],
         u: &[f64],
-        dx: &mut [Lanes],
+        dx: &mut [[f64; W]],
     ) {
         match self.n_links() {
-            1 => self.derivative_lanes_n::<1, 4, FUSED>(x, u, dx),
-            2 => self.derivative_lanes_n::<2, 8, FUSED>(x, u, dx),
-            _ => self.derivative_lanes_n::<3, 12, FUSED>(x, u, dx),
+            1 => self.derivative_lanes_n::<1, 4, FUSED, W>(x, u, dx),
+            2 => self.derivative_lanes_n::<2, 8, FUSED, W>(x, u, dx),
+            _ => self.derivative_lanes_n::<3, 12, FUSED, W>(x, u, dx),
         }
     }
 
@@ -519,13 +521,18 @@ impl Model for CableTransmission {
     // always inlined, so that the AVX2 build of the sigma-point propagation compiles it for
     // 256-bit lanes (a call would run the SSE2 build)
     #[inline(always)]
-    fn derivative_lanes(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
-        self.derivative_lanes_by_links::<false>(x, u, dx);
+    fn derivative_lanes<const W: usize>(&self, x: &[[f64; W]], u: &[f64], dx: &mut [[f64; W]]) {
+        self.derivative_lanes_by_links::<false, W>(x, u, dx);
     }
 
     #[inline(always)]
-    fn derivative_lanes_fused(&self, x: &[Lanes], u: &[f64], dx: &mut [Lanes]) {
-        self.derivative_lanes_by_links::<true>(x, u, dx);
+    fn derivative_lanes_fused<const W: usize>(
+        &self,
+        x: &[[f64; W]],
+        u: &[f64],
+        dx: &mut [[f64; W]],
+    ) {
+        self.derivative_lanes_by_links::<true, W>(x, u, dx);
     }
 
     fn output(&self, x: &[f64], _u: &[f64], y: &mut [f64]) {
@@ -572,6 +579,7 @@ mod lane_tests {
     use super::*;
     use crate::cable::{CableLaw, CableRun};
     use crate::dynamics::raven2;
+    use crate::lanes::WIDE;
 
     fn lcg(seed: u64) -> impl FnMut() -> f64 {
         let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
@@ -654,6 +662,16 @@ mod lane_tests {
         out
     }
 
+    /// Lane `l` of a wide group holds lane `lane_of(l)` of a narrow one: the first half in
+    /// order, the second reversed.
+    fn lane_of(l: usize) -> usize {
+        if l < LANES {
+            l
+        } else {
+            WIDE - 1 - l
+        }
+    }
+
     #[test]
     fn lane_derivative_is_the_scalar_derivative_bit_for_bit() {
         let models = [
@@ -689,6 +707,20 @@ mod lane_tests {
                 Scalar(model).derivative_lanes(&x, &u, &mut by_default);
                 let mut fused = vec![[f64::NAN; LANES]; n];
                 model.derivative_lanes_fused(&x, &u, &mut fused);
+                // two lane groups side by side (the second reversed): every lane as alone
+                let x2: Vec<[f64; WIDE]> = x
+                    .iter()
+                    .map(|v| std::array::from_fn(|l| v[lane_of(l)]))
+                    .collect();
+                let (mut wide, mut wide_fused) = (vec![[f64::NAN; WIDE]; n], vec![[0.0; WIDE]; n]);
+                model.derivative_lanes(&x2, &u, &mut wide);
+                model.derivative_lanes_fused(&x2, &u, &mut wide_fused);
+                for s in 0..n {
+                    for l in 0..WIDE {
+                        assert_eq!(wide[s][l].to_bits(), lanes[s][lane_of(l)].to_bits());
+                        assert_eq!(wide_fused[s][l].to_bits(), fused[s][lane_of(l)].to_bits());
+                    }
+                }
                 for l in 0..LANES {
                     let xl: Vec<f64> = x.iter().map(|v| v[l]).collect();
                     let mut want = vec![0.0; n];

@@ -4,7 +4,7 @@
 use crate::dynamics::Model;
 use crate::error::{check, CableError, Result};
 use crate::integrate::{InputHold, Rk4, Rk4Lanes, SimOptions};
-use crate::lanes::{cpu_has_avx2_fma, transpose4, Lanes, LANES};
+use crate::lanes::{cpu_has_avx2_fma, transpose4, LaneBuf, Lanes, LANES, WIDE};
 
 /// A discrete-time process `x_k = F(x_{k−1}, u_{k−1})` (additive noise is the filter's).
 pub trait Process {
@@ -61,9 +61,10 @@ pub struct ModelProcess<M: Model> {
     dt: f64,
     substeps: usize,
     rk4: Rk4,
-    rk4_lanes: Rk4Lanes,
-    /// Four states side by side for `rk4_lanes`.
-    soa: Vec<Lanes>,
+    /// Four states side by side.
+    narrow: LaneWork<LANES>,
+    /// Eight states (two lane groups).
+    wide: LaneWork<WIDE>,
     /// The CPU has AVX2 and FMA: `propagate_many` runs the fused AVX2 build.
     avx2_fma: bool,
 }
@@ -79,8 +80,8 @@ impl<M: Model> ModelProcess<M> {
             dt,
             substeps,
             rk4,
-            rk4_lanes: Rk4Lanes::new(n),
-            soa: vec![[0.0; LANES]; n],
+            narrow: LaneWork::new(n),
+            wide: LaneWork::new(n),
             avx2_fma: cpu_has_avx2_fma(),
         })
     }
@@ -127,46 +128,95 @@ impl<M: Model> Process for ModelProcess<M> {
 }
 
 impl<M: Model> ModelProcess<M> {
-    /// States go through RK4 four at a time (the last group padded with copies of its last
-    /// state); the results are those of [`Process::propagate`], bit for bit, unless `FUSED`
-    /// (the AVX2 + FMA build: fused multiply-adds, the last bits differ). `AVX` moves the
-    /// states in and out of lanes with AVX shuffles: only for code compiled with AVX.
+    /// States go through RK4 eight at a time while more than four are left (two lane groups
+    /// whose arithmetic interleaves), then four at a time (the last group padded with copies
+    /// of its last state); every lane runs the same operations, so the results are those of
+    /// [`Process::propagate`], bit for bit, unless `FUSED` (the AVX2 + FMA build: fused
+    /// multiply-adds, the last bits differ). `AVX` moves the states in and out of lanes with
+    /// AVX shuffles: only for code compiled with AVX.
     #[inline(always)]
     fn propagate_lanes<const FUSED: bool, const AVX: bool>(&mut self, xs: &mut [f64], u: &[f64]) {
-        let n = self.model.n_states();
-        let count = xs.len() / n;
-        let h = self.dt / self.substeps as f64;
-        for first in (0..count).step_by(LANES) {
-            let used = LANES.min(count - first);
-            gather::<AVX>(xs, n, first, used, &mut self.soa);
-            for _ in 0..self.substeps {
-                if FUSED {
-                    self.rk4_lanes.step_fused(&self.model, &mut self.soa, u, h);
-                } else {
-                    self.rk4_lanes.step(&self.model, &mut self.soa, u, h);
-                }
-            }
-            scatter::<AVX>(&self.soa, n, first, used, xs);
+        let count = xs.len() / self.model.n_states();
+        let mut first = 0;
+        while first < count {
+            let left = count - first;
+            let (model, h, k) = (&self.model, self.dt / self.substeps as f64, self.substeps);
+            first += if left > LANES {
+                self.wide
+                    .run::<M, FUSED, AVX>(model, xs, u, h, k, first, left.min(WIDE))
+            } else {
+                self.narrow
+                    .run::<M, FUSED, AVX>(model, xs, u, h, k, first, left)
+            };
         }
     }
 }
 
-/// States `first..first + used` of `xs` (`n` values each) into the lanes of `soa`, the unused
-/// lanes filled with copies of the last state: whole blocks of four states by
-/// [`transpose4`] (shuffles when `AVX`), the rest value by value.
+/// RK4 workspace and states in `W` lanes.
+#[derive(Debug, Clone)]
+struct LaneWork<const W: usize> {
+    rk4: Rk4Lanes<W>,
+    soa: LaneBuf<W>,
+}
+
+impl<const W: usize> LaneWork<W> {
+    fn new(n: usize) -> Self {
+        Self {
+            rk4: Rk4Lanes::new(n),
+            soa: LaneBuf::new(n),
+        }
+    }
+
+    /// States `first..first + used` of `xs` (`used ≤ W`) through `substeps` RK4 steps of
+    /// size `h` in `W` lanes; returns `used`.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)] // one group of the propagation: its loop state
+    fn run<M: Model, const FUSED: bool, const AVX: bool>(
+        &mut self,
+        model: &M,
+        xs: &mut [f64],
+        u: &[f64],
+        h: f64,
+        substeps: usize,
+        first: usize,
+        used: usize,
+    ) -> usize {
+        let n = model.n_states();
+        let soa = self.soa.blocks_mut();
+        gather::<AVX, W>(xs, n, first, used, soa);
+        for _ in 0..substeps {
+            if FUSED {
+                self.rk4.step_fused(model, soa, u, h);
+            } else {
+                self.rk4.step(model, soa, u, h);
+            }
+        }
+        scatter::<AVX, W>(soa, n, first, used, xs);
+        used
+    }
+}
+
+/// States `first..first + used` of `xs` (`n` values each) into the `W` lanes of `soa`, the
+/// unused lanes filled with copies of the last state: whole blocks of four states of four
+/// points by [`transpose4`] (shuffles when `AVX`), the rest value by value.
 #[inline(always)]
-fn gather<const AVX: bool>(xs: &[f64], n: usize, first: usize, used: usize, soa: &mut [Lanes]) {
-    let points: [&[f64]; LANES] =
-        std::array::from_fn(|l| &xs[(first + l.min(used - 1)) * n..][..n]);
+fn gather<const AVX: bool, const W: usize>(
+    xs: &[f64],
+    n: usize,
+    first: usize,
+    used: usize,
+    soa: &mut [[f64; W]],
+) {
+    let points: [&[f64]; W] = std::array::from_fn(|l| &xs[(first + l.min(used - 1)) * n..][..n]);
     let whole = n - n % LANES;
-    let (blocks, _) = soa[..whole].as_chunks_mut::<LANES>();
-    for (b, block) in blocks.iter_mut().enumerate() {
-        let rows: [Lanes; LANES] = std::array::from_fn(|l| {
-            points[l][b * LANES..(b + 1) * LANES]
-                .try_into()
-                .expect("LANES")
-        });
-        *block = transpose4::<AVX>(&rows);
+    for b in (0..whole).step_by(LANES) {
+        for g in (0..W).step_by(LANES) {
+            let rows: [Lanes; LANES] =
+                std::array::from_fn(|l| points[g + l][b..b + LANES].try_into().expect("LANES"));
+            for (s, lanes) in transpose4::<AVX>(&rows).iter().enumerate() {
+                soa[b + s][g..g + LANES].copy_from_slice(lanes);
+            }
+        }
     }
     for s in whole..n {
         soa[s] = std::array::from_fn(|l| points[l][s]);
@@ -175,14 +225,23 @@ fn gather<const AVX: bool>(xs: &[f64], n: usize, first: usize, used: usize, soa:
 
 /// The first `used` lanes of `soa` back to states `first..` of `xs` ([`gather`] reversed).
 #[inline(always)]
-fn scatter<const AVX: bool>(soa: &[Lanes], n: usize, first: usize, used: usize, xs: &mut [f64]) {
+fn scatter<const AVX: bool, const W: usize>(
+    soa: &[[f64; W]],
+    n: usize,
+    first: usize,
+    used: usize,
+    xs: &mut [f64],
+) {
     let whole = n - n % LANES;
     let xs = &mut xs[first * n..(first + used) * n];
-    let (blocks, _) = soa[..whole].as_chunks::<LANES>();
-    for (b, block) in blocks.iter().enumerate() {
-        let states = transpose4::<AVX>(block);
-        for (x, s) in xs.chunks_exact_mut(n).zip(&states) {
-            x[b * LANES..(b + 1) * LANES].copy_from_slice(s);
+    for b in (0..whole).step_by(LANES) {
+        for g in (0..W).step_by(LANES) {
+            let block: [Lanes; LANES] =
+                std::array::from_fn(|s| soa[b + s][g..g + LANES].try_into().expect("LANES"));
+            let states = transpose4::<AVX>(&block);
+            for (x, s) in xs.chunks_exact_mut(n).skip(g).zip(&states) {
+                x[b..b + LANES].copy_from_slice(s);
+            }
         }
     }
     for (l, x) in xs.chunks_exact_mut(n).enumerate() {
@@ -463,16 +522,23 @@ mod tests {
     use crate::dynamics::raven2;
 
     #[test]
-    #[allow(clippy::float_cmp)] // values are moved, not computed: exact equality is the claim
     fn gather_and_scatter_move_states_through_lanes_for_any_state_count() {
+        round_trips::<LANES>();
+        round_trips::<WIDE>();
+    }
+
+    #[allow(clippy::float_cmp)] // values are moved, not computed: exact equality is the claim
+    fn round_trips<const W: usize>() {
         let avx = [false, crate::lanes::cpu_has_avx2()];
         for n in [1, 3, 4, 5, 8, 11, 12, 13] {
-            for count in 1..=9 {
+            for count in 1..=2 * W + 1 {
                 let xs: Vec<f64> = (0..n * count).map(|k| k as f64 + 0.5).collect();
-                for first in (0..count).step_by(LANES) {
-                    let used = LANES.min(count - first);
+                for first in (0..count).step_by(W) {
+                    let used = W.min(count - first);
                     for &with_avx in &avx {
-                        let mut soa = vec![[f64::NAN; LANES]; n];
+                        let mut soa = LaneBuf::<W>::new(n);
+                        let soa = soa.blocks_mut();
+                        soa.fill([f64::NAN; W]);
                         let mut out = vec![-1.0; n * count];
                         if with_avx {
                             #[cfg(target_arch = "x86_64")]
@@ -480,22 +546,25 @@ mod tests {
                                 #[allow(unsafe_code)]
                                 // SAFETY: the CPU reported AVX2
                                 unsafe {
-                                    round_trip_avx(&xs, n, first, used, &mut soa, &mut out)
+                                    round_trip_avx(&xs, n, first, used, soa, &mut out)
                                 };
                             }
                         } else {
-                            gather::<false>(&xs, n, first, used, &mut soa);
-                            scatter::<false>(&soa, n, first, used, &mut out);
+                            gather::<false, W>(&xs, n, first, used, soa);
+                            scatter::<false, W>(soa, n, first, used, &mut out);
                         }
                         for s in 0..n {
-                            for l in 0..LANES {
+                            for l in 0..W {
                                 // unused lanes hold copies of the last state
                                 let k = first + l.min(used - 1);
                                 assert_eq!(soa[s][l], xs[k * n + s], "n {n} state {s} lane {l}");
                             }
                         }
                         let range = first * n..(first + used) * n;
-                        assert_eq!(out[range.clone()], xs[range], "n {n} count {count}");
+                        assert_eq!(out[range.clone()], xs[range.clone()], "n {n} count {count}");
+                        // and nothing outside the group is written
+                        assert!(out[..range.start].iter().all(|&v| v == -1.0));
+                        assert!(out[range.end..].iter().all(|&v| v == -1.0));
                     }
                 }
             }
@@ -504,16 +573,16 @@ mod tests {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn round_trip_avx(
+    fn round_trip_avx<const W: usize>(
         xs: &[f64],
         n: usize,
         first: usize,
         used: usize,
-        soa: &mut [Lanes],
+        soa: &mut [[f64; W]],
         out: &mut [f64],
     ) {
-        gather::<true>(xs, n, first, used, soa);
-        scatter::<true>(soa, n, first, used, out);
+        gather::<true, W>(xs, n, first, used, soa);
+        scatter::<true, W>(soa, n, first, used, out);
     }
 
     #[test]
@@ -521,7 +590,8 @@ mod tests {
         let model = raven2(3).unwrap();
         let n = model.n_states();
         let u = [0.1, -0.05, 0.2, 0.01, 0.0, -0.02];
-        for (count, substeps) in [(25, 1), (1, 3), (7, 2), (8, 1)] {
+        // one narrow group, one wide group partly used, wide groups then a narrow one
+        for (count, substeps) in [(25, 1), (1, 3), (7, 2), (8, 1), (5, 1), (13, 2)] {
             let mut p = ModelProcess::new(model.clone(), 1e-4, substeps).unwrap();
             let mut q_m = [0.0; 3];
             let xs: Vec<f64> = (0..count)

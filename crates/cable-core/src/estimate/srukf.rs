@@ -6,7 +6,7 @@ use super::linalg::{
 };
 use super::models::{LinearRows, Observe, Process};
 use crate::error::{check, CableError, Result};
-use crate::lanes::{cpu_has_avx2, LANES};
+use crate::lanes::{cpu_has_avx2, Aligned, LANES};
 
 /// Sigma-point scaling (seed 001: α = 1e-3, β = 2, κ = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,26 +99,26 @@ pub struct SrUkf<P: Process, H: Observe> {
     n: usize,
     p: usize,
     w: Weights,
-    x: Vec<f64>,
-    s: Vec<f64>,
-    sq: Vec<f64>,
-    r_full: Vec<f64>,
-    sr: Vec<f64>,
+    x: Aligned,
+    s: Aligned,
+    sq: Aligned,
+    r_full: Aligned,
+    sr: Aligned,
     health: Health,
     // workspaces
-    chi: Vec<f64>,
-    ysig: Vec<f64>,
-    comp: Vec<f64>,
-    lqv: Vec<f64>,
-    ucols: Vec<f64>,
-    dev: Vec<f64>,
-    s_saved: Vec<f64>,
-    vsave: Vec<f64>,
-    sy: Vec<f64>,
-    sr_obs: Vec<f64>,
-    pxy: Vec<f64>,
-    yhat: Vec<f64>,
-    nu: Vec<f64>,
+    chi: Aligned,
+    ysig: Aligned,
+    comp: Aligned,
+    lqv: Aligned,
+    ucols: Aligned,
+    dev: Aligned,
+    s_saved: Aligned,
+    vsave: Aligned,
+    sy: Aligned,
+    sr_obs: Aligned,
+    pxy: Aligned,
+    yhat: Aligned,
+    nu: Aligned,
     obs: Vec<usize>,
     last_mask: Vec<bool>,
     avx2: bool,
@@ -503,28 +503,28 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             n,
             p,
             w,
-            x: x0.to_vec(),
-            s,
-            sq,
-            r_full: r.to_vec(),
-            sr_obs: sr.clone(),
-            sr,
+            x: Aligned::from_slice(x0),
+            s: s.into(),
+            sq: sq.into(),
+            r_full: Aligned::from_slice(r),
+            sr_obs: Aligned::from_slice(&sr),
+            sr: sr.into(),
             health: Health {
                 nis: f64::NAN,
                 ..Health::default()
             },
-            chi: vec![0.0; n * ns],
-            ysig: vec![0.0; p * ns],
-            comp: vec![0.0; padded(n.max(p)) * cols],
-            lqv: vec![0.0; padded(n.max(p))],
-            ucols: vec![0.0; n * p],
-            dev: vec![0.0; n.max(p)],
-            s_saved: vec![0.0; n * n],
-            vsave: vec![0.0; n.max(p)],
-            sy: vec![0.0; p * p],
-            pxy: vec![0.0; n * p],
-            yhat: vec![0.0; p],
-            nu: vec![0.0; p],
+            chi: Aligned::zeros(n * ns),
+            ysig: Aligned::zeros(p * ns),
+            comp: Aligned::zeros(padded(n.max(p)) * cols),
+            lqv: Aligned::zeros(padded(n.max(p))),
+            ucols: Aligned::zeros(n * p),
+            dev: Aligned::zeros(n.max(p)),
+            s_saved: Aligned::zeros(n * n),
+            vsave: Aligned::zeros(n.max(p)),
+            sy: Aligned::zeros(p * p),
+            pxy: Aligned::zeros(n * p),
+            yhat: Aligned::zeros(p),
+            nu: Aligned::zeros(p),
             obs: (0..p).collect(),
             last_mask: vec![true; p],
             avx2: cpu_has_avx2(),
@@ -564,7 +564,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     pub fn reset(&mut self, x: &[f64], p: &[f64]) -> Result<()> {
         check::len("x", x, self.n)?;
         check::all_finite("x", x, 1)?;
-        self.s = factor("P", p, self.n, true)?;
+        self.s.copy_from_slice(&factor("P", p, self.n, true)?);
         self.x.copy_from_slice(x);
         Ok(())
     }
@@ -577,7 +577,8 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
 
     /// Record a failed downdate and rebuild `S` from `S_saved·S_savedᵀ + Σ signᵢ·vᵢ·vᵢᵀ`.
     fn recover(&mut self, updates: &[(&[f64], f64)]) {
-        self.s = repaired_factor(&self.s_saved, self.n, updates);
+        let repaired = repaired_factor(&self.s_saved, self.n, updates);
+        self.s.copy_from_slice(&repaired);
         self.health.recovered += 1;
         self.health.recoveries_total += 1;
     }
@@ -970,7 +971,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                     }
                 }
             }
-            for (block, factor) in [(2 * n, &self.sq), (3 * n, &snext)] {
+            for (block, factor) in [(2 * n, &self.sq[..]), (3 * n, &snext[..])] {
                 for j in 0..n {
                     for r in 0..n {
                         let mut acc = 0.0;

@@ -25,7 +25,7 @@ pub use stability::{jacobian, propose_step, rk4_stability_radius, StepAdvice};
 
 use crate::dynamics::Model;
 use crate::error::{check, CableError, Result};
-use crate::lanes::{madd, Lanes, LANES};
+use crate::lanes::{madd, LaneBuf, LANES};
 
 /// How inputs behave between samples.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -165,34 +165,34 @@ impl Rk4 {
     }
 }
 
-/// RK4 over [`LANES`] independent states at once (structure of arrays, see
+/// RK4 over `W` independent states at once ([`LANES`], or [`WIDE`](crate::lanes::WIDE) for
+/// two lane groups whose arithmetic interleaves; structure of arrays, see
 /// [`Model::derivative_lanes`]): the same operations as [`Rk4::step`] per lane, so the same
 /// bits, with the arithmetic in SIMD lanes. Scratch is sized at construction.
 #[derive(Debug, Clone)]
-pub struct Rk4Lanes {
-    k1: Vec<Lanes>,
-    k2: Vec<Lanes>,
-    k3: Vec<Lanes>,
-    k4: Vec<Lanes>,
-    tmp: Vec<Lanes>,
+pub struct Rk4Lanes<const W: usize = LANES> {
+    k1: LaneBuf<W>,
+    k2: LaneBuf<W>,
+    k3: LaneBuf<W>,
+    k4: LaneBuf<W>,
+    tmp: LaneBuf<W>,
 }
 
-impl Rk4Lanes {
+impl<const W: usize> Rk4Lanes<W> {
     /// Workspace for `n` states.
     pub fn new(n: usize) -> Self {
-        let z = vec![[0.0; LANES]; n];
         Self {
-            k1: z.clone(),
-            k2: z.clone(),
-            k3: z.clone(),
-            tmp: z.clone(),
-            k4: z,
+            k1: LaneBuf::new(n),
+            k2: LaneBuf::new(n),
+            k3: LaneBuf::new(n),
+            k4: LaneBuf::new(n),
+            tmp: LaneBuf::new(n),
         }
     }
 
     /// One RK4 step of size `h` of every lane with the input `u` held (zero-order hold).
     #[inline(always)]
-    pub fn step<M: Model + ?Sized>(&mut self, model: &M, x: &mut [Lanes], u: &[f64], h: f64) {
+    pub fn step<M: Model>(&mut self, model: &M, x: &mut [[f64; W]], u: &[f64], h: f64) {
         self.advance::<M, false>(model, x, u, h);
     }
 
@@ -200,44 +200,51 @@ impl Rk4Lanes {
     /// ([`Model::derivative_lanes_fused`]): for code compiled for CPUs with FMA. The results
     /// differ from [`Rk4::step`] in the last bits.
     #[inline(always)]
-    pub fn step_fused<M: Model + ?Sized>(&mut self, model: &M, x: &mut [Lanes], u: &[f64], h: f64) {
+    pub fn step_fused<M: Model>(&mut self, model: &M, x: &mut [[f64; W]], u: &[f64], h: f64) {
         self.advance::<M, true>(model, x, u, h);
     }
 
     #[inline(always)]
-    fn advance<M: Model + ?Sized, const FUSED: bool>(
+    fn advance<M: Model, const FUSED: bool>(
         &mut self,
         model: &M,
-        x: &mut [Lanes],
+        x: &mut [[f64; W]],
         u: &[f64],
         h: f64,
     ) {
-        let f = |x: &[Lanes], dx: &mut [Lanes]| {
+        let f = |x: &[[f64; W]], dx: &mut [[f64; W]]| {
             if FUSED {
                 model.derivative_lanes_fused(x, u, dx)
             } else {
                 model.derivative_lanes(x, u, dx)
             }
         };
-        let stage = |tmp: &mut [Lanes], x: &[Lanes], k: &[Lanes], c: f64| {
+        let stage = |tmp: &mut [[f64; W]], x: &[[f64; W]], k: &[[f64; W]], c: f64| {
             let ch = c * h;
             for ((t, x), k) in tmp.iter_mut().zip(x).zip(k) {
-                for l in 0..LANES {
+                for l in 0..W {
                     t[l] = madd::<FUSED>(ch, k[l], x[l]);
                 }
             }
         };
-        f(x, &mut self.k1);
-        stage(&mut self.tmp, x, &self.k1, 0.5);
-        f(&self.tmp, &mut self.k2);
-        stage(&mut self.tmp, x, &self.k2, 0.5);
-        f(&self.tmp, &mut self.k3);
-        stage(&mut self.tmp, x, &self.k3, 1.0);
-        f(&self.tmp, &mut self.k4);
+        let (k1, k2, k3, k4, tmp) = (
+            self.k1.blocks_mut(),
+            self.k2.blocks_mut(),
+            self.k3.blocks_mut(),
+            self.k4.blocks_mut(),
+            self.tmp.blocks_mut(),
+        );
+        f(x, k1);
+        stage(tmp, x, k1, 0.5);
+        f(tmp, k2);
+        stage(tmp, x, k2, 0.5);
+        f(tmp, k3);
+        stage(tmp, x, k3, 1.0);
+        f(tmp, k4);
         let h6 = h / 6.0;
         for (i, x) in x.iter_mut().enumerate() {
-            let (k1, k2, k3, k4) = (self.k1[i], self.k2[i], self.k3[i], self.k4[i]);
-            for l in 0..LANES {
+            let (k1, k2, k3, k4) = (k1[i], k2[i], k3[i], k4[i]);
+            for l in 0..W {
                 let s = madd::<FUSED>(2.0, k3[l], madd::<FUSED>(2.0, k2[l], k1[l])) + k4[l];
                 x[l] = madd::<FUSED>(h6, s, x[l]);
             }
