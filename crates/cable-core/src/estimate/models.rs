@@ -137,10 +137,10 @@ impl<M: Model> ModelProcess<M> {
     #[inline(always)]
     fn propagate_lanes<const FUSED: bool, const AVX: bool>(&mut self, xs: &mut [f64], u: &[f64]) {
         let count = xs.len() / self.model.n_states();
+        let (model, h, k) = (&self.model, self.dt / self.substeps as f64, self.substeps);
         let mut first = 0;
         while first < count {
             let left = count - first;
-            let (model, h, k) = (&self.model, self.dt / self.substeps as f64, self.substeps);
             first += if left > LANES {
                 self.wide
                     .run::<M, FUSED, AVX>(model, xs, u, h, k, first, left.min(WIDE))
