@@ -339,8 +339,9 @@ pub fn lq_lower(a: &mut [f64], n: usize, cols: usize, dense: usize, w: &mut [f64
             }
         };
     }
-    // independent accumulator chains: as many as the 16 vector registers allow
-    fixed!(4 => 4, 8 => 4, 12 => 4, 16 => 2, 20 => 2, 24 => 2);
+    // independent accumulator chains: as many as the 16 vector registers allow next to the
+    // reflection being applied (12 rows: 2 chains of 3 blocks, measured faster than 4)
+    fixed!(4 => 4, 8 => 4, 12 => 2, 16 => 2, 20 => 2, 24 => 2);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -384,6 +385,10 @@ fn extract_lower(a: &[f64], ld: usize, n: usize, steps: usize, l: &mut [f64]) {
 /// time: a finished block of four rows influences no other row (and what rounding leaves right
 /// of a finished row's diagonal is never read), so each reflection runs over the window of the
 /// last `R` rows only, from the block that holds row `k` down (`R = LD − 4·⌊k/4⌋`).
+///
+/// The product `A·x` that reflection `k + 1` needs is summed in the pass that applies
+/// reflection `k`, from each column as it leaves the update (one pass over the columns per
+/// row, and the sum does not wait for a second pass to load what the first just stored).
 #[inline(always)]
 fn lq_fixed<const LD: usize, const C: usize, const FUSED: bool>(
     a: &mut [f64],
@@ -393,14 +398,19 @@ fn lq_fixed<const LD: usize, const C: usize, const FUSED: bool>(
     l: &mut [f64],
 ) {
     let steps = n.min(cols);
+    // row k is non-zero in columns k..end only: a tail column dense + t is untouched (and
+    // zero in row k) while t > k
+    let end = |k: usize| (dense + k + 1).min(cols);
+    let mut ax = [0.0; LD];
+    if steps > 0 {
+        row_products::<LD, LD, C, FUSED>(a, 0, end(0), &mut ax);
+    }
     for k in 0..steps {
-        // row k is non-zero in columns k..end only: a tail column dense + t is untouched (and
-        // zero in row k) while t > k
-        let end = (dense + k + 1).min(cols);
+        let next = k + 1 < steps;
         macro_rules! window {
             ($($r:literal),*) => {
                 match LD - 4 * (k / 4) {
-                    $($r => reflect_row::<LD, $r, C, FUSED>(a, k, end),)*
+                    $($r => reflect_row::<LD, $r, C, FUSED>(a, k, end(k), next, &mut ax),)*
                     _ => unreachable!("LD is a multiple of 4 up to 24"),
                 }
             };
@@ -410,22 +420,20 @@ fn lq_fixed<const LD: usize, const C: usize, const FUSED: bool>(
     extract_lower(a, LD, n, steps, l);
 }
 
-/// The reflection of row `k` over columns `k..end`, on the last `R` rows of each column, with
-/// `C` accumulator chains for `A·x`; products and sums fused when `FUSED`.
+/// `A·x` for the row `x = A[k, k..end]` on the last `R` rows, over columns `k..end` with `C`
+/// accumulator chains (column `j` in chain `(j − k) mod C`), into `ax` (rows `LD − R..`).
 #[inline(always)]
-fn reflect_row<const LD: usize, const R: usize, const C: usize, const FUSED: bool>(
-    a: &mut [f64],
+fn row_products<const LD: usize, const R: usize, const C: usize, const FUSED: bool>(
+    a: &[f64],
     k: usize,
     end: usize,
+    ax: &mut [f64; LD],
 ) {
     if R > LD {
-        return; // not a window of this LD (the match above never picks it)
+        return;
     }
     let off = LD - R;
-    assert!(k >= off && k - off < R, "row k lies in the window");
-    // whole columns as arrays: indices `off + r` need no checks, `k` is checked once above
-    let (block, _) = a[k * LD..end * LD].as_chunks_mut::<LD>();
-    // A·x over the columns, C chains
+    let (block, _) = a[k * LD..end * LD].as_chunks::<LD>();
     let mut acc = [[0.0; R]; C];
     let (groups, rest) = block.as_chunks::<C>();
     for group in groups {
@@ -442,35 +450,88 @@ fn reflect_row<const LD: usize, const R: usize, const C: usize, const FUSED: boo
             acc[r] = madd::<FUSED>(xj, col[off + r], acc[r]);
         }
     }
-    let ax: [f64; R] =
-        std::array::from_fn(|r| chain_sum(std::array::from_fn::<f64, C, _>(|c| acc[c][r])));
-    let s2 = ax[k - off];
+    for r in 0..R {
+        ax[off + r] = chain_sum(std::array::from_fn::<f64, C, _>(|c| acc[c][r]));
+    }
+}
+
+/// The reflection of row `k` over columns `k..end`, on the last `R` rows of each column,
+/// from `ax` = `A·x` of row `k`; when `next`, `ax` becomes `A·x` of row `k + 1` (columns
+/// `k + 1..end + 1`, the last one a tail column that this reflection leaves alone), summed
+/// as [`row_products`] would. Products and sums fused when `FUSED`.
+#[inline(always)]
+fn reflect_row<const LD: usize, const R: usize, const C: usize, const FUSED: bool>(
+    a: &mut [f64],
+    k: usize,
+    end: usize,
+    next: bool,
+    ax: &mut [f64; LD],
+) {
+    if R > LD {
+        return; // not a window of this LD (the match above never picks it)
+    }
+    let off = LD - R;
+    assert!(k >= off && k - off < R, "row k lies in the window");
+    let cols = a.len() / LD;
+    let next_end = if next { (end + 1).min(cols) } else { end };
+    assert!(!next || k + 1 < LD, "row k + 1 lies in the window");
+    let s2 = ax[k];
+    // whole columns as arrays: indices `off + r` need no checks, `k` is checked once above
+    let (block, _) = a[k * LD..next_end * LD].as_chunks_mut::<LD>();
     if s2 == 0.0 {
-        return; // row k is zero already: L[k,k] = 0, column k stays as it is
+        // row k is zero already: L[k,k] = 0, the columns stay as they are
+        if next {
+            row_products::<LD, R, C, FUSED>(a, k + 1, next_end, ax);
+        }
+        return;
     }
     let (first, others) = block.split_first_mut().expect("k < end");
     let xk = first[k];
     let (alpha, scale) = reflector(s2, xk);
     // w = scale·A·v = scale·(A·x − α·A[:,k]); A ← A − w·vᵀ, v_j read before column j changes
-    let w: [f64; R] = std::array::from_fn(|r| scale * madd::<FUSED>(-alpha, first[off + r], ax[r]));
+    let w: [f64; R] =
+        std::array::from_fn(|r| scale * madd::<FUSED>(-alpha, first[off + r], ax[off + r]));
     let vk = alpha - xk; // −v_k
     for r in 0..R {
         first[off + r] = madd::<FUSED>(vk, w[r], first[off + r]);
     }
-    // four columns per iteration: the loop's own instructions were a third of this pass
-    // four columns per iteration: the loop's own instructions were a third of this pass
-    let (groups, rest) = others.as_chunks_mut::<4>();
-    for group in groups {
-        for col in group {
-            reflect_column::<LD, R, FUSED>(col, k, &w);
-        }
-    }
-    for col in rest {
-        reflect_column::<LD, R, FUSED>(col, k, &w);
-    }
     // row k is now α·e_kᵀ up to rounding; the rounding right of the diagonal is never read
     // and is not cleared (a scalar store there would stall the next vector loads)
     first[k] = alpha;
+    if !next {
+        let (groups, rest) = others.as_chunks_mut::<4>();
+        for group in groups {
+            for col in group {
+                reflect_column::<LD, R, FUSED>(col, k, &w);
+            }
+        }
+        for col in rest {
+            reflect_column::<LD, R, FUSED>(col, k, &w);
+        }
+        return;
+    }
+    // the column past `end` is zero in row k, so the update leaves it as it is (v_j = 0)
+    let mut acc = [[0.0; R]; C];
+    let (groups, rest) = others.as_chunks_mut::<C>();
+    for group in groups {
+        for (acc, col) in acc.iter_mut().zip(group) {
+            reflect_column::<LD, R, FUSED>(col, k, &w);
+            let xj = col[k + 1];
+            for r in 0..R {
+                acc[r] = madd::<FUSED>(xj, col[off + r], acc[r]);
+            }
+        }
+    }
+    for (acc, col) in acc.iter_mut().zip(rest) {
+        reflect_column::<LD, R, FUSED>(col, k, &w);
+        let xj = col[k + 1];
+        for r in 0..R {
+            acc[r] = madd::<FUSED>(xj, col[off + r], acc[r]);
+        }
+    }
+    for r in 0..R {
+        ax[off + r] = chain_sum(std::array::from_fn::<f64, C, _>(|c| acc[c][r]));
+    }
 }
 
 /// `A[:, j] −= v_j·w` on the last `R` rows of column `j`, `v_j = A[k, j]` (a function, not

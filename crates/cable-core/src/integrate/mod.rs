@@ -227,12 +227,15 @@ impl<const W: usize> Rk4Lanes<W> {
                 }
             }
         };
+        // the workspaces cut to the states' length: a caller whose length is a constant
+        // (`ModelProcess` for 12 states) unrolls the stage loops whole
+        let n = x.len();
         let (k1, k2, k3, k4, tmp) = (
-            self.k1.blocks_mut(),
-            self.k2.blocks_mut(),
-            self.k3.blocks_mut(),
-            self.k4.blocks_mut(),
-            self.tmp.blocks_mut(),
+            &mut self.k1.blocks_mut()[..n],
+            &mut self.k2.blocks_mut()[..n],
+            &mut self.k3.blocks_mut()[..n],
+            &mut self.k4.blocks_mut()[..n],
+            &mut self.tmp.blocks_mut()[..n],
         );
         f(x, k1);
         stage(tmp, x, k1, 0.5);
