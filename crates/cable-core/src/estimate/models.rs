@@ -52,6 +52,24 @@ pub struct LinearRows<'a> {
     pub pick: Option<&'a [usize]>,
 }
 
+impl LinearRows<'_> {
+    /// Row `k` of `H` times `v` (`n` long).
+    #[inline(always)]
+    pub fn row_times(&self, k: usize, v: &[f64]) -> f64 {
+        match self.pick {
+            Some(pick) => v[pick[k]],
+            None => {
+                let n = v.len();
+                self.h[k * n..(k + 1) * n]
+                    .iter()
+                    .zip(v)
+                    .map(|(h, v)| h * v)
+                    .sum()
+            }
+        }
+    }
+}
+
 /// A cable-core model integrated over the filter period `dt` by `substeps` RK4 steps with the
 /// input held (zero-order hold, as a servo applies it).
 #[derive(Debug, Clone)]

@@ -112,6 +112,8 @@ pub struct SrUkf<P: Process, H: Observe> {
     lqv: Aligned,
     ucols: Aligned,
     dev: Aligned,
+    /// The 0th point's pending downdate vector (see [`SrUkf::step`]).
+    v0: Aligned,
     s_saved: Aligned,
     vsave: Aligned,
     sy: Aligned,
@@ -387,14 +389,7 @@ fn linear_spread<const N: usize>(
         }),
     }
     for (a, &k) in obs.iter().enumerate() {
-        yhat[a] = match lin.pick {
-            Some(pick) => x[pick[k]],
-            None => lin.h[k * n..(k + 1) * n]
-                .iter()
-                .zip(x)
-                .map(|(h, x)| h * x)
-                .sum(),
-        };
+        yhat[a] = lin.row_times(k, x);
     }
     // P_xy = S·(H·S)ᵀ, column-major n × q, over whole columns of S (the zeros above its
     // diagonal add exact zeros); exact zeros of H·S (a selected state's row right of its
@@ -517,8 +512,9 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             ysig: Aligned::zeros(p * ns),
             comp: Aligned::zeros(padded(n.max(p)) * cols),
             lqv: Aligned::zeros(padded(n.max(p))),
-            ucols: Aligned::zeros(n * p),
+            ucols: Aligned::zeros(n * (p + 1)),
             dev: Aligned::zeros(n.max(p)),
+            v0: Aligned::zeros(n),
             s_saved: Aligned::zeros(n * n),
             vsave: Aligned::zeros(n.max(p)),
             sy: Aligned::zeros(p * p),
@@ -594,6 +590,18 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
 
     #[inline(always)]
     fn predict_unchecked<const N: usize>(&mut self, u: &[f64]) {
+        self.predict_spread::<N>(u);
+        // 0th point, weight possibly negative: update or downdate (eq 3.15)
+        let (n, wc0) = (dim::<N>(self.n), self.w.wc.0);
+        if wc0 != 0.0 {
+            scaled_difference::<N>(wc0.abs().sqrt(), &self.chi[..n], &self.x, &mut self.dev);
+            self.rank_one::<N>(n, wc0.signum());
+        }
+    }
+
+    /// The time update up to its 0th point: mean (eq 3.13) and `S` of eq 3.14.
+    #[inline(always)]
+    fn predict_spread<const N: usize>(&mut self, u: &[f64]) {
         let n = dim::<N>(self.n);
         let ns = 2 * n + 1;
         self.sigma_points::<N>();
@@ -613,12 +621,6 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             &mut self.lqv,
             &mut self.s,
         );
-        // 0th point, weight possibly negative: update or downdate (eq 3.15)
-        let wc0 = self.w.wc.0;
-        if wc0 != 0.0 {
-            scaled_difference::<N>(wc0.abs().sqrt(), &self.chi[..n], &self.x, &mut self.dev);
-            self.rank_one::<N>(n, wc0.signum());
-        }
     }
 
     /// `S ← cholupdate(S, dev[..n], sign)`, recovering from a failed downdate.
@@ -790,29 +792,90 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     #[inline(always)]
     fn update_unchecked<const N: usize>(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) {
         self.set_mask(mask);
-        let n = dim::<N>(self.n);
         let q = self.obs.len();
         self.health.measured = q;
         if q == 0 {
             self.health.nis = f64::NAN;
             return;
         }
-        if let Some(lin) = self.observe.linear() {
-            linear_spread::<N>(
-                lin,
-                &self.obs,
-                &self.x,
-                &self.s,
-                &self.sr_obs[..q * q],
-                &mut self.comp,
-                &mut self.lqv,
-                &mut self.yhat[..q],
-                &mut self.sy[..q * q],
-                &mut self.pxy[..n * q],
-            );
-        } else {
+        if !self.closed_form_spread::<N>() {
             self.sigma_spread(u);
         }
+        self.finish_update::<N>(y, false);
+    }
+
+    /// `ŷ`, `S_y` and `P_xy` of a linear measurement from `(x, S)` ([`linear_spread`]);
+    /// false (nothing done) when the measurement is not linear.
+    #[inline(always)]
+    fn closed_form_spread<const N: usize>(&mut self) -> bool {
+        let Some(lin) = self.observe.linear() else {
+            return false;
+        };
+        let (n, q) = (dim::<N>(self.n), self.obs.len());
+        linear_spread::<N>(
+            lin,
+            &self.obs,
+            &self.x,
+            &self.s,
+            &self.sr_obs[..q * q],
+            &mut self.comp,
+            &mut self.lqv,
+            &mut self.yhat[..q],
+            &mut self.sy[..q * q],
+            &mut self.pxy[..n * q],
+        );
+        true
+    }
+
+    /// The measurement update of [`SrUkf::step`] when the time update's 0th point left its
+    /// downdate `S⁻ = cholupdate(S', v₀, −1)` pending in `v0` (negative `W(c)_0`, linear
+    /// measurement): `P⁻ = S'S'ᵀ − v₀v₀ᵀ`, so `S_y = cholupdate(qr([H·S', √R]), H·v₀, −1)`
+    /// (a `q × q` downdate), `P_xy = S'·(H·S')ᵀ − v₀·(H·v₀)ᵀ`, and eq 3.25 becomes one
+    /// downdate of `S'` by `[v₀, U]`, whose rotations run in one pass down `S'`. Exact
+    /// arithmetic gives the update after the 0th point's downdate. When there is nothing to
+    /// measure, or `S_y`'s downdate fails, the 0th point's downdate runs first as in
+    /// [`SrUkf::predict`] and the update as in [`SrUkf::update`].
+    #[inline(always)]
+    fn update_folded<const N: usize>(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) {
+        self.set_mask(mask);
+        if self.obs.is_empty() || !self.folded_spread::<N>() {
+            let n = dim::<N>(self.n);
+            self.dev[..n].copy_from_slice(&self.v0[..n]);
+            self.rank_one::<N>(n, -1.0);
+            self.update_unchecked::<N>(u, y, mask);
+            return;
+        }
+        self.health.measured = self.obs.len();
+        self.finish_update::<N>(y, true);
+    }
+
+    /// `ŷ`, `S_y` and `P_xy` of [`Self::update_folded`]; false when `S_y`'s downdate fails
+    /// (`H·P⁻·Hᵀ + R` not positive definite in floating point).
+    #[inline(always)]
+    fn folded_spread<const N: usize>(&mut self) -> bool {
+        let n = dim::<N>(self.n);
+        let q = self.obs.len();
+        let linear = self.closed_form_spread::<N>();
+        debug_assert!(linear, "folded only for linear measurements");
+        let lin = self.observe.linear().expect("a linear measurement");
+        let (v0, hv) = (&self.v0[..n], &mut self.nu[..q]); // nu: scratch until the innovation
+        for (a, &k) in self.obs.iter().enumerate() {
+            hv[a] = lin.row_times(k, v0);
+        }
+        for (p, &h) in self.pxy[..n * q].chunks_exact_mut(n).zip(hv.iter()) {
+            for (p, v) in p.iter_mut().zip(v0) {
+                *p -= v * h;
+            }
+        }
+        cholupdate(&mut self.sy[..q * q], q, hv, -1.0).is_ok()
+    }
+
+    /// Eqs 3.22–3.25 from `ŷ`, `S_y` and `P_xy`; `folded`: the 0th point's downdate `v0` is
+    /// pending ([`Self::update_folded`]) and joins eq 3.25's.
+    #[inline(always)]
+    fn finish_update<const N: usize>(&mut self, y: &[f64], folded: bool) {
+        let n = dim::<N>(self.n);
+        let q = self.obs.len();
         // K = (P_xy / S_yᵀ) / S_y (eq 3.22): Z = P_xy·S_y⁻ᵀ, each row solving S_y·zᵀ = p_xyᵀ
         // as `solve_lower` would, all rows at once down the columns; then K = Z·S_y⁻¹
         let sy = &self.sy[..q * q];
@@ -829,14 +892,18 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         add_combination::<N>(&self.pxy[..n * q], &row[..q], &mut self.x, &mut self.ucols);
         self.dev = row;
         self.process.project(&mut self.x);
-        // S ← cholupdate(S, U, −1), the q columns of U interleaved (eq 3.25)
+        // S ← cholupdate(S, U, −1), the q columns of U interleaved (eq 3.25), after v₀
+        // when folded
         self.s_saved.copy_from_slice(&self.s);
-        self.ucols[..n * q].copy_from_slice(&self.pxy[..n * q]);
-        if cholupdate_columns_sized::<N>(&mut self.s, n, &mut self.ucols[..n * q], n, q, -1.0)
-            .is_err()
-        {
-            let cols: Vec<Vec<f64>> = (0..q)
-                .map(|c| self.pxy[c * n..(c + 1) * n].to_vec())
+        let lead = if folded { n } else { 0 };
+        self.ucols[..lead].copy_from_slice(&self.v0[..lead]);
+        self.ucols[lead..lead + n * q].copy_from_slice(&self.pxy[..n * q]);
+        let (cols, count) = (&mut self.ucols[..lead + n * q], q + usize::from(folded));
+        if cholupdate_columns_sized::<N>(&mut self.s, n, cols, n, count, -1.0).is_err() {
+            let cols: Vec<Vec<f64>> = (lead > 0)
+                .then(|| self.v0[..n].to_vec())
+                .into_iter()
+                .chain((0..q).map(|c| self.pxy[c * n..(c + 1) * n].to_vec()))
                 .collect();
             let ups: Vec<(&[f64], f64)> = cols.iter().map(|v| (v.as_slice(), -1.0)).collect();
             self.recover(&ups);
@@ -1012,7 +1079,10 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     /// Predict with `u`, then update with `y` (entries where `mask` is true; all if `None`).
     /// Bad input is refused before anything changes. Filters of up to
     /// [`SPECIALISED_UP_TO`] states run a build specialised for their size (and for AVX2 + FMA
-    /// CPUs, 256-bit lanes): same operations, same results.
+    /// CPUs, 256-bit lanes): same operations, same results. With a negative `W(c)_0` and a
+    /// linear measurement the 0th sigma point's downdate is folded into the measurement's
+    /// (one pass down `S` for both): the result equals [`SrUkf::predict`] then
+    /// [`SrUkf::update`] in exact arithmetic, and to rounding in floating point.
     pub fn step(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) -> Result<()> {
         check::len("u", u, self.process.n_inputs())?;
         check::all_finite("u", u, 1)?;
@@ -1053,8 +1123,17 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         mask: Option<&[bool]>,
     ) -> Result<()> {
         self.health.recovered = 0;
-        self.predict_unchecked::<N>(u);
-        self.update_unchecked::<N>(u, y, mask);
+        if self.w.wc.0 < 0.0 && self.observe.linear().is_some() {
+            // the 0th point's downdate joins the measurement's (one pass down S for both)
+            self.predict_spread::<N>(u);
+            let n = dim::<N>(self.n);
+            let swc0 = (-self.w.wc.0).sqrt();
+            scaled_difference::<N>(swc0, &self.chi[..n], &self.x, &mut self.v0);
+            self.update_folded::<N>(u, y, mask);
+        } else {
+            self.predict_unchecked::<N>(u);
+            self.update_unchecked::<N>(u, y, mask);
+        }
         self.check_state::<N>()
     }
 
@@ -1347,6 +1426,76 @@ mod tests {
         assert!(f.health().nis.is_finite());
     }
 
+    /// `x₀ ← x₀ + c·x₁²`, `x₁ ← x₁`: the sigma points' mean moves by `c·P₁₁`, so the 0th
+    /// point's downdate is `|W(c)_0|·(c·P₁₁)² ≈ 1e6·c²` in `x₀`, as large as the spread it
+    /// cancels.
+    #[derive(Clone)]
+    struct Quadratic(f64);
+
+    impl Process for Quadratic {
+        fn n_states(&self) -> usize {
+            2
+        }
+        fn n_inputs(&self) -> usize {
+            0
+        }
+        fn propagate(&mut self, x: &mut [f64], _u: &[f64]) {
+            x[0] += self.0 * x[1] * x[1];
+        }
+    }
+
+    #[test]
+    fn the_folded_0th_point_gives_the_sequential_update() {
+        // c = 1e-3: half of the predicted spread of x0 is cancelled by the 0th point; x0 is
+        // measured, so S_y, P_xy and S all take the fold's corrections
+        let mk = |observe| {
+            SrUkf::new(
+                Quadratic(1e-3),
+                observe,
+                &[0.0, 1.0],
+                &[1.0, 0.0, 0.0, 1.0],
+                &[0.0; 4],
+                &[0.1],
+                SigmaScaling::default(),
+            )
+            .unwrap()
+        };
+        for observe in [
+            LinearObserve::select(2, &[0]).unwrap(),
+            LinearObserve::new(1, 2, vec![1.0, 0.5]).unwrap(),
+        ] {
+            let (mut folded, mut split) = (mk(observe.clone()), mk(observe));
+            assert!(folded.weights().wc.0 < -1e5);
+            for k in 0..5 {
+                let y = [0.3 * k as f64];
+                // the cancelled spread: S' holds 1 + 1e6·c² ≈ 2 in x0, v0 ≈ 1
+                if k == 0 {
+                    folded.predict_spread::<0>(&[]);
+                    let v0: f64 = folded.chi[0] - folded.x[0];
+                    let w0 = -folded.weights().wc.0;
+                    assert!((w0 * v0 * v0 - 1.0).abs() < 1e-3, "{}", w0 * v0 * v0);
+                    folded.reset(&[0.0, 1.0], &[1.0, 0.0, 0.0, 1.0]).unwrap();
+                }
+                folded.step(&[], &y, None).unwrap();
+                split.predict(&[]).unwrap();
+                split.update(&[], &y, None).unwrap();
+                // a fold that dropped a correction would be off by ~50 %
+                for (a, b) in folded.x().iter().zip(split.x()) {
+                    assert_relative_eq!(a, b, epsilon = 1e-12, max_relative = 1e-10);
+                }
+                for (a, b) in folded.covariance().iter().zip(&split.covariance()) {
+                    assert_relative_eq!(a, b, epsilon = 1e-12, max_relative = 1e-10);
+                }
+                assert_relative_eq!(
+                    folded.health().nis,
+                    split.health().nis,
+                    max_relative = 1e-10
+                );
+                assert_eq!(folded.health().recoveries_total, 0);
+            }
+        }
+    }
+
     #[test]
     fn a_downdate_lost_to_rounding_is_recovered_and_counted() {
         // a near-perfect measurement of x0: the posterior variance 1e-30 is below the
@@ -1436,25 +1585,51 @@ mod tests {
         ));
     }
 
-    /// Runs `steps` steps three ways: `step()` (the build specialised for `n`, with the
-    /// CPU's lanes), `step()` with the portable lanes, and `predict()` + `update()` (the
-    /// general build); all three must agree bit for bit.
+    /// Largest `|xᵢ − x'ᵢ| / σᵢ` and `|Pᵢⱼ − P'ᵢⱼ| / (σᵢσⱼ)` between two filters (`σ` from `a`).
+    fn gap<P: Process, H: Observe>(a: &SrUkf<P, H>, b: &SrUkf<P, H>) -> (f64, f64) {
+        let n = a.n_states();
+        let (pa, pb) = (a.covariance(), b.covariance());
+        let sd = |i: usize| pa[i * (n + 1)].sqrt();
+        let (mut gx, mut gp) = (0.0_f64, 0.0_f64);
+        for i in 0..n {
+            gx = gx.max((a.x()[i] - b.x()[i]).abs() / sd(i));
+            for j in 0..n {
+                gp = gp.max((pa[i + j * n] - pb[i + j * n]).abs() / (sd(i) * sd(j)));
+            }
+        }
+        (gx, gp)
+    }
+
+    /// Runs `steps` steps five ways. `step()` (the build specialised for `n`, with the CPU's
+    /// lanes), `step()` with the portable lanes and the general build of `step()` must agree
+    /// bit for bit. `predict()` + `update()` runs the 0th point's downdate on its own where
+    /// `step()` folds it into the measurement's: it must agree to rounding, i.e. be no further
+    /// from `step()` (over the whole run) than ten times the distance between two sequential
+    /// runs whose `P₀` differ by 4e-16 relative (with the seed's α = 1e-3, a filter's sums
+    /// amplify rounding by up to ~1/α; a strongly nonlinear model more).
     fn three_builds_agree<P: Process + Clone, H: Observe + Clone>(
         f: SrUkf<P, H>,
         steps: usize,
         input: impl Fn(usize) -> Vec<f64>,
         measure: impl Fn(usize, &[f64]) -> (Vec<f64>, Option<Vec<bool>>),
     ) {
-        let (mut fast, mut portable, mut general) = (f.clone(), f.clone(), f);
+        let mut nudged = f.clone();
+        let p0: Vec<f64> = f.covariance().iter().map(|v| v * (1.0 + 4e-16)).collect();
+        nudged.reset(f.x(), &p0).unwrap();
+        let (mut fast, mut portable, mut general, mut split) = (f.clone(), f.clone(), f.clone(), f);
         portable.avx2 = false;
+        let (mut folded_gap, mut rounding_gap) = ((0.0_f64, 0.0_f64), (0.0_f64, 0.0_f64));
         for k in 0..steps {
             let u = input(k);
             let (y, mask) = measure(k, general.x());
             let mask = mask.as_deref();
             fast.step(&u, &y, mask).unwrap();
             portable.step(&u, &y, mask).unwrap();
-            general.predict(&u).unwrap();
-            general.update(&u, &y, mask).unwrap();
+            general.step_unchecked::<0>(&u, &y, mask).unwrap();
+            for seq in [&mut split, &mut nudged] {
+                seq.predict(&u).unwrap();
+                seq.update(&u, &y, mask).unwrap();
+            }
             for other in [&fast, &portable] {
                 let bits = |v: &[f64]| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(other.x()), bits(general.x()), "x at step {k}");
@@ -1462,8 +1637,17 @@ mod tests {
                 assert_eq!(bits(so), bits(sg), "S at step {k}");
                 assert_eq!(other.health().nis.to_bits(), general.health().nis.to_bits());
             }
+            let (g, r) = (gap(&split, &general), gap(&split, &nudged));
+            folded_gap = (folded_gap.0.max(g.0), folded_gap.1.max(g.1));
+            rounding_gap = (rounding_gap.0.max(r.0), rounding_gap.1.max(r.1));
         }
         assert!(general.x().iter().all(|v| v.is_finite()));
+        let n = general.n_states();
+        assert!(
+            folded_gap.0 <= 10.0 * rounding_gap.0.max(1e-8)
+                && folded_gap.1 <= 10.0 * rounding_gap.1.max(1e-11),
+            "n = {n}: step() vs predict() + update() {folded_gap:?}, rounding {rounding_gap:?}"
+        );
     }
 
     #[test]
