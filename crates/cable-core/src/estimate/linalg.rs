@@ -406,7 +406,8 @@ fn lq_fixed<const LD: usize, const C: usize, const FUSED: bool>(
         row_products::<LD, LD, C, FUSED>(a, 0, end(0), &mut ax);
     }
     for k in 0..steps {
-        let next = k + 1 < steps;
+        // the next row's product is summed in this reflection's pass
+        let next = (k + 1 < steps).then(|| end(k + 1));
         macro_rules! window {
             ($($r:literal),*) => {
                 match LD - 4 * (k / 4) {
@@ -456,15 +457,16 @@ fn row_products<const LD: usize, const R: usize, const C: usize, const FUSED: bo
 }
 
 /// The reflection of row `k` over columns `k..end`, on the last `R` rows of each column,
-/// from `ax` = `A·x` of row `k`; when `next`, `ax` becomes `A·x` of row `k + 1` (columns
-/// `k + 1..end + 1`, the last one a tail column that this reflection leaves alone), summed
-/// as [`row_products`] would. Products and sums fused when `FUSED`.
+/// from `ax` = `A·x` of row `k`; with `next = Some(next_end)`, `ax` becomes `A·x` of row
+/// `k + 1` over columns `k + 1..next_end` (`next_end ≤ end + 1`: a column past `end` is a tail
+/// column, zero in row `k`, that this reflection leaves as it is), summed as [`row_products`]
+/// would. Products and sums fused when `FUSED`.
 #[inline(always)]
 fn reflect_row<const LD: usize, const R: usize, const C: usize, const FUSED: bool>(
     a: &mut [f64],
     k: usize,
     end: usize,
-    next: bool,
+    next: Option<usize>,
     ax: &mut [f64; LD],
 ) {
     if R > LD {
@@ -472,15 +474,15 @@ fn reflect_row<const LD: usize, const R: usize, const C: usize, const FUSED: boo
     }
     let off = LD - R;
     assert!(k >= off && k - off < R, "row k lies in the window");
-    let cols = a.len() / LD;
-    let next_end = if next { (end + 1).min(cols) } else { end };
-    assert!(!next || k + 1 < LD, "row k + 1 lies in the window");
+    let next_end = next.unwrap_or(end);
+    assert!(next_end <= end + 1, "one tail column more at most");
+    assert!(next.is_none() || k + 1 < LD, "row k + 1 lies in the window");
     let s2 = ax[k];
     // whole columns as arrays: indices `off + r` need no checks, `k` is checked once above
     let (block, _) = a[k * LD..next_end * LD].as_chunks_mut::<LD>();
     if s2 == 0.0 {
         // row k is zero already: L[k,k] = 0, the columns stay as they are
-        if next {
+        if next.is_some() {
             row_products::<LD, R, C, FUSED>(a, k + 1, next_end, ax);
         }
         return;
@@ -498,7 +500,7 @@ fn reflect_row<const LD: usize, const R: usize, const C: usize, const FUSED: boo
     // row k is now α·e_kᵀ up to rounding; the rounding right of the diagonal is never read
     // and is not cleared (a scalar store there would stall the next vector loads)
     first[k] = alpha;
-    if !next {
+    if next.is_none() {
         let (groups, rest) = others.as_chunks_mut::<4>();
         for group in groups {
             for col in group {
@@ -900,6 +902,32 @@ mod tests {
             a[(dense + n - 1) * n] = 3.0;
             let (l0, l1) = (lq_of(&a, n, cols, cols), lq_of(&a, n, cols, dense));
             assert!(l0.iter().zip(&l1).any(|(x, y)| (x - y).abs() > 1e-6));
+        }
+    }
+
+    #[test]
+    fn lq_lower_reads_only_its_columns_of_a_longer_workspace() {
+        // columns past `cols` (here NaN) are neither read nor written, with and without a
+        // triangular tail
+        for (n, dense, cols) in [(12, 24, 36), (4, 8, 12), (7, 5, 12), (6, 10, 10)] {
+            let ld = padded(n);
+            let mut a = vec![0.0; ld * cols];
+            for j in 0..cols {
+                for i in 0..n {
+                    a[i + j * ld] = if j >= dense && i < j - dense {
+                        0.0
+                    } else {
+                        ((i * 3 + j * 7) % 11) as f64 - 5.0
+                    };
+                }
+            }
+            let mut long = a.clone();
+            long.extend(std::iter::repeat_n(f64::NAN, 3 * ld));
+            let (mut w, mut l0, mut l1) = (vec![0.0; ld], vec![0.0; n * n], vec![0.0; n * n]);
+            lq_lower(&mut a, n, cols, dense, &mut w, &mut l0);
+            lq_lower(&mut long, n, cols, dense, &mut w, &mut l1);
+            assert_eq!(l0, l1, "n = {n}");
+            assert!(long[ld * cols..].iter().all(|v| v.is_nan()));
         }
     }
 
