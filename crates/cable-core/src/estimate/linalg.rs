@@ -433,26 +433,41 @@ fn row_products<const LD: usize, const R: usize, const C: usize, const FUSED: bo
     if R > LD {
         return;
     }
-    let off = LD - R;
     let (block, _) = a[k * LD..end * LD].as_chunks::<LD>();
     let mut acc = [[0.0; R]; C];
     let (groups, rest) = block.as_chunks::<C>();
     for group in groups {
         for (acc, col) in acc.iter_mut().zip(group) {
-            let xj = col[k];
-            for r in 0..R {
-                acc[r] = madd::<FUSED>(xj, col[off + r], acc[r]);
-            }
+            accumulate::<LD, R, FUSED>(acc, col, k);
         }
     }
     for (acc, col) in acc.iter_mut().zip(rest) {
-        let xj = col[k];
-        for r in 0..R {
-            acc[r] = madd::<FUSED>(xj, col[off + r], acc[r]);
-        }
+        accumulate::<LD, R, FUSED>(acc, col, k);
     }
+    sum_chains(&acc, ax);
+}
+
+/// `acc += A[row, j]·A[:, j]` on the last `R` rows of column `j` (one term of `A·x`).
+#[inline(always)]
+fn accumulate<const LD: usize, const R: usize, const FUSED: bool>(
+    acc: &mut [f64; R],
+    col: &[f64; LD],
+    row: usize,
+) {
+    let (off, xj) = (LD - R, col[row]);
     for r in 0..R {
-        ax[off + r] = chain_sum(std::array::from_fn::<f64, C, _>(|c| acc[c][r]));
+        acc[r] = madd::<FUSED>(xj, col[off + r], acc[r]);
+    }
+}
+
+/// The `C` chains of `A·x` summed ([`chain_sum`]) into the last `R` rows of `ax`.
+#[inline(always)]
+fn sum_chains<const LD: usize, const R: usize, const C: usize>(
+    acc: &[[f64; R]; C],
+    ax: &mut [f64; LD],
+) {
+    for r in 0..R {
+        ax[LD - R + r] = chain_sum(std::array::from_fn::<f64, C, _>(|c| acc[c][r]));
     }
 }
 
@@ -518,22 +533,14 @@ fn reflect_row<const LD: usize, const R: usize, const C: usize, const FUSED: boo
     for group in groups {
         for (acc, col) in acc.iter_mut().zip(group) {
             reflect_column::<LD, R, FUSED>(col, k, &w);
-            let xj = col[k + 1];
-            for r in 0..R {
-                acc[r] = madd::<FUSED>(xj, col[off + r], acc[r]);
-            }
+            accumulate::<LD, R, FUSED>(acc, col, k + 1);
         }
     }
     for (acc, col) in acc.iter_mut().zip(rest) {
         reflect_column::<LD, R, FUSED>(col, k, &w);
-        let xj = col[k + 1];
-        for r in 0..R {
-            acc[r] = madd::<FUSED>(xj, col[off + r], acc[r]);
-        }
+        accumulate::<LD, R, FUSED>(acc, col, k + 1);
     }
-    for r in 0..R {
-        ax[off + r] = chain_sum(std::array::from_fn::<f64, C, _>(|c| acc[c][r]));
-    }
+    sum_chains(&acc, ax);
 }
 
 /// `A[:, j] −= v_j·w` on the last `R` rows of column `j`, `v_j = A[k, j]` (a function, not
