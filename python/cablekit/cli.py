@@ -153,7 +153,7 @@ def _run_diagnosis(
         h = e["held_out"]
         cf = h["closed_fraction"]
         print(
-            f"  {'*' if e['selected'] else ' '} {e['name']:<20} "
+            f"  {'*' if e['selected'] else ' '} {e['id']:<40} "
             f"held-out closed {cf if cf is None else f'{cf:6.1%}'}"
             f"  significant={h['significant']}"
             + (f"  (collinear with {e['identifiability'][0]['with']})" if e["identifiability"] else "")

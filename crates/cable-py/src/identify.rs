@@ -1,7 +1,7 @@
 //! Grey-box identification for the diagnosis: `JointProblem` and the effect catalogue.
 
 use cable_core::control::MotorPd;
-use cable_core::identify::{self as core, Effect, LmOptions};
+use cable_core::identify::{self as core, Candidate, Effect, LmOptions};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -119,8 +119,27 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize, width: usize) -> PyResul
     })
 }
 
-fn effects_from(names: &[String]) -> PyResult<Vec<Effect>> {
-    guarded(|| names.iter().map(|n| Effect::from_name(n)).collect())
+fn candidates_from(problem: &core::JointProblem, ids: &[String]) -> PyResult<Vec<Candidate>> {
+    guarded(|| ids.iter().map(|n| problem.parse_candidate(n)).collect())
+}
+
+fn candidate_dict<'py>(
+    py: Python<'py>,
+    problem: &core::JointProblem,
+    c: &Candidate,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("id", problem.candidate_id(c))?;
+    d.set_item("effect", c.effect.name())?;
+    d.set_item("site", c.site.name(&|i| problem.channel_name(i)))?;
+    d.set_item("form", c.form.name())?;
+    d.set_item("sentence", problem.candidate_sentence(c))?;
+    d.set_item("parameters", c.params(problem.scales()).len())?;
+    d.set_item(
+        "plant",
+        !matches!(c.site, core::Site::Sensor(_) | core::Site::ForceSensors),
+    )?;
+    Ok(d)
 }
 
 /// Grey-box least-squares problem of a nominal model (an `AntagonisticJoint` or a
@@ -133,7 +152,9 @@ fn effects_from(names: &[String]) -> PyResult<Vec<Effect>> {
 /// `coupled` (T,), optional `external` joint torques (T,) or (T, n), optional `x0` (initial
 /// state) and `start` (first sample counted). With `servo = (kp, kd, torque_limit)` a transmission
 /// is replayed in closed loop under its motor PD servo: `input` is then the recorded references
-/// `[q_m_ref (n), dq_m_ref (n)]` and the outputs gain the applied motor torques (n) at the end. Immutable; safe to use from several threads
+/// `[q_m_ref (n), dq_m_ref (n)]` and the outputs gain the applied motor torques (n) at the end.
+/// The joint's sample intervals with a kink (slack, contact, reversal) are integrated with
+/// `kink_refine` times the substeps (1: none). Immutable; safe to use from several threads
 /// (calls release the GIL).
 #[pyclass(frozen, module = "cablekit._cablekit")]
 pub struct JointProblem {
@@ -143,7 +164,7 @@ pub struct JointProblem {
 #[pymethods]
 impl JointProblem {
     #[new]
-    #[pyo3(signature = (model, channels, runs, effects, substeps = 1, servo = None))]
+    #[pyo3(signature = (model, channels, runs, effects, substeps = 1, servo = None, kink_refine = 8))]
     fn new(
         model: &Bound<'_, Model>,
         channels: Vec<(usize, f64, bool)>,
@@ -151,6 +172,7 @@ impl JointProblem {
         effects: Vec<String>,
         substeps: usize,
         servo: Option<Gains>,
+        kink_refine: usize,
     ) -> PyResult<Self> {
         let q = channels.len();
         let plant = plant_of(model, servo)?;
@@ -168,25 +190,52 @@ impl JointProblem {
                 sensor,
             })
             .collect();
-        let effects = effects_from(&effects)?;
-        let inner = guarded(|| core::JointProblem::new(plant, channels, runs, effects, substeps))?;
+        let bare = guarded(|| core::JointProblem::new(plant, channels, runs, vec![], substeps))?
+            .with_kink_refine(kink_refine);
+        let candidates = candidates_from(&bare, &effects)?;
+        let inner = if candidates.is_empty() {
+            bare
+        } else {
+            guarded(|| bare.with_candidates(candidates, substeps))?
+        };
         Ok(Self { inner })
     }
 
-    /// The same data with other effects.
+    /// The same data with other candidates (ids `effect`, `effect@site` or
+    /// `effect@site/form`; an effect alone is its classic site).
     #[pyo3(signature = (effects, substeps = None))]
     fn with_effects(&self, effects: Vec<String>, substeps: Option<usize>) -> PyResult<Self> {
-        let effects = effects_from(&effects)?;
+        let candidates = candidates_from(&self.inner, &effects)?;
         let sub = substeps.unwrap_or(self.inner_substeps());
         Ok(Self {
-            inner: guarded(|| self.inner.with_effects(effects, sub))?,
+            inner: guarded(|| self.inner.with_candidates(candidates, sub))?,
         })
     }
 
-    /// Active effect names (sorted in canonical order).
+    /// Active candidate ids (sorted in canonical order).
     #[getter]
-    fn effects(&self) -> Vec<&'static str> {
-        self.inner.effects().iter().map(|e| e.name()).collect()
+    fn effects(&self) -> Vec<String> {
+        self.inner
+            .candidates()
+            .iter()
+            .map(|c| self.inner.candidate_id(c))
+            .collect()
+    }
+
+    /// Every candidate that can act on this plant with these channels: a list of dicts `id,
+    /// effect, site, form, sentence, parameters, plant` (whether it changes the plant).
+    fn candidate_library<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let out = PyList::empty(py);
+        for c in Candidate::library(&self.inner.context()) {
+            out.append(candidate_dict(py, &self.inner, &c)?)?;
+        }
+        Ok(out)
+    }
+
+    /// The candidate an id means on this problem (same dict as `candidate_library`).
+    fn describe<'py>(&self, py: Python<'py>, id: &str) -> PyResult<Bound<'py, PyDict>> {
+        let c = guarded(|| self.inner.parse_candidate(id))?;
+        candidate_dict(py, &self.inner, &c)
     }
 
     /// Number of residuals.
@@ -200,10 +249,10 @@ impl JointProblem {
     fn param_specs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let out = PyList::empty(py);
         let sc = self.inner.scales();
-        for e in self.inner.effects() {
-            for s in e.params(sc) {
+        for c in self.inner.candidates() {
+            for s in c.params(sc) {
                 let d = PyDict::new(py);
-                d.set_item("effect", e.name())?;
+                d.set_item("effect", self.inner.candidate_id(c))?;
                 d.set_item("name", &s.name)?;
                 d.set_item("unit", s.unit)?;
                 d.set_item("reference", s.reference)?;
@@ -297,7 +346,8 @@ impl JointProblem {
         Ok(d)
     }
 
-    /// Sample-and-hold `(period, phase)` read off the measured update instants, or None.
+    /// Sample-and-hold `(period, phase)` read off the measured update instants of the first
+    /// force channel, or None.
     fn hold_from_updates(&self) -> Option<(f64, f64)> {
         self.inner.hold_from_updates()
     }

@@ -34,6 +34,7 @@ from cablekit._cablekit import JointProblem, effect_catalogue
 from cablekit.diagnose import localise
 from cablekit.diagnose.data import Run, check_units
 from cablekit.diagnose.progress import Progress
+from cablekit.diagnose.report import SCHEMA
 from cablekit.diagnose.spec import NOT_IN_TRANSMISSION, OUTPUTS, ModelSpec
 from cablekit.errors import CablekitError, DataError
 
@@ -55,6 +56,10 @@ class Options:
     """Knobs of the diagnosis (defaults are what the self-test and the docs use)."""
 
     max_effects: int = 3
+    #: candidates fitted in full after the screen (by fit cost of a short fit); 0 = all
+    shortlist: int = 14
+    #: iterations of the screening fits
+    screen_fit_iter: int = 4
     #: iterations of the screening fits of later selection rounds, and how many are refined
     screen_iter: int = 5
     refine: int = 3
@@ -82,6 +87,8 @@ class Prepared:
     candidates: list[str]
     skipped: dict[str, str]
     warnings: list[str] = field(default_factory=list)
+    #: candidate id → its description from the core (effect, site, form, sentence, parameters)
+    info: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def q(self) -> int:
@@ -104,6 +111,7 @@ class CandidateFit:
     iterations: int
     error: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    at_bound: bool = False
 
 
 def _run_dict(spec: ModelSpec, run: Run, columns: list[str], model: Any = None) -> dict[str, Any]:
@@ -183,12 +191,23 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     fit0 = JointProblem(model, chans, fit_dicts, [], substeps, servo)
     hold0 = JointProblem(model, chans, hold_dicts, [], substeps, servo)
     all_effects = [e["name"] for e in effect_catalogue()]
-    wanted = spec.effects or all_effects
+    wanted = spec.effects or []
+    library = [
+        c for c in probe.candidate_library() if not wanted or c["effect"] in wanted or c["id"] in wanted
+    ]
+    # explicitly named candidates outside the default library (a form or site the user asks for)
+    for w in wanted:
+        if "@" in w and all(c["id"] != w for c in library):
+            library.append(probe.describe(w))
+    info = {c["id"]: c for c in library}
     skipped: dict[str, str] = {}
     has_sensor = any(spec.output(o)[2] for o in names)
     motor_tension = any(o.startswith("tension_motor") or o == "net_motor_force" for o in names)
+    offered = {c["effect"] for c in library}
     for e in all_effects:
-        if e not in wanted:
+        if e in offered:
+            continue
+        if wanted and not any(w.split("@")[0] == e for w in wanted):
             skipped[e] = "not in the model file's [diagnosis] effects"
         elif spec.kind == "cable_transmission" and e in NOT_IN_TRANSMISSION:
             skipped[e] = "no counterpart in the cable transmission model"
@@ -200,10 +219,24 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
             skipped[e] = "no force-sensor channel measured"
         elif e == "capstan_friction" and not motor_tension:
             skipped[e] = "no motor-side tension measured"
-    candidates = [e for e in all_effects if e not in skipped]
+        else:
+            skipped[e] = "no site of this plant where it can act on the measured channels"
+    candidates = list(info)
     warnings = _servo_saturation(spec, model, fit_runs + hold_runs, fit_dicts + hold_dicts, substeps)
     return Prepared(
-        spec, fit_runs, hold_runs, names, columns, sigma, substeps, fit0, hold0, candidates, skipped, warnings
+        spec,
+        fit_runs,
+        hold_runs,
+        names,
+        columns,
+        sigma,
+        substeps,
+        fit0,
+        hold0,
+        candidates,
+        skipped,
+        warnings,
+        info,
     )
 
 
@@ -330,6 +363,7 @@ def fit_candidate(
         float(res["cost"]),
         sd,
         int(res["iterations"]),
+        at_bound=bool(np.any(res["at_bound"])),
     )
 
 
@@ -485,8 +519,15 @@ SEPARATING = {
 
 
 def separating_experiment(a: str, b: str) -> str:
+    """The experiment that separates two candidates (ids or effect names)."""
+    ea, eb = a.split("@")[0], b.split("@")[0]
+    if ea == eb:
+        return (
+            "the same effect at two sites: add a sensor on each side of the suspected sites (motor "
+            "side and joint side), or repeat with one cable's pretension changed"
+        )
     return SEPARATING.get(
-        frozenset({a, b}),
+        frozenset({ea, eb}),
         "repeat the run at another frequency and another load level, and add an independent sensor "
         "(for example the joint angle)",
     )
@@ -580,8 +621,27 @@ def diagnose(
     idx = rng.integers(0, len(sb), size=(opts.bootstrap, len(sb)))
     g_lo = float(np.quantile(sb[idx].sum(axis=1) / cnt[idx].sum(axis=1), 0.025))
     gap_significant = g_hold > NOISE_LEVEL and g_lo > 1.0
-    # every applicable candidate alone
-    singles = _pmap(prep, [([e], None) for e in prep.candidates], opts, "candidates")
+    # every applicable candidate alone: a short fit of each screens, the shortlist is fitted in
+    # full from where its screen ended
+    screened: dict[str, str] = {}
+    if opts.shortlist and len(prep.candidates) > opts.shortlist:
+        quick = _pmap(prep, [([e], None) for e in prep.candidates], opts, "screen", opts.screen_fit_iter)
+        ok = sorted((c for c in quick if not c.error), key=lambda c: c.cost)
+        keep = ok[: opts.shortlist]
+        best_cost = keep[0].cost if keep else math.nan
+        for c in quick:
+            if c.error:
+                screened[c.effects[0]] = f"screen fit failed: {c.error}"
+            elif c not in keep:
+                screened[c.effects[0]] = (
+                    f"screened out: after a {opts.screen_fit_iter}-iteration fit its fit-run cost was "
+                    f"{c.cost:.4g} (shortlist of {opts.shortlist} ends at {keep[-1].cost:.4g}, "
+                    f"best {best_cost:.4g})"
+                )
+        singles = _pmap(prep, [(c.effects, c.params) for c in keep], opts, "candidates")
+        singles += [c for c in quick if c.effects[0] in screened]
+    else:
+        singles = _pmap(prep, [([e], None) for e in prep.candidates], opts, "candidates")
     fits = {c.effects[0]: c for c in singles}
     scores = {}
     for name, c in fits.items():
@@ -596,6 +656,8 @@ def diagnose(
             }
         else:
             scores[name] = compare(base.hold_resid, c.hold_resid, dt, opts, rng)
+            if name in screened:  # never ranked as if it were a full fit
+                scores[name]["significant"] = False
     n_eff = sum(r.shape[0] for r in base.fit_resid) / _integrated_time(
         np.concatenate([r[:, 0] for r in base.fit_resid])
     )
@@ -603,11 +665,14 @@ def diagnose(
     ranked = sorted(
         fits,
         key=lambda k: (
+            k in screened,
             -scores[k]["closed_fraction"],
             _bic(fits[k], n_eff) if not fits[k].error else math.inf,
         ),
     )
-    ranked = parsimony(ranked, fits, scores)
+    ranked = parsimony([k for k in ranked if k not in screened], fits, scores) + [
+        k for k in ranked if k in screened
+    ]
     # forward selection
     chosen: list[str] = []
     current = base
@@ -666,11 +731,17 @@ def diagnose(
     for k in ranked:
         c = fits[k]
         sc = scores[k]
+        info = prep.info[k]
         effects_out.append(
             {
-                "name": k,
+                "name": info["effect"],
+                "id": k,
+                "site": info["site"],
+                "form": info["form"],
+                "sentence": info["sentence"],
                 "selected": k in chosen,
-                "description": next(e["description"] for e in effect_catalogue() if e["name"] == k),
+                "status": _status(c, screened.get(k)),
+                "description": info["sentence"],
                 "parameters": _params_out(c) if not c.error else [],
                 "fit": {
                     "gap_before": g_fit,
@@ -712,7 +783,7 @@ def diagnose(
             }
         )
     result = {
-        "schema": "cablekit.diagnosis/1",
+        "schema": SCHEMA,
         "verdict": verdict,
         "effects": effects_out,
         "selected": {
@@ -751,6 +822,7 @@ def diagnose(
             ],
             "substeps": prep.substeps,
             "candidates": prep.candidates,
+            "screened_out": screened,
             "warnings": prep.warnings,
             "options": {k: v for k, v in vars(opts).items() if k != "progress"},
         },
@@ -763,6 +835,18 @@ def diagnose(
         "hold_masks": where["_hold_masks"],
     }
     return result
+
+
+def _status(c: CandidateFit, screened: str | None) -> str:
+    """``failed`` (the fit raised), ``screened_out`` (not on the shortlist), ``at_bound`` (a
+    parameter ended on a bound), ``not_converged`` or ``converged``."""
+    if c.error:
+        return "failed"
+    if screened:
+        return "screened_out"
+    if c.at_bound:
+        return "at_bound"
+    return "converged" if c.converged else "not_converged"
 
 
 def parsimony(

@@ -1,4 +1,4 @@
-"""Diagnosis outputs: the JSON file (schema ``cablekit.diagnosis/1``, see docs/diagnosis.md) and a
+"""Diagnosis outputs: the JSON file (schema ``cablekit.diagnosis/2``, see docs/diagnosis.md) and a
 self-contained HTML report with plots (matplotlib, from the ``report`` extra)."""
 
 from __future__ import annotations
@@ -49,6 +49,10 @@ def write_json(result: dict[str, Any], path: str | Path) -> Path:
 VERDICTS = ("no_significant_gap", "explained", "partially_explained")
 
 
+#: the schema of diagnosis.json (docs/diagnosis.md)
+SCHEMA = "cablekit.diagnosis/2"
+
+
 def validate(doc: dict[str, Any]) -> None:
     """Check a diagnosis document against the schema of docs/diagnosis.md; raises ValueError."""
 
@@ -58,13 +62,29 @@ def validate(doc: dict[str, Any]) -> None:
                 raise ValueError(f"diagnosis JSON: {where} lacks {k!r}")
 
     need(doc, ["schema", "verdict", "effects", "selected", "where", "gap", "skipped", "meta"], "document")
-    if doc["schema"] != "cablekit.diagnosis/1":
+    if doc["schema"] != SCHEMA:
         raise ValueError(f"diagnosis JSON: unknown schema {doc['schema']!r}")
     if doc["verdict"] not in VERDICTS:
         raise ValueError(f"diagnosis JSON: verdict {doc['verdict']!r} not in {VERDICTS}")
     names = set()
     for i, e in enumerate(doc["effects"]):
-        need(e, ["name", "selected", "parameters", "fit", "held_out", "identifiability"], f"effects[{i}]")
+        need(
+            e,
+            [
+                "name",
+                "id",
+                "site",
+                "form",
+                "sentence",
+                "selected",
+                "parameters",
+                "fit",
+                "held_out",
+                "identifiability",
+                "status",
+            ],
+            f"effects[{i}]",
+        )
         need(
             e["held_out"],
             ["gap_before", "gap_after", "closed_fraction", "interval", "significant"],
@@ -73,7 +93,7 @@ def validate(doc: dict[str, Any]) -> None:
         need(e["fit"], ["gap_before", "gap_after", "closed_fraction"], f"effects[{i}].fit")
         for p in e["parameters"]:
             need(p, ["name", "unit", "value", "ci95"], f"effects[{i}].parameters")
-        names.add(e["name"])
+        names.add(e["id"])
     for s in doc["selected"]["effects"]:
         if s not in names:
             raise ValueError(f"diagnosis JSON: selected effect {s!r} is not among the ranked effects")
@@ -177,7 +197,7 @@ def _figures(result: dict[str, Any]) -> dict[str, str]:
     # ranking
     eff = [e for e in result["effects"] if e["held_out"]["closed_fraction"] is not None]
     fig, ax = plt.subplots(figsize=(8, 0.35 * len(eff) + 1))
-    names = [e["name"] for e in eff][::-1]
+    names = [e["id"] for e in eff][::-1]
     vals = [max(-0.2, e["held_out"]["closed_fraction"]) for e in eff][::-1]
     lo = [max(-0.2, e["held_out"]["interval"][0] or 0.0) for e in eff][::-1]
     hi = [e["held_out"]["interval"][1] or 0.0 for e in eff][::-1]
@@ -299,7 +319,7 @@ def write_html(result: dict[str, Any], path: str | Path) -> Path:
         )
         rows.append(
             [
-                e["name"] + (" ✔" if e["selected"] else ""),
+                e["id"] + (" ✔" if e["selected"] else ""),
                 _fmt(h["closed_fraction"]),
                 f"[{_fmt(h['interval'][0])}, {_fmt(h['interval'][1])}]",
                 "yes" if h["significant"] else "no",

@@ -285,9 +285,12 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
     known = {e["name"] for e in effect_catalogue()}
     effects = diag.get("effects")
     if effects is not None:
-        bad = [e for e in effects if e not in known]
+        bad = [e for e in effects if not isinstance(e, str) or e.split("@")[0] not in known]
         if bad:
-            raise DataError(f"{source}: [diagnosis] effects {bad} unknown; choose from {sorted(known)}")
+            raise DataError(
+                f"{source}: [diagnosis] effects {bad} unknown; choose from {sorted(known)} "
+                "(an effect, or effect@site, effect@site/form: see docs/diagnosis.md)"
+            )
     spec = ModelSpec(
         kind=kind,
         parameters=dict(doc["parameters"]),

@@ -23,6 +23,8 @@
 
 use crate::error::{CableError, Result};
 
+use super::site::{Candidate, Form, Side, Site};
+
 /// A candidate effect (see the module table).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Effect {
@@ -103,6 +105,30 @@ impl ParamSpec {
     fn starts(mut self, v: &[f64]) -> Self {
         self.starts = v.iter().map(|x| x.clamp(self.lower, self.upper)).collect();
         self
+    }
+}
+
+/// A spec from `(name, unit, reference, initial, lower, upper, scale)`, no grid, no further
+/// starts.
+fn spec(
+    name: &str,
+    unit: &'static str,
+    reference: f64,
+    initial: f64,
+    lower: f64,
+    upper: f64,
+    scale: f64,
+) -> ParamSpec {
+    ParamSpec {
+        name: name.into(),
+        unit,
+        reference,
+        initial,
+        lower,
+        upper,
+        scale: scale.abs().max(1e-300),
+        grid: false,
+        starts: vec![],
     }
 }
 
@@ -302,17 +328,7 @@ impl Effect {
 
     /// Parameters with bounds and scales for data of typical magnitudes `s`.
     pub fn params(self, s: &Scales) -> Vec<ParamSpec> {
-        let p = |name: &str, unit, reference, initial, lower, upper, scale: f64| ParamSpec {
-            name: name.into(),
-            unit,
-            reference,
-            initial,
-            lower,
-            upper,
-            scale: scale.abs().max(1e-300),
-            grid: false,
-            starts: vec![],
-        };
+        let p = spec;
         let tq = s.torque;
         let w = s.speed.max(1e-9);
         if s.transmission {
@@ -484,6 +500,73 @@ impl Effect {
                 })
                 .collect(),
             Effect::InertiaError => vec![p("epsilon", "1", 0.0, 0.0, -0.95, 1e3, 0.5)],
+        }
+    }
+}
+
+impl Candidate {
+    /// Parameters of the candidate for data of typical magnitudes `s`: the effect's own
+    /// parameters, laid out for its site and form.
+    pub fn params(&self, s: &Scales) -> Vec<ParamSpec> {
+        let base = self.effect.params(s);
+        let side = |v: Vec<ParamSpec>| -> Vec<ParamSpec> {
+            // a one-cable site names its parameters after the cable
+            match self.site {
+                Site::Cable(x) | Site::Contact(x) if x != Side::Both => v
+                    .into_iter()
+                    .map(|mut q| {
+                        q.name = format!("{}[{}]", q.name, x.name());
+                        q
+                    })
+                    .collect(),
+                _ => v,
+            }
+        };
+        let p = spec;
+        match (self.effect, self.site, self.form) {
+            (Effect::CoulombFriction, _, Form::LoadDependent) => {
+                let mut v = base;
+                // μ_L: dry friction per N·m of transmitted torque (arXiv 2410.08650, M3)
+                v.insert(1, p("mu_L", "1", 0.0, 0.02, 0.0, 2.0, 0.05));
+                v
+            }
+            (Effect::DahlHysteresis, Site::Joint, Form::Generalised) => {
+                let mut v = base;
+                v.push(p("n", "1", 1.0, 1.0, 0.3, 4.0, 0.5).starts(&[2.0]));
+                v
+            }
+            (Effect::DahlHysteresis, Site::Contact(_), _) => {
+                // level: the contact's capstan exponent μφ; break-away: cable sliding (m)
+                let st = s.stretch.max(1e-9);
+                let lo = (s.motor_speed * s.dt * 0.1).max(1e-9);
+                side(vec![
+                    p("mu_phi", "1", 0.0, 0.02, 0.0, 3.0, 0.1),
+                    p("x_d", "m", st, st, lo, 0.5 * s.travel.max(10.0 * st), st)
+                        .starts(&[0.1 * st, 10.0 * st]),
+                ])
+            }
+            (Effect::NonlinearStiffness, _, Form::Cubic) => {
+                let st = s.stretch.max(1e-12);
+                vec![p(
+                    "gamma",
+                    "1/m²",
+                    0.0,
+                    0.0,
+                    -0.3 / (st * st),
+                    30.0 / (st * st),
+                    0.3 / (st * st),
+                )]
+            }
+            (Effect::SensorGainBias, Site::Sensor(_), _) => base.into_iter().take(2).collect(),
+            (
+                Effect::SensorGainBias
+                | Effect::SensorLag
+                | Effect::SensorSampling
+                | Effect::TimeDelay,
+                _,
+                _,
+            ) => base,
+            _ => side(base),
         }
     }
 }

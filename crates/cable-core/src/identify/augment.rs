@@ -1,0 +1,233 @@
+//! Candidates applied to the nominal model: the joint's located effects
+//! ([`augment_joint`] → [`JointPlant`]), the transmission's ([`augment_transmission`]), and each
+//! channel's sensor path ([`SensorChain`]).
+
+use crate::dynamics::{AntagonisticJoint, CableTransmission};
+use crate::error::Result;
+
+use super::effects::Effect;
+use super::plant::{exponential, CreepLaw, Hysteresis, JointPlant};
+use super::signal;
+use super::site::{Candidate, Form, Site};
+
+/// The operators of one channel's sensor path, applied in the order lag → delay →
+/// sample-and-hold → gain and bias.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SensorChain {
+    /// Lag time constant (s); 0 = none.
+    pub lag: f64,
+    /// Two equal poles (critically damped) instead of one.
+    pub second_order: bool,
+    /// Transport delay (s).
+    pub delay: f64,
+    /// Sample-and-hold period (s); 0 = continuous.
+    pub period: f64,
+    /// Sample-and-hold phase (s).
+    pub phase: f64,
+    /// Gain error (–): the sensor reads `(1 + g)·y + b`.
+    pub gain: f64,
+    /// Bias (channel units).
+    pub bias: f64,
+}
+
+impl SensorChain {
+    /// Set the operator of candidate `c` from its parameters `p`; `j` is this channel's rank
+    /// among the force channels when `c` sits at every force sensor (per-channel gain and bias).
+    pub fn apply(&mut self, c: Candidate, p: &[f64], j: usize) {
+        match c.effect {
+            Effect::SensorLag => {
+                self.lag = p[0].max(0.0);
+                self.second_order = c.form == Form::SecondOrder;
+            }
+            Effect::TimeDelay => self.delay = p[0].max(0.0),
+            Effect::SensorSampling => {
+                self.period = p[0].max(0.0);
+                self.phase = p[1].max(0.0);
+            }
+            Effect::SensorGainBias => {
+                let k = if matches!(c.site, Site::ForceSensors) {
+                    2 * j
+                } else {
+                    0
+                };
+                self.gain = p[k];
+                self.bias = p[k + 1];
+            }
+            _ => {}
+        }
+    }
+
+    /// Run the path on `col` in place (`tmp` is scratch of the same length).
+    pub fn run(&self, col: &mut Vec<f64>, tmp: &mut Vec<f64>, dt: f64) {
+        if self.lag > 0.0 {
+            for _ in 0..if self.second_order { 2 } else { 1 } {
+                signal::first_order_lag(col, self.lag, dt, tmp);
+                std::mem::swap(col, tmp);
+            }
+        }
+        if self.delay > 0.0 {
+            signal::delay(col, self.delay, dt, tmp);
+            std::mem::swap(col, tmp);
+        }
+        if self.period > 0.0 {
+            signal::sample_hold(col, self.period, self.phase, dt, tmp);
+            std::mem::swap(col, tmp);
+        }
+        if self.gain != 0.0 || self.bias != 0.0 {
+            signal::gain_bias(col, 1.0 + self.gain, self.bias, tmp);
+            std::mem::swap(col, tmp);
+        }
+    }
+}
+
+/// The diagnosis joint of nominal `nom` with the plant candidates applied.
+pub fn augment_joint(nom: &AntagonisticJoint, effects: &[(Candidate, &[f64])]) -> JointPlant {
+    let mut m = JointPlant::from(nom);
+    let nominal_capstan = m.capstan;
+    let sides = |s: Site| -> Vec<usize> {
+        match s {
+            Site::Cable(x) | Site::Contact(x) => (0..2).filter(|&k| x.includes(k)).collect(),
+            _ => vec![],
+        }
+    };
+    for &(c, p) in effects {
+        match c.effect {
+            Effect::CoulombFriction => {
+                m.friction.coulomb += p[0];
+                m.friction.static_level += p[0];
+                if c.form == Form::LoadDependent {
+                    m.load_friction = p[1].max(0.0);
+                    m.friction.smoothing = p[2];
+                } else {
+                    m.friction.smoothing = p[1];
+                }
+            }
+            Effect::ViscousFriction => m.friction.viscous = (m.friction.viscous + p[0]).max(0.0),
+            Effect::StribeckFriction => {
+                m.friction.coulomb += p[0];
+                m.friction.static_level += p[0] + p[1];
+                m.friction.stribeck_velocity = p[2];
+                m.friction.stribeck_exponent = p[3];
+            }
+            Effect::DahlHysteresis if p[0] > 0.0 => {
+                if let Site::Contact(_) = c.site {
+                    for k in sides(c.site) {
+                        m.contact_hysteresis[k] = Some(Hysteresis {
+                            level: p[0],
+                            breakaway: p[1],
+                            exponent: 1.0,
+                        });
+                    }
+                } else {
+                    m.dahl = Some(Hysteresis {
+                        level: p[0],
+                        breakaway: p[1],
+                        exponent: if c.form == Form::Generalised {
+                            p[2]
+                        } else {
+                            1.0
+                        },
+                    });
+                }
+            }
+            Effect::CapstanFriction => {
+                for k in sides(c.site) {
+                    m.capstan[k] = nominal_capstan[k] + p[0];
+                }
+            }
+            Effect::NonlinearStiffness => {
+                for k in sides(c.site) {
+                    if c.form == Form::Cubic {
+                        m.cables[k].cubic = p[0];
+                    } else {
+                        m.cables[k].run.law = exponential(&m.cables[k].run, p[0]);
+                    }
+                }
+            }
+            Effect::CableDamping => {
+                for k in sides(c.site) {
+                    let d = &mut m.cables[k].run.damping;
+                    *d = (*d + p[0]).max(0.0);
+                }
+            }
+            Effect::Creep if p[0] > 0.0 => {
+                for k in sides(c.site) {
+                    m.cables[k].creep = Some(CreepLaw {
+                        fraction: p[0],
+                        time_constant: p[1],
+                        whole: c.form == Form::Whole,
+                    });
+                }
+            }
+            Effect::Slack => {
+                for k in sides(c.site) {
+                    let t = &mut m.cables[k].run.pretension;
+                    *t = (*t - p[0]).max(0.0);
+                }
+            }
+            Effect::InertiaError => m.inertia *= 1.0 + p[0],
+            // operators, handled by the caller
+            _ => {}
+        }
+    }
+    m.layout();
+    m
+}
+
+/// The cable transmission with its plant candidates applied (per-link joint effects, shared
+/// cable effects, coupling coefficients added to the nominal `C_ij`). Errors when a trial value
+/// makes the transmission invalid (the fit rejects that step).
+pub fn augment_transmission(
+    nom: &CableTransmission,
+    effects: &[(Candidate, &[f64])],
+) -> Result<CableTransmission> {
+    let n = nom.n_links();
+    let mut links = nom.links().to_vec();
+    let mut coupling = nom.coupling();
+    for &(c, p) in effects {
+        match c.effect {
+            Effect::CoulombFriction => {
+                for (l, f) in links.iter_mut().zip(p) {
+                    l.link_friction.coulomb += f;
+                    l.link_friction.static_level += f;
+                }
+            }
+            Effect::ViscousFriction => {
+                for (l, b) in links.iter_mut().zip(p) {
+                    l.link_friction.viscous = (l.link_friction.viscous + b).max(0.0);
+                }
+            }
+            Effect::InertiaError => {
+                for (l, eps) in links.iter_mut().zip(p) {
+                    l.link_inertia *= 1.0 + eps;
+                }
+            }
+            Effect::NonlinearStiffness if p[0] > 0.0 => {
+                for l in &mut links {
+                    l.cable.run.law = exponential(&l.cable.run, p[0]);
+                }
+            }
+            Effect::CableDamping => {
+                for l in &mut links {
+                    l.cable.run.damping = (l.cable.run.damping + p[0]).max(0.0);
+                }
+            }
+            Effect::Slack => {
+                for l in &mut links {
+                    l.cable.run.pretension *= 1.0 - p[0];
+                }
+            }
+            Effect::Coupling => {
+                let mut k = 0;
+                for i in 1..n {
+                    for j in 0..i {
+                        coupling[i * n + j] += p[k];
+                        k += 1;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    CableTransmission::new(links, &coupling)
+}

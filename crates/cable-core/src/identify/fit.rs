@@ -1,0 +1,291 @@
+//! Fitting a [`JointProblem`]: bounded Levenberg–Marquardt from the best of the candidates'
+//! starting values, a grid search for sample-and-hold, update-instant detection, and RK4 step
+//! advice for an augmented model.
+
+use crate::dynamics::Model;
+use crate::error::{check, Result};
+use crate::integrate::propose_step;
+
+use super::effects::Effect;
+use super::lm::{least_squares, LmOptions, LmReport};
+use super::problem::{JointProblem, Replay};
+use super::site::{Candidate, Site};
+
+impl JointProblem {
+    /// Fit the active candidates' parameters from `theta0`, or, by default, from the two best of
+    /// the specs' starting combinations (keeping the better local optimum). Grid parameters
+    /// (sample-and-hold) are searched on a grid first with the other parameters at their start
+    /// values, then held while the rest is fitted.
+    pub fn fit(&self, theta0: Option<&[f64]>, opts: &LmOptions) -> Result<LmReport> {
+        let starts: Vec<Vec<f64>> = match theta0 {
+            Some(t) => {
+                check::len("theta0", t, self.specs.len())?;
+                vec![t.to_vec()]
+            }
+            // two local searches for small problems, one for large ones (each LM iteration
+            // costs p + 1 simulations)
+            None => {
+                let keep = if self.specs.len() <= 2 { 2 } else { 1 };
+                self.best_starts(self.specs.iter().map(|s| s.initial).collect(), keep)
+            }
+        };
+        let mut best: Option<LmReport> = None;
+        let mut last_err = None;
+        for x0 in starts {
+            match self.fit_from(x0, opts) {
+                Ok(rep) => {
+                    if best.as_ref().is_none_or(|b| rep.cost < b.cost) {
+                        best = Some(rep);
+                    }
+                }
+                Err(e) => last_err = Some(e),
+            }
+        }
+        match (best, last_err) {
+            (Some(b), _) => Ok(b),
+            (None, Some(e)) => Err(e),
+            (None, None) => unreachable!("at least one start"),
+        }
+    }
+
+    fn fit_from(&self, mut x0: Vec<f64>, opts: &LmOptions) -> Result<LmReport> {
+        if let Some(c) = self.sampling_candidate() {
+            let (period, phase) = self.grid_sample_hold(&x0)?;
+            let k = self.offset_of(&c);
+            x0[k] = period;
+            x0[k + 1] = phase;
+        }
+        let (mut lower, mut upper): (Vec<f64>, Vec<f64>) =
+            self.specs.iter().map(|s| (s.lower, s.upper)).unzip();
+        for (j, s) in self.specs.iter().enumerate() {
+            if s.grid {
+                lower[j] = x0[j];
+                upper[j] = x0[j];
+            }
+        }
+        let scale: Vec<f64> = self.specs.iter().map(|s| s.scale).collect();
+        // with sensor-site candidates only, the plant is the nominal's whatever the parameters:
+        // simulate it once
+        let plants = if self.sensor_only() {
+            Some(self.nominal_plants()?)
+        } else {
+            None
+        };
+        least_squares(
+            |th, r| match &plants {
+                Some(p) => self.residuals_on(th, p, r),
+                None => self.residuals(th, r),
+            },
+            &x0,
+            &lower,
+            &upper,
+            &scale,
+            self.n_residuals(),
+            opts,
+        )
+    }
+
+    /// The `keep` lowest-cost combinations of the specs' starting values (`initial` and
+    /// `starts`, at most 27 combinations); combinations whose simulation fails are skipped.
+    fn best_starts(&self, x0: Vec<f64>, keep: usize) -> Vec<Vec<f64>> {
+        let options: Vec<Vec<f64>> = self
+            .specs
+            .iter()
+            .zip(&x0)
+            .map(|(s, &x)| std::iter::once(x).chain(s.starts.iter().copied()).collect())
+            .collect();
+        let total: usize = options.iter().map(Vec::len).product();
+        if total <= 1 || total > 27 {
+            return vec![x0];
+        }
+        let mut r = vec![0.0; self.n_residuals()];
+        let mut scored: Vec<(f64, Vec<f64>)> = Vec::new();
+        for mut code in 0..total {
+            let x: Vec<f64> = options
+                .iter()
+                .map(|o| {
+                    let v = o[code % o.len()];
+                    code /= o.len();
+                    v
+                })
+                .collect();
+            if self.residuals(&x, &mut r).is_ok() {
+                scored.push((r.iter().map(|v| v * v).sum(), x));
+            }
+        }
+        if scored.is_empty() {
+            return vec![x0];
+        }
+        scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+        scored.into_iter().take(keep).map(|(_, x)| x).collect()
+    }
+
+    /// Offset of candidate `c`'s parameters in `theta`.
+    pub fn offset_of(&self, c: &Candidate) -> usize {
+        self.candidates
+            .iter()
+            .take_while(|&f| f != c)
+            .map(|f| f.params(&self.scales).len())
+            .sum()
+    }
+
+    /// The active sample-and-hold candidate, if any.
+    fn sampling_candidate(&self) -> Option<Candidate> {
+        self.candidates
+            .iter()
+            .copied()
+            .find(|c| c.effect == Effect::SensorSampling)
+    }
+
+    /// Plant outputs of the nominal model (every plant candidate at its reference), per run.
+    pub fn nominal_plants(&self) -> Result<Vec<Vec<f64>>> {
+        let a = self.augment(&self.reference())?;
+        (0..self.runs.len())
+            .map(|i| self.plant_outputs(&a, i))
+            .collect()
+    }
+
+    /// Grid search of the sample-and-hold period and phase with the other parameters at
+    /// `theta`: periods log-spaced from 2·dt to a quarter of the shortest run, 12 phases each.
+    /// The plant is simulated once per run.
+    pub fn grid_sample_hold(&self, theta: &[f64]) -> Result<(f64, f64)> {
+        let Some(cand) = self.sampling_candidate() else {
+            return Ok((0.0, 0.0));
+        };
+        let k = self.offset_of(&cand);
+        let mut th = theta.to_vec();
+        th[k] = 0.0;
+        let a0 = self.augment(&th)?;
+        let held: Vec<usize> = (0..self.channels.len())
+            .filter(|&c| match cand.site {
+                Site::Sensor(i) => i == c,
+                _ => self.channels[c].sensor,
+            })
+            .collect();
+        let plants: Vec<Vec<f64>> = (0..self.runs.len())
+            .map(|i| self.plant_outputs(&a0, i))
+            .collect::<Result<_>>()?;
+        let dt = self.scales.dt;
+        let mut r = vec![0.0; self.n_residuals()];
+        let mut cost = |period: f64, phase: f64| -> f64 {
+            let mut a = a0.clone();
+            for &c in &held {
+                a.sensors[c].period = period;
+                a.sensors[c].phase = phase;
+            }
+            let mut off = 0;
+            for (i, plant) in plants.iter().enumerate() {
+                let pred = self.sensor_stage(&a, i, plant);
+                off += self.write_residuals(i, &pred, &mut r[off..]);
+            }
+            r.iter().map(|v| v * v).sum::<f64>()
+        };
+        let mut best = (f64::INFINITY, 0.0, 0.0);
+        let consider = |c: f64, period: f64, phase: f64, best: &mut (f64, f64, f64)| {
+            if c < best.0 {
+                *best = (c, period, phase);
+            }
+        };
+        // coarse: log-spaced periods, 12 phases each
+        let (lo, hi) = (2.0 * dt, (0.25 * self.scales.duration).max(4.0 * dt));
+        let n_periods = 60;
+        for ip in 0..n_periods {
+            let period = lo * (hi / lo).powf(ip as f64 / (n_periods - 1) as f64);
+            let n_phase = 12.min((period / dt).round() as usize).max(1);
+            for jp in 0..n_phase {
+                let phase = period * jp as f64 / n_phase as f64;
+                consider(cost(period, phase), period, phase, &mut best);
+            }
+        }
+        // a held signal shows its update instants directly: take them as a further candidate
+        if let Some((period, phase)) = self.hold_from_updates_of(held[0]) {
+            consider(cost(period, phase), period, phase, &mut best);
+        }
+        // fine: ±12 % around the best period, phases at the sample resolution
+        let (_, p0, _) = best;
+        if p0 <= 0.0 {
+            return Ok((0.0, 0.0));
+        }
+        for ip in 0..=24 {
+            let period = p0 * (0.88 + 0.01 * ip as f64);
+            let n_phase = ((period / dt).ceil() as usize).max(1);
+            for jp in 0..n_phase {
+                let phase = jp as f64 * dt;
+                consider(cost(period, phase), period, phase, &mut best);
+            }
+        }
+        Ok((best.1, best.2))
+    }
+
+    /// Sample-and-hold period and phase read off the update instants of the measured force
+    /// channels (samples where a held signal changes), when the first sensor channel of the
+    /// first run changes at fewer than half of its samples; `None` otherwise.
+    ///
+    /// The instants `t_j` are fitted by least squares to `phase + n_j·period`, with `n_j` the
+    /// update count accumulated from the intervals in units of the median interval, so missed
+    /// updates (a value that did not change) do not bias the estimate.
+    pub fn hold_from_updates(&self) -> Option<(f64, f64)> {
+        let c = self.channels.iter().position(|c| c.sensor)?;
+        self.hold_from_updates_of(c)
+    }
+
+    /// [`Self::hold_from_updates`] on channel `c`.
+    pub fn hold_from_updates_of(&self, c: usize) -> Option<(f64, f64)> {
+        let run = &self.runs[0];
+        let q = self.channels.len();
+        let y: Vec<f64> = (0..run.len()).map(|k| run.measured[k * q + c]).collect();
+        let events: Vec<f64> = (1..y.len())
+            .filter(|&k| y[k].to_bits() != y[k - 1].to_bits()) // a held value repeats exactly
+            .map(|k| k as f64 * run.dt)
+            .collect();
+        if events.len() < 3 || 2 * events.len() > y.len() {
+            return None;
+        }
+        let mut gaps: Vec<f64> = events.windows(2).map(|w| w[1] - w[0]).collect();
+        gaps.sort_by(f64::total_cmp);
+        let p_est = gaps[gaps.len() / 2];
+        // update counts from the local intervals (a global (t − t₀)/p would drift by a whole
+        // period over a long run when p is only known to a sample)
+        let mut n = vec![0.0; events.len()];
+        for j in 1..events.len() {
+            n[j] = n[j - 1] + ((events[j] - events[j - 1]) / p_est).round().max(1.0);
+        }
+        let m = events.len() as f64;
+        let (sn, st) = (n.iter().sum::<f64>(), events.iter().sum::<f64>());
+        let snn: f64 = n.iter().map(|v| v * v).sum();
+        let snt: f64 = n.iter().zip(&events).map(|(a, b)| a * b).sum();
+        let den = m * snn - sn * sn;
+        if den <= 0.0 {
+            return None;
+        }
+        let period = (m * snt - sn * st) / den;
+        let first = (st - period * sn) / m;
+        // an update seen at sample k was taken at the instant in (t_{k−1}, t_k]
+        Some((period, (first - 0.5 * run.dt).rem_euclid(period)))
+    }
+
+    /// RK4 substeps the augmented model at `theta` needs at the run's sample interval, from its
+    /// stiffest mode at rest (see [`propose_step`]).
+    pub fn advised_substeps(&self, theta: &[f64]) -> Result<usize> {
+        let a = self.augment(theta)?;
+        let mut worst = 1;
+        for run in &self.runs {
+            let advice = match &a.model {
+                Replay::Joint(m) => {
+                    let x = m.rest(run.input[0] / m.radius);
+                    propose_step(m, &x, &[run.input[0], 0.0, 0.0], run.dt, 0.9)?
+                }
+                Replay::Transmission(m) | Replay::Servo(m, _) => {
+                    let x = if run.x0.len() == m.n_states() {
+                        run.x0.clone()
+                    } else {
+                        m.rest_state()
+                    };
+                    propose_step(m, &x, &vec![0.0; m.n_inputs()], run.dt, 0.9)?
+                }
+            };
+            worst = worst.max(advice.substeps);
+        }
+        Ok(worst)
+    }
+}

@@ -1,0 +1,644 @@
+//! The antagonistic joint as the diagnosis simulates it: the nominal joint plus effects located
+//! by site (per cable, per cable–pulley contact, at the joint), with a simulation loop that
+//! never lets a stateful effect make the replay diverge and that resolves non-smooth events.
+//!
+//! ```text
+//! s₁ = x − r·θ,  s₂ = −s₁                       cable stretches (m), x the motor displacement
+//! F_k(s) = law_k(s) + k_k·γ_k·s³                 elastic force (N), optional cubic hardening
+//! T_j,k = max(0, T₀,k + F_k(s_k) + c_k·ṡ_k − w_k) joint-side tension (N)
+//! ẇ_k = (κ_k·F_k(s_k) − w_k)/τ_k                  creep of the stretch-dependent part, or
+//! ẇ_k = (κ_k·(T₀,k + F_k(s_k)) − w_k)/τ_k         creep of the whole tension ("whole")
+//! J·θ̈ = r·(T_j,1 − T_j,2) − F_f(θ̇) − (μ_L·|r·(T_j,1 − T_j,2)|)·σ_ε(θ̇) − z − l_e·F_c + τ_ext
+//! T_m,k = T_j,k·exp(±(μφ_k·σ(ẋ) + μφʰ_k·ζ_k))    motor-side tensions, + for the drive cable
+//! ```
+//!
+//! **Hysteresis without stiffness.** A Dahl element is rate independent: over a monotone
+//! displacement `u = |Δθ|` its state follows `dw/du = −wⁿ/θ_d` with `w = 1 − z·s/F`
+//! (`s` the direction), which has the closed form
+//! `w = w₀·e^{−u/θ_d}` (`n = 1`) or `w = max(0, w₀^{1−n} − (1−n)·u/θ_d)^{1/(1−n)}`.
+//! The joint's Dahl torque is therefore carried as an anchor `(z_a, θ_a)` fixed over each RK4
+//! substep, evaluated in closed form at every stage's `θ`, and re-anchored after the substep: no
+//! `|θ̇|/θ_d` mode enters RK4, so no break-away angle, however small, can make it diverge. The
+//! contact hysteresis `ζ_k ∈ [−1, 1]` (Dahl in the cable's sliding over the routing pulleys)
+//! depends on the motor displacement alone and is computed exactly from it after the run.
+//!
+//! **Kinks.** A sample interval in which a cable slackens or re-tensions, the contact opens or
+//! closes, or the joint reverses is integrated again with [`KINK_REFINE`] times the substeps, so
+//! the `max(0, ·)` corners are resolved where they happen and nowhere else.
+
+use crate::cable::{CableLaw, CableRun};
+use crate::dynamics::{AntagonisticJoint, Contact, Model};
+use crate::error::{CableError, Result};
+use crate::friction::{smooth_sign, StaticFriction};
+use crate::integrate::Rk4;
+
+/// Outputs of the diagnosis joint: `[T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c, T_m,1 − T_m,2]`.
+pub const JOINT_OUTPUTS: usize = 7;
+
+/// Names of the diagnosis joint's outputs.
+pub const JOINT_OUTPUT_NAMES: [&str; JOINT_OUTPUTS] = [
+    "tension_motor_drive",
+    "tension_motor_return",
+    "tension_joint_drive",
+    "tension_joint_return",
+    "theta",
+    "contact_force",
+    "net_motor_force",
+];
+
+/// Factor by which a sample interval containing a kink is re-integrated with more substeps.
+pub const KINK_REFINE: usize = 8;
+
+/// A rate-independent Dahl hysteresis with level `F`, break-away displacement `θ_d = F/σ₀` and
+/// shape exponent `n`, advanced in closed form (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hysteresis {
+    /// Saturation level `F` (N·m at the joint; a capstan exponent μφ in a contact).
+    pub level: f64,
+    /// Break-away displacement `θ_d` (rad at the joint; m of cable sliding in a contact), > 0.
+    pub breakaway: f64,
+    /// Shape exponent `n` > 0 (1: classic Dahl).
+    pub exponent: f64,
+}
+
+impl Hysteresis {
+    /// The normalised state `ζ = z/F ∈ [−1, 1]` after a displacement `delta` from `zeta0`.
+    #[inline]
+    pub fn advance(&self, zeta0: f64, delta: f64) -> f64 {
+        if delta == 0.0 {
+            return zeta0;
+        }
+        let s = delta.signum();
+        let u = delta.abs() / self.breakaway;
+        let w0 = (1.0 - zeta0 * s).clamp(0.0, 2.0);
+        let w = if (self.exponent - 1.0).abs() < 1e-12 {
+            w0 * (-u).exp()
+        } else {
+            let a = 1.0 - self.exponent;
+            if w0 == 0.0 {
+                0.0
+            } else {
+                let base = w0.powf(a) - a * u;
+                if base <= 0.0 {
+                    0.0
+                } else {
+                    base.powf(1.0 / a)
+                }
+            }
+        };
+        s * (1.0 - w)
+    }
+}
+
+/// Creep of one cable: the relaxed fraction `κ`, time constant `τ`, and whether the whole
+/// tension (pretension included) relaxes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CreepLaw {
+    /// Relaxed fraction `κ` in `[0, 1)`.
+    pub fraction: f64,
+    /// Time constant `τ` (s), > 0.
+    pub time_constant: f64,
+    /// Relax the whole tension `T₀ + F(s)` (true) or only `F(s)`.
+    pub whole: bool,
+}
+
+/// One cable of the diagnosis joint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CablePart {
+    /// Law, damping and pretension.
+    pub run: CableRun,
+    /// Cubic hardening `γ` (1/m²): `F(s) += k·γ·s³`.
+    pub cubic: f64,
+    /// Optional creep.
+    pub creep: Option<CreepLaw>,
+}
+
+impl CablePart {
+    #[inline]
+    fn elastic(&self, s: f64) -> f64 {
+        let f = self.run.law.elastic(s);
+        if self.cubic == 0.0 {
+            f
+        } else {
+            f + self.run.law.stiffness() * self.cubic * s * s * s
+        }
+    }
+
+    /// Tangent stiffness at stretch `s` (N/m).
+    fn slope(&self, s: f64) -> f64 {
+        self.run.slope(s) + 3.0 * self.run.law.stiffness() * self.cubic * s * s
+    }
+}
+
+/// The diagnosis joint: see the module docs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointPlant {
+    /// Joint pulley radius `r` (m).
+    pub radius: f64,
+    /// Joint inertia `J` (kg·m²).
+    pub inertia: f64,
+    /// Joint friction (Coulomb, Stribeck, viscous).
+    pub friction: StaticFriction,
+    /// Load-dependent dry friction `μ_L` (–): `μ_L·|r·(T_j,1 − T_j,2)|`, sign smoothed like
+    /// `friction`.
+    pub load_friction: f64,
+    /// Drive and return cables.
+    pub cables: [CablePart; 2],
+    /// Capstan exponent `μφ` of each cable's routing contact (sign law).
+    pub capstan: [f64; 2],
+    /// Smoothing velocity of the capstan sign (m/s).
+    pub capstan_smoothing: f64,
+    /// Hysteresis of each cable's routing contact (level = capstan exponent, break-away in m).
+    pub contact_hysteresis: [Option<Hysteresis>; 2],
+    /// Dahl hysteresis at the joint.
+    pub dahl: Option<Hysteresis>,
+    /// Optional contact with an object.
+    pub contact: Option<Contact>,
+    dahl_at: Option<usize>,
+    creep_at: [Option<usize>; 2],
+    n_states: usize,
+}
+
+impl From<&AntagonisticJoint> for JointPlant {
+    fn from(j: &AntagonisticJoint) -> Self {
+        let creep = j.creep.map(|c| CreepLaw {
+            fraction: c.fraction,
+            time_constant: c.time_constant,
+            whole: false,
+        });
+        let part = |run: CableRun| CablePart {
+            run,
+            cubic: 0.0,
+            creep,
+        };
+        let mu_phi = j.capstan_mu * j.capstan_wrap;
+        let mut p = JointPlant {
+            radius: j.radius,
+            inertia: j.inertia,
+            friction: j.friction,
+            load_friction: 0.0,
+            cables: [part(j.drive), part(j.ret)],
+            capstan: [mu_phi, mu_phi],
+            capstan_smoothing: j.capstan_smoothing,
+            contact_hysteresis: [None, None],
+            dahl: j.dahl.map(|d| Hysteresis {
+                level: d.coulomb,
+                breakaway: d.coulomb / d.sigma0,
+                exponent: d.exponent,
+            }),
+            contact: j.contact,
+            dahl_at: None,
+            creep_at: [None, None],
+            n_states: 2,
+        };
+        p.layout();
+        p
+    }
+}
+
+impl JointPlant {
+    /// Recompute the state layout after effects were switched on or off:
+    /// `[θ, θ̇, (z_a, θ_a), (w₁), (w₂)]`.
+    pub fn layout(&mut self) {
+        let mut n = 2;
+        self.dahl_at = self.dahl.map(|_| {
+            n += 2;
+            2
+        });
+        for k in 0..2 {
+            self.creep_at[k] = self.cables[k].creep.map(|_| {
+                n += 1;
+                n - 1
+            });
+        }
+        self.n_states = n;
+    }
+
+    /// Initial state at rest at joint angle `theta0` (hysteresis and creep states at zero).
+    pub fn rest(&self, theta0: f64) -> Vec<f64> {
+        let mut x = vec![0.0; self.n_states];
+        x[0] = theta0;
+        if let Some(k) = self.dahl_at {
+            x[k + 1] = theta0;
+        }
+        x
+    }
+
+    /// Joint-side tensions before the `max(0, ·)` clamp.
+    #[inline]
+    fn raw_tensions(&self, x: &[f64], u: &[f64]) -> [f64; 2] {
+        let s1 = u[0] - self.radius * x[0];
+        let sd1 = u[1] - self.radius * x[1];
+        let mut t = [0.0; 2];
+        for (k, (s, sd)) in [(s1, sd1), (-s1, -sd1)].into_iter().enumerate() {
+            let c = &self.cables[k];
+            let w = self.creep_at[k].map_or(0.0, |i| x[i]);
+            t[k] = c.run.pretension + c.elastic(s) + c.run.damping * sd - w;
+        }
+        t
+    }
+
+    /// The joint's Dahl torque at angle `theta` from the substep's anchor in `x`.
+    #[inline]
+    fn dahl_torque(&self, x: &[f64], theta: f64) -> f64 {
+        match (self.dahl, self.dahl_at) {
+            (Some(h), Some(k)) => h.level * h.advance(x[k], theta - x[k + 1]),
+            _ => 0.0,
+        }
+    }
+
+    /// Re-anchor the Dahl state at the current angle (after each substep).
+    #[inline]
+    fn reanchor(&self, x: &mut [f64]) {
+        if let (Some(h), Some(k)) = (self.dahl, self.dahl_at) {
+            x[k] = h.advance(x[k], x[0] - x[k + 1]);
+            x[k + 1] = x[0];
+        }
+    }
+
+    /// Non-smooth regime of a state: slack of each cable, contact, direction of the joint.
+    fn regime(&self, x: &[f64], u: &[f64]) -> u8 {
+        let t = self.raw_tensions(x, u);
+        let contact = self
+            .contact
+            .is_some_and(|c| c.lever_arm * (x[0] - c.angle) > 0.0);
+        u8::from(t[0] <= 0.0)
+            | u8::from(t[1] <= 0.0) << 1
+            | u8::from(contact) << 2
+            | u8::from(x[1] > 0.0) << 3
+    }
+
+    /// Simulate the plant on inputs `(T, 3)` row-major `[x, ẋ, τ_ext]` (first-order hold) from
+    /// `x0` with `substeps` RK4 steps per sample interval `dt` (intervals with a kink get
+    /// [`KINK_REFINE`] times more); returns the outputs `(T, 7)`.
+    ///
+    /// Errors: [`CableError::Diverged`] at the first non-finite sample.
+    pub fn simulate(&self, u: &[f64], x0: &[f64], dt: f64, substeps: usize) -> Result<Vec<f64>> {
+        self.simulate_refined(u, x0, dt, substeps, KINK_REFINE)
+    }
+
+    /// [`JointPlant::simulate`] with `refine` times the substeps in intervals with a kink (1: no
+    /// refinement).
+    pub fn simulate_refined(
+        &self,
+        u: &[f64],
+        x0: &[f64],
+        dt: f64,
+        substeps: usize,
+        refine: usize,
+    ) -> Result<Vec<f64>> {
+        let t_len = u.len() / 3;
+        let mut out = vec![0.0; t_len * JOINT_OUTPUTS];
+        let mut ws = Rk4::new(self.n_states, 3);
+        let mut x = x0.to_vec();
+        let mut saved = x.clone();
+        for k in 0..t_len {
+            let u_k = &u[3 * k..3 * k + 3];
+            if k > 0 {
+                let u_prev = &u[3 * (k - 1)..3 * k];
+                saved.copy_from_slice(&x);
+                let before = self.regime(&x, u_prev);
+                self.advance(&mut ws, &mut x, u_prev, u_k, dt, substeps);
+                if refine > 1 && self.regime(&x, u_k) != before {
+                    x.copy_from_slice(&saved);
+                    self.advance(&mut ws, &mut x, u_prev, u_k, dt, substeps * refine);
+                }
+            }
+            let y = &mut out[k * JOINT_OUTPUTS..(k + 1) * JOINT_OUTPUTS];
+            self.output(&x, u_k, y);
+            if !x.iter().chain(y.iter()).all(|v| v.is_finite()) {
+                return Err(CableError::Diverged {
+                    step: k,
+                    time_s: k as f64 * dt,
+                });
+            }
+        }
+        self.apply_contact_hysteresis(u, &mut out);
+        Ok(out)
+    }
+
+    fn advance(&self, ws: &mut Rk4, x: &mut [f64], ua: &[f64], ub: &[f64], dt: f64, n: usize) {
+        let h = dt / n as f64;
+        let mut u0 = [0.0; 3];
+        let mut um = [0.0; 3];
+        let mut u1 = [0.0; 3];
+        for j in 0..n {
+            let (a, b) = (j as f64 / n as f64, (j + 1) as f64 / n as f64);
+            let m = 0.5 * (a + b);
+            for i in 0..3 {
+                let du = ub[i] - ua[i];
+                u0[i] = ua[i] + a * du;
+                um[i] = ua[i] + m * du;
+                u1[i] = ua[i] + b * du;
+            }
+            ws.step_with(self, x, &u0, &um, &u1, h);
+            self.reanchor(x);
+        }
+    }
+
+    /// Multiply the motor-side tensions by `exp(±μφʰ·ζ)` of each contact's hysteresis, driven by
+    /// the motor displacement (the cable's sliding over the routing pulleys).
+    fn apply_contact_hysteresis(&self, u: &[f64], out: &mut [f64]) {
+        for (k, h) in self.contact_hysteresis.iter().enumerate() {
+            let Some(h) = h else { continue };
+            let sign = if k == 0 { 1.0 } else { -1.0 };
+            let mut zeta = 0.0;
+            let mut prev = u[0];
+            for (t, row) in out.chunks_exact_mut(JOINT_OUTPUTS).enumerate() {
+                let xm = u[3 * t];
+                zeta = h.advance(zeta, xm - prev);
+                prev = xm;
+                row[k] *= (sign * h.level * zeta).exp();
+            }
+        }
+        for row in out.chunks_exact_mut(JOINT_OUTPUTS) {
+            row[6] = row[0] - row[1];
+        }
+    }
+
+    /// Torsional stiffness of the cables at rest plus the joint Dahl's initial stiffness
+    /// (N·m/rad), and the largest rate of a first-order state (1/s): for step advice.
+    pub fn stiffest(&self) -> (f64, f64) {
+        let r2 = self.radius * self.radius;
+        let mut kt = r2 * (self.cables[0].slope(0.0) + self.cables[1].slope(0.0));
+        if let Some(h) = self.dahl {
+            kt += h.level / h.breakaway;
+        }
+        if let Some(c) = self.contact {
+            kt += c.stiffness * c.lever_arm * c.lever_arm;
+        }
+        let mut rate: f64 = 0.0;
+        for c in &self.cables {
+            if let Some(cr) = c.creep {
+                rate = rate.max(1.0 / cr.time_constant);
+            }
+        }
+        (kt, rate)
+    }
+}
+
+impl Model for JointPlant {
+    fn n_states(&self) -> usize {
+        self.n_states
+    }
+    fn n_inputs(&self) -> usize {
+        3
+    }
+    fn n_outputs(&self) -> usize {
+        JOINT_OUTPUTS
+    }
+
+    fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
+        let raw = self.raw_tensions(x, u);
+        let (t1, t2) = (raw[0].max(0.0), raw[1].max(0.0));
+        let transmitted = self.radius * (t1 - t2);
+        let lever = self.contact.map_or(0.0, |c| c.lever_arm);
+        let contact = self.contact.map_or(0.0, |c| c.force(x[0], x[1]));
+        let mut torque = transmitted - self.friction.force(x[1]) - lever * contact + u[2];
+        if self.load_friction != 0.0 {
+            torque -=
+                self.load_friction * transmitted.abs() * smooth_sign(x[1], self.friction.smoothing);
+        }
+        torque -= self.dahl_torque(x, x[0]);
+        if let Some(k) = self.dahl_at {
+            dx[k] = 0.0;
+            dx[k + 1] = 0.0;
+        }
+        let s1 = u[0] - self.radius * x[0];
+        for (k, s) in [s1, -s1].into_iter().enumerate() {
+            if let (Some(c), Some(i)) = (self.cables[k].creep, self.creep_at[k]) {
+                let mut target = self.cables[k].elastic(s);
+                if c.whole {
+                    target += self.cables[k].run.pretension;
+                }
+                dx[i] = (c.fraction * target - x[i]) / c.time_constant;
+            }
+        }
+        dx[0] = x[1];
+        dx[1] = torque / self.inertia;
+    }
+
+    fn output(&self, x: &[f64], u: &[f64], y: &mut [f64]) {
+        let raw = self.raw_tensions(x, u);
+        let (t1, t2) = (raw[0].max(0.0), raw[1].max(0.0));
+        let sg = smooth_sign(u[1], self.capstan_smoothing);
+        y[0] = t1 * (self.capstan[0] * sg).exp();
+        y[1] = t2 * (-self.capstan[1] * sg).exp();
+        y[2] = t1;
+        y[3] = t2;
+        y[4] = x[0];
+        y[5] = self.contact.map_or(0.0, |c| c.force(x[0], x[1]));
+        y[6] = y[0] - y[1];
+    }
+
+    fn state_names(&self) -> Vec<String> {
+        let mut v = vec!["theta".to_owned(), "dtheta".to_owned()];
+        if self.dahl.is_some() {
+            v.extend(["dahl_anchor".into(), "dahl_anchor_angle".into()]);
+        }
+        for (k, name) in ["creep_drive", "creep_return"].iter().enumerate() {
+            if self.cables[k].creep.is_some() {
+                v.push((*name).into());
+            }
+        }
+        v
+    }
+    fn input_names(&self) -> Vec<String> {
+        vec!["x_m".into(), "dx_m".into(), "tau_ext".into()]
+    }
+    fn output_names(&self) -> Vec<String> {
+        JOINT_OUTPUT_NAMES.iter().map(|s| s.to_string()).collect()
+    }
+}
+
+/// The cable law of a nominal run with an exponential stiffening of `beta` (1/m) applied.
+pub(crate) fn exponential(run: &CableRun, beta: f64) -> CableLaw {
+    if beta == 0.0 {
+        run.law
+    } else {
+        CableLaw::Exponential {
+            stiffness: run.law.stiffness(),
+            length_scale: 1.0 / beta,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::friction::Dahl;
+    use crate::integrate::{simulate, InputHold, SimOptions};
+    use approx::assert_relative_eq;
+
+    fn inputs(t_len: usize, dt: f64, amp: f64) -> Vec<f64> {
+        let x: Vec<f64> = (0..t_len)
+            .map(|k| {
+                let t = k as f64 * dt;
+                amp * (2.0 * std::f64::consts::PI * 1.3 * t).sin()
+                    + 0.3 * amp * (2.0 * std::f64::consts::PI * 4.1 * t).sin()
+            })
+            .collect();
+        let mut v = vec![0.0; t_len];
+        crate::identify::signal::velocity(&x, dt, &mut v);
+        (0..t_len).flat_map(|k| [x[k], v[k], 0.0]).collect()
+    }
+
+    #[test]
+    fn nominal_plant_reproduces_the_antagonistic_joint() {
+        // without the kink refinement the plant is the joint's RK4 up to the summation order
+        // of the torque (the refinement re-integrates the joint's reversals)
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        let p = JointPlant::from(&j);
+        let (dt, t_len) = (1e-3, 2000);
+        let u = inputs(t_len, dt, 2e-4);
+        let u2: Vec<f64> = u.chunks(3).flat_map(|r| [r[0], r[1]]).collect();
+        let x0 = [0.0, 0.0];
+        let opts = SimOptions::new(dt, 4, InputHold::Foh).unwrap();
+        let want = simulate(&j, &u2, &x0, &opts).unwrap();
+        let got = p.simulate_refined(&u, &x0, dt, 4, 1).unwrap();
+        for k in 0..t_len {
+            for c in 0..6 {
+                assert_relative_eq!(
+                    got[k * 7 + c],
+                    want.outputs[k * 6 + c],
+                    max_relative = 1e-9,
+                    epsilon = 1e-12
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn closed_form_hysteresis_matches_the_dahl_ode() {
+        // integrate dζ/dθ of seed 002 eq. 8 finely and compare with the closed form
+        for n in [0.6, 1.0, 1.5, 2.5] {
+            let h = Hysteresis {
+                level: 1.0,
+                breakaway: 0.01,
+                exponent: n,
+            };
+            let d = Dahl::new(1.0 / 0.01, 1.0, n).unwrap();
+            for (z0, delta) in [(0.0, 0.02), (0.9, -0.015), (-0.5, 0.004), (1.0, -0.05)] {
+                let steps = 200_000;
+                let dth = delta / steps as f64;
+                let mut z: f64 = z0;
+                for _ in 0..steps {
+                    z += d.rate(z, dth.signum()) * dth.abs();
+                }
+                assert_relative_eq!(h.advance(z0, delta), z, epsilon = 2e-4);
+            }
+        }
+    }
+
+    #[test]
+    fn a_tiny_breakaway_angle_never_diverges_and_tends_to_coulomb() {
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        j.friction = StaticFriction::NONE;
+        let mut p = JointPlant::from(&j);
+        let (dt, t_len) = (1e-3, 3000);
+        let u = inputs(t_len, dt, 3e-3);
+        let f = 2e-3;
+        p.dahl = Some(Hysteresis {
+            level: f,
+            breakaway: 1e-9,
+            exponent: 1.0,
+        });
+        p.layout();
+        // substeps for the cables only: RK4 of the Dahl ODE would need |θ̇|/θ_d·h < 2.8
+        let y = p.simulate(&u, &p.rest(0.0), dt, 2).unwrap();
+        assert!(y.iter().all(|v| v.is_finite()));
+        // while sliding, the hysteresis torque is the Coulomb level
+        let mut x = p.rest(0.0);
+        x[2] = 0.3;
+        x[3] = 0.0;
+        assert_relative_eq!(p.dahl_torque(&x, 1e-6), f, max_relative = 1e-12);
+        assert_relative_eq!(p.dahl_torque(&x, -1e-6), -f, max_relative = 1e-12);
+    }
+
+    #[test]
+    fn whole_tension_creep_relaxes_the_pretension_at_rest() {
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        let mut p = JointPlant::from(&j);
+        for c in &mut p.cables {
+            c.creep = Some(CreepLaw {
+                fraction: 0.3,
+                time_constant: 0.5,
+                whole: true,
+            });
+        }
+        p.layout();
+        let t_len = 10_000;
+        let u = vec![0.0; 3 * t_len];
+        let y = p.simulate(&u, &p.rest(0.0), 1e-3, 1).unwrap();
+        let last = &y[(t_len - 1) * 7..];
+        assert_relative_eq!(last[2], 0.7 * 10.0, max_relative = 1e-6);
+        assert_relative_eq!(last[3], 0.7 * 10.0, max_relative = 1e-6);
+        // the stretch-only creep leaves the pretension alone
+        for c in &mut p.cables {
+            c.creep.as_mut().unwrap().whole = false;
+        }
+        let y = p.simulate(&u, &p.rest(0.0), 1e-3, 1).unwrap();
+        assert_relative_eq!(y[(t_len - 1) * 7 + 2], 10.0, max_relative = 1e-9);
+    }
+
+    #[test]
+    fn contact_hysteresis_tends_to_the_capstan_sign_law() {
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        j.capstan_mu = 0.0;
+        let (dt, t_len) = (1e-3, 2000);
+        let u = inputs(t_len, dt, 2e-4);
+        let mut sharp = JointPlant::from(&j);
+        sharp.capstan = [0.2, 0.0];
+        sharp.capstan_smoothing = 1e-9;
+        let mut hyst = JointPlant::from(&j);
+        hyst.contact_hysteresis[0] = Some(Hysteresis {
+            level: 0.2,
+            breakaway: 1e-12,
+            exponent: 1.0,
+        });
+        let a = sharp.simulate(&u, &[0.0, 0.0], dt, 2).unwrap();
+        let b = hyst.simulate(&u, &[0.0, 0.0], dt, 2).unwrap();
+        let mut same = 0;
+        for k in 1..t_len {
+            // equal wherever the motor moves (the sign law is 0 at rest, the state holds)
+            if u[3 * k + 1].abs() > 1e-6 && (u[3 * k] - u[3 * k - 3]) * u[3 * k + 1] > 0.0 {
+                assert_relative_eq!(a[k * 7], b[k * 7], max_relative = 1e-7);
+                same += 1;
+            }
+            // the return cable is untouched
+            assert_relative_eq!(b[k * 7 + 1], b[k * 7 + 3], max_relative = 1e-12);
+        }
+        assert!(same > t_len / 2);
+    }
+
+    #[test]
+    fn slack_kinks_are_refined() {
+        // closing hard on the object slackens the return cable: the refined coarse replay is
+        // much closer to a 64-substep reference than the plain one
+        let mut j = AntagonisticJoint::forceps_example();
+        // no dry friction: its stick stiffness would need the advised substeps, not the kinks
+        j.friction = StaticFriction::coulomb_viscous("f", 0.0, 1e-4, 0.05).unwrap();
+        j.drive.pretension = 2.0;
+        j.ret.pretension = 2.0;
+        let p = JointPlant::from(&j);
+        let (dt, t_len) = (1e-3, 3000);
+        let u = inputs(t_len, dt, 2e-3);
+        let fine = p.simulate(&u, &[0.0, 0.0], dt, 64).unwrap();
+        let slack = fine.chunks(7).filter(|r| r[3] == 0.0).count();
+        assert!(slack > 100, "{slack}");
+        let err = |refine| {
+            let coarse = p.simulate_refined(&u, &[0.0, 0.0], dt, 4, refine).unwrap();
+            fine.iter()
+                .zip(&coarse)
+                .step_by(7)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max)
+        };
+        let (plain, refined) = (err(1), err(KINK_REFINE));
+        assert!(refined < 0.25 * plain, "{refined} vs {plain}");
+    }
+}

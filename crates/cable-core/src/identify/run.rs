@@ -1,0 +1,57 @@
+//! Recorded runs and measured channels of a diagnosis problem.
+
+/// One measured channel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Channel {
+    /// Index into the outputs `[T_m,1, T_m,2, T_j,1, T_j,2, θ, F_c, T_m,1 − T_m,2]`.
+    pub output: usize,
+    /// Residual weight (1 / noise standard deviation), > 0.
+    pub weight: f64,
+    /// Whether sensor-stage effects (lag, sampling, gain/bias) apply: force sensors yes,
+    /// encoders no.
+    pub sensor: bool,
+}
+
+/// One recorded run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointRun {
+    /// Sample interval (s).
+    pub dt: f64,
+    /// Recorded input, row-major `(T, width)`: joint `x_m` (m); transmission motor torques.
+    pub input: Vec<f64>,
+    /// Columns of `input` (joint 1, transmission `n`).
+    pub width: usize,
+    /// Initial state (the plant's layout), or empty for the default.
+    pub x0: Vec<f64>,
+    /// Coupled-axis signal, length `T`, or empty.
+    pub coupled: Vec<f64>,
+    /// External joint torque(s), row-major `(T, width)` (N·m, or N on a prismatic link), or
+    /// empty (none).
+    pub external: Vec<f64>,
+    /// Measured channels, row-major `(T, q)`.
+    pub measured: Vec<f64>,
+    /// First sample that counts in the residual.
+    pub start: usize,
+}
+
+impl JointRun {
+    /// Number of samples `T`.
+    pub fn len(&self) -> usize {
+        self.input.len() / self.width.max(1)
+    }
+
+    /// Whether the run has no samples.
+    pub fn is_empty(&self) -> bool {
+        self.input.is_empty()
+    }
+
+    /// Column `c` of the input.
+    pub(crate) fn input_column(&self, c: usize) -> Vec<f64> {
+        self.input
+            .iter()
+            .skip(c)
+            .step_by(self.width.max(1))
+            .copied()
+            .collect()
+    }
+}

@@ -1,0 +1,182 @@
+//! Typical magnitudes of a diagnosis data set ([`Scales`]): they scale and bound every
+//! candidate's parameters.
+
+use crate::control::MotorPd;
+use crate::dynamics::{AntagonisticJoint, CableTransmission, Model};
+use crate::integrate::InputHold;
+
+use super::effects::Scales;
+use super::problem::{run_into, servo_into, Plant};
+use super::run::{Channel, JointRun};
+use super::signal;
+
+pub(crate) fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        (s / n as f64).sqrt()
+    }
+}
+
+pub(crate) fn scales_of(nominal: &Plant, channels: &[Channel], runs: &[JointRun]) -> Scales {
+    match nominal {
+        Plant::Joint(j) => joint_scales(j, channels, runs),
+        Plant::Transmission(t) => transmission_scales(t, None, channels, runs),
+        Plant::Servo(t, pd) => transmission_scales(t, Some(pd), channels, runs),
+    }
+}
+
+/// RMS of the force-sensor channels of all runs (N).
+fn sensor_force(channels: &[Channel], runs: &[JointRun]) -> f64 {
+    let q = channels.len();
+    rms(runs.iter().flat_map(|r| {
+        channels
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.sensor)
+            .flat_map(move |(c, _)| (0..r.len()).map(move |k| r.measured[k * q + c]))
+    }))
+}
+
+/// Shortest sample interval and shortest run duration (s).
+fn time_scales(runs: &[JointRun]) -> (f64, f64) {
+    let dt = runs.iter().map(|r| r.dt).fold(f64::INFINITY, f64::min);
+    let duration = runs
+        .iter()
+        .map(|r| r.dt * r.len() as f64)
+        .fold(f64::INFINITY, f64::min);
+    (dt, duration)
+}
+
+/// Scales of the transmission: joint torques from the motor torques through the transmission
+/// ratio, speeds from a replay of the nominal on the first run.
+fn transmission_scales(
+    t: &CableTransmission,
+    servo: Option<&MotorPd>,
+    channels: &[Channel],
+    runs: &[JointRun],
+) -> Scales {
+    let (dt, duration) = time_scales(runs);
+    let n = t.n_links();
+    let ratio: f64 = t.links().iter().map(|l| l.ratio()).sum::<f64>() / n as f64;
+    let run = &runs[0];
+    let x0 = if run.x0.len() == t.n_states() {
+        run.x0.clone()
+    } else {
+        t.rest_state()
+    };
+    let (tl, p) = (run.len(), t.n_outputs());
+    // a nominal replay of the first run gives the joint speeds (and, under the servo, the
+    // applied torques); a replay that fails falls back to 1 rad/s and the recorded inputs
+    let replay: Option<(Vec<f64>, Vec<f64>)> = match servo {
+        None => {
+            let u: Vec<f64> = (0..tl)
+                .flat_map(|k| {
+                    (0..2 * n).map(move |c| if c < n { run.input[k * n + c] } else { 0.0 })
+                })
+                .collect();
+            run_into(t, &u, &x0, run, 4, InputHold::Zoh)
+                .ok()
+                .map(|y| (y, run.input.clone()))
+        }
+        Some(pd) => {
+            let ext = vec![0.0; tl * n];
+            servo_into(t, pd, &run.input, &ext, &x0, run.dt, 4)
+                .ok()
+                .map(|(y, applied)| {
+                    let tau = (0..tl)
+                        .flat_map(|k| applied[k * 2 * n..k * 2 * n + n].to_vec())
+                        .collect();
+                    (y, tau)
+                })
+        }
+    };
+    let torque_in = replay.as_ref().map_or(&run.input, |r| &r.1);
+    let torque = (rms(torque_in.iter().copied()) * ratio).max(1e-9);
+    let speed = replay
+        .as_ref()
+        .map(|(y, _)| {
+            let mut v = vec![0.0; tl];
+            let mut acc = 0.0;
+            for i in 0..n {
+                let q: Vec<f64> = (0..tl).map(|k| y[k * p + 5 * i + 1]).collect();
+                signal::velocity(&q, run.dt, &mut v);
+                acc += rms(v.iter().copied()).powi(2);
+            }
+            (acc / n as f64).sqrt()
+        })
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .unwrap_or(1.0);
+    let l0 = &t.links()[0];
+    let pretension = l0.cable.run.pretension;
+    let force = pretension.max(sensor_force(channels, runs)).max(1e-9);
+    Scales {
+        dt,
+        duration,
+        torque,
+        speed,
+        force,
+        stretch: force / l0.cable.run.law.stiffness(),
+        travel: 0.0,
+        motor_speed: speed * l0.joint_radius,
+        coupled: 0.0,
+        pretension,
+        viscous: t
+            .links()
+            .iter()
+            .map(|l| l.link_friction.viscous)
+            .fold(f64::INFINITY, f64::min),
+        smoothing: l0.link_friction.smoothing,
+        damping: t
+            .links()
+            .iter()
+            .map(|l| l.cable.run.damping)
+            .fold(f64::INFINITY, f64::min),
+        sensors: channels.iter().filter(|c| c.sensor).count(),
+        links: n,
+        transmission: true,
+    }
+}
+
+fn joint_scales(nominal: &AntagonisticJoint, channels: &[Channel], runs: &[JointRun]) -> Scales {
+    let (dt, duration) = time_scales(runs);
+    let pretension = nominal.drive.pretension.max(nominal.ret.pretension);
+    let force = pretension.max(sensor_force(channels, runs)).max(1e-9);
+    let motor_speed = rms(runs.iter().flat_map(|r| {
+        let mut v = vec![0.0; r.len()];
+        signal::velocity(&r.input, r.dt, &mut v);
+        v
+    }));
+    let travel = runs
+        .iter()
+        .map(|r| {
+            let (lo, hi) = r
+                .input
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
+            0.5 * (hi - lo)
+        })
+        .fold(0.0, f64::max);
+    let coupled = rms(runs.iter().flat_map(|r| r.coupled.iter().copied()));
+    Scales {
+        dt,
+        duration,
+        torque: nominal.radius * force,
+        speed: motor_speed / nominal.radius,
+        force,
+        stretch: force / nominal.drive.law.stiffness(),
+        travel,
+        motor_speed,
+        coupled,
+        pretension,
+        viscous: nominal.friction.viscous,
+        smoothing: nominal.friction.smoothing,
+        damping: nominal.drive.damping.min(nominal.ret.damping),
+        sensors: channels.iter().filter(|c| c.sensor).count(),
+        links: 1,
+        transmission: false,
+    }
+}

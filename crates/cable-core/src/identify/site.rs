@@ -1,0 +1,505 @@
+//! Where a candidate effect acts, and in which form: a diagnosis candidate is the triple
+//! `(effect, site, form)`, so the answer to "which effect" is "which effect, where, how".
+//!
+//! Sites of the antagonistic joint (the documented vocabulary of `diagnosis.json`):
+//!
+//! | site | what it is |
+//! |---|---|
+//! | `input` | the command path: the recorded motor displacement before it reaches the cables |
+//! | `cable.drive`, `cable.return`, `cable.both` | the elastic cable runs |
+//! | `contact.drive`, `contact.return`, `contact.both` | the cable–pulley contacts of the routing between the motor-side tension sensors and the joint (they act on the tension) |
+//! | `joint` | the joint: its bearing, its inertia |
+//! | `sensor.<output>` | one measured channel's own path (e.g. `sensor.tension_motor_drive`, `sensor.theta`) |
+//! | `sensors.force` | every force channel together (one amplifier, one bus) |
+//!
+//! Sites of the cable transmission: `input` (the recorded torques or references), `links`
+//! (every link, one parameter each), `cables` (every cable pair, shared), and the sensor sites.
+//!
+//! Forms are the alternative physical laws of one effect at one site, e.g. a creep that relaxes
+//! only the stretch-dependent tension (`elastic`) or the whole tension, pretension included
+//! (`whole`).
+
+use crate::error::{CableError, Result};
+
+use super::effects::Effect;
+
+/// One of the two cables of an antagonistic joint, or both.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Side {
+    /// The drive cable (pulled by positive motor displacement).
+    Drive,
+    /// The return cable.
+    Return,
+    /// Both cables, with one shared parameter set.
+    Both,
+}
+
+impl Side {
+    /// `"drive"`, `"return"` or `"both"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Side::Drive => "drive",
+            Side::Return => "return",
+            Side::Both => "both",
+        }
+    }
+
+    /// Whether the side includes cable `k` (0 = drive, 1 = return).
+    pub fn includes(self, k: usize) -> bool {
+        matches!(
+            (self, k),
+            (Side::Both, _) | (Side::Drive, 0) | (Side::Return, 1)
+        )
+    }
+
+    const ALL: [Side; 3] = [Side::Both, Side::Drive, Side::Return];
+}
+
+/// Where an effect acts (see the module table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Site {
+    /// The command path (recorded input before the plant).
+    Input,
+    /// Cable runs.
+    Cable(Side),
+    /// Cable–pulley contacts between the motor-side sensors and the joint.
+    Contact(Side),
+    /// The joint.
+    Joint,
+    /// Every link of a transmission (one parameter per link).
+    Links,
+    /// Every cable pair of a transmission (shared parameters).
+    Cables,
+    /// One measured channel's path (index into the problem's channels).
+    Sensor(usize),
+    /// Every force-sensor channel together.
+    ForceSensors,
+}
+
+impl Site {
+    /// The site's name in the documented vocabulary; `channel_name(i)` names channel `i`.
+    pub fn name(self, channel_name: &dyn Fn(usize) -> String) -> String {
+        match self {
+            Site::Input => "input".into(),
+            Site::Cable(s) => format!("cable.{}", s.name()),
+            Site::Contact(s) => format!("contact.{}", s.name()),
+            Site::Joint => "joint".into(),
+            Site::Links => "links".into(),
+            Site::Cables => "cables".into(),
+            Site::Sensor(i) => format!("sensor.{}", channel_name(i)),
+            Site::ForceSensors => "sensors.force".into(),
+        }
+    }
+
+    /// Parse a site name; `channel_index` maps a channel name to its index.
+    pub fn parse(name: &str, channel_index: &dyn Fn(&str) -> Option<usize>) -> Result<Self> {
+        let bad = || CableError::InvalidOption {
+            name: "site".into(),
+            value: name.into(),
+            allowed: "input, cable.{drive,return,both}, contact.{drive,return,both}, joint, \
+                      links, cables, sensor.<output>, sensors.force"
+                .into(),
+        };
+        let side = |s: &str| Side::ALL.into_iter().find(|x| x.name() == s);
+        Ok(match name {
+            "input" => Site::Input,
+            "joint" => Site::Joint,
+            "links" => Site::Links,
+            "cables" => Site::Cables,
+            "sensors.force" => Site::ForceSensors,
+            _ => {
+                let (head, tail) = name.split_once('.').ok_or_else(bad)?;
+                match head {
+                    "cable" => Site::Cable(side(tail).ok_or_else(bad)?),
+                    "contact" => Site::Contact(side(tail).ok_or_else(bad)?),
+                    "sensor" => Site::Sensor(channel_index(tail).ok_or_else(bad)?),
+                    _ => return Err(bad()),
+                }
+            }
+        })
+    }
+
+    /// Human phrase for the site, e.g. "in the cable–pulley contact of the drive cable".
+    pub fn phrase(self, channel_name: &dyn Fn(usize) -> String) -> String {
+        let cable = |s: Side| match s {
+            Side::Drive => "the drive cable".to_owned(),
+            Side::Return => "the return cable".to_owned(),
+            Side::Both => "both cables".to_owned(),
+        };
+        match self {
+            Site::Input => "in the command path (before the cables)".into(),
+            Site::Cable(s) => format!("in {}", cable(s)),
+            Site::Contact(Side::Both) => "in the cable–pulley contacts of both cables".into(),
+            Site::Contact(s) => format!("in the cable–pulley contact of {}", cable(s)),
+            Site::Joint => "at the joint".into(),
+            Site::Links => "at every link".into(),
+            Site::Cables => "in every cable pair".into(),
+            Site::Sensor(i) => format!("in the {} channel's own path", channel_name(i)),
+            Site::ForceSensors => "in every force sensor's path".into(),
+        }
+    }
+}
+
+/// Alternative laws of one effect at one site.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Form {
+    /// The effect's standard law (the only form of most effects).
+    Standard,
+    /// Friction that grows with the transmitted load (arXiv 2410.08650's M3: `F_c + μ_L·|τ|`).
+    LoadDependent,
+    /// Dahl hysteresis with a fitted shape exponent `n` (standard: `n = 1`).
+    Generalised,
+    /// Creep of the whole tension, pretension included (standard: the stretch-dependent part).
+    Whole,
+    /// Polynomial hardening `k·s + k₃·s³` (standard: exponential law).
+    Cubic,
+    /// Second-order (critically damped) sensor dynamics (standard: first order).
+    SecondOrder,
+}
+
+impl Form {
+    /// `"standard"`, `"load_dependent"`, `"generalised"`, `"whole"`, `"cubic"`, `"second_order"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Form::Standard => "standard",
+            Form::LoadDependent => "load_dependent",
+            Form::Generalised => "generalised",
+            Form::Whole => "whole",
+            Form::Cubic => "cubic",
+            Form::SecondOrder => "second_order",
+        }
+    }
+
+    /// Parse a form name.
+    pub fn parse(name: &str) -> Result<Self> {
+        [
+            Form::Standard,
+            Form::LoadDependent,
+            Form::Generalised,
+            Form::Whole,
+            Form::Cubic,
+            Form::SecondOrder,
+        ]
+        .into_iter()
+        .find(|f| f.name() == name)
+        .ok_or_else(|| CableError::InvalidOption {
+            name: "form".into(),
+            value: name.into(),
+            allowed: "standard, load_dependent, generalised, whole, cubic, second_order".into(),
+        })
+    }
+}
+
+/// A diagnosis candidate: an effect at a site in a form.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Candidate {
+    /// The physical effect (one of the 16 canonical names).
+    pub effect: Effect,
+    /// Where it acts.
+    pub site: Site,
+    /// Which law.
+    pub form: Form,
+}
+
+/// What a plant offers to candidates: its kind and its measured channels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SiteContext {
+    /// The cable transmission (true) or the antagonistic joint (false).
+    pub transmission: bool,
+    /// Number of links (joint: 1).
+    pub links: usize,
+    /// Channel names (the plant's output names), in channel order.
+    pub channels: Vec<String>,
+    /// Whether each channel is a force sensor (lag, sampling, gain apply).
+    pub force: Vec<bool>,
+    /// Whether a coupled-axis signal is recorded.
+    pub coupled: bool,
+}
+
+impl SiteContext {
+    fn force_channels(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.force.len()).filter(|&i| self.force[i])
+    }
+
+    /// Whether a motor-side tension is measured (contact effects show there).
+    fn motor_side_measured(&self) -> bool {
+        self.channels
+            .iter()
+            .any(|c| c.starts_with("tension_motor") || c == "net_motor_force")
+    }
+}
+
+impl Candidate {
+    /// A candidate in the standard form.
+    pub fn new(effect: Effect, site: Site) -> Self {
+        Self {
+            effect,
+            site,
+            form: Form::Standard,
+        }
+    }
+
+    /// The same candidate in another form.
+    pub fn with_form(mut self, form: Form) -> Self {
+        self.form = form;
+        self
+    }
+
+    /// The candidate an effect name alone means (diagnosis v1): its classic site and form.
+    pub fn default_for(effect: Effect, transmission: bool) -> Self {
+        use Effect::*;
+        let site = match effect {
+            Backlash | Coupling | TimeDelay => Site::Input,
+            SensorLag | SensorSampling | SensorGainBias => Site::ForceSensors,
+            CapstanFriction => Site::Contact(Side::Both),
+            NonlinearStiffness | CableDamping | Creep | Slack if transmission => Site::Cables,
+            NonlinearStiffness | CableDamping | Creep | Slack => Site::Cable(Side::Both),
+            _ if transmission => Site::Links,
+            _ => Site::Joint,
+        };
+        Self::new(effect, site)
+    }
+
+    /// Every candidate that can physically act on a plant with this context, in a stable order
+    /// (effects in canonical order, then sites, then forms).
+    pub fn library(ctx: &SiteContext) -> Vec<Candidate> {
+        let mut v = Vec::new();
+        for e in Effect::ALL {
+            for c in Self::of_effect(e, ctx) {
+                v.push(c);
+            }
+        }
+        v
+    }
+
+    /// The candidates of one effect on a plant with this context.
+    pub fn of_effect(effect: Effect, ctx: &SiteContext) -> Vec<Candidate> {
+        use Effect::*;
+        let c = |site| Candidate::new(effect, site);
+        let sides = |f: fn(Side) -> Site| Side::ALL.map(|s| Candidate::new(effect, f(s))).to_vec();
+        // sensor sites: every force channel alone, and all force channels together when there
+        // are several
+        let force: Vec<usize> = ctx.force_channels().collect();
+        let mut sensor_sites: Vec<Site> = force.iter().map(|&i| Site::Sensor(i)).collect();
+        if force.len() > 1 {
+            sensor_sites.push(Site::ForceSensors);
+        }
+        let sensors = |forms: &[Form]| -> Vec<Candidate> {
+            sensor_sites
+                .iter()
+                .flat_map(|&s| forms.iter().map(move |&f| c(s).with_form(f)))
+                .collect()
+        };
+        if ctx.transmission {
+            return match effect {
+                CoulombFriction | ViscousFriction | InertiaError => vec![c(Site::Links)],
+                NonlinearStiffness | CableDamping | Slack => vec![c(Site::Cables)],
+                Coupling if ctx.links >= 2 => vec![c(Site::Input)],
+                TimeDelay => {
+                    let mut v = vec![c(Site::Input)];
+                    v.extend(sensors(&[Form::Standard]));
+                    v
+                }
+                SensorLag => sensors(&[Form::Standard, Form::SecondOrder]),
+                SensorSampling | SensorGainBias => sensors(&[Form::Standard]),
+                _ => vec![],
+            };
+        }
+        match effect {
+            CoulombFriction => vec![
+                c(Site::Joint),
+                c(Site::Joint).with_form(Form::LoadDependent),
+            ],
+            ViscousFriction | StribeckFriction | InertiaError => vec![c(Site::Joint)],
+            DahlHysteresis => {
+                let mut v = vec![c(Site::Joint), c(Site::Joint).with_form(Form::Generalised)];
+                if ctx.motor_side_measured() {
+                    v.extend(sides(Site::Contact));
+                }
+                v
+            }
+            CapstanFriction if ctx.motor_side_measured() => sides(Site::Contact),
+            NonlinearStiffness => {
+                let mut v = sides(Site::Cable);
+                v.push(c(Site::Cable(Side::Both)).with_form(Form::Cubic));
+                v
+            }
+            CableDamping | Slack => sides(Site::Cable),
+            Creep => {
+                let mut v = sides(Site::Cable);
+                v.extend(
+                    sides(Site::Cable)
+                        .into_iter()
+                        .map(|x| x.with_form(Form::Whole)),
+                );
+                v
+            }
+            Backlash => vec![c(Site::Input)],
+            Coupling if ctx.coupled => vec![c(Site::Input)],
+            TimeDelay => {
+                let mut v = vec![c(Site::Input)];
+                v.extend(sensors(&[Form::Standard]));
+                // an encoder on its own bus or clock
+                v.extend(
+                    (0..ctx.channels.len())
+                        .filter(|&i| !ctx.force[i])
+                        .map(|i| c(Site::Sensor(i))),
+                );
+                v
+            }
+            SensorLag => sensors(&[Form::Standard, Form::SecondOrder]),
+            SensorSampling | SensorGainBias => sensors(&[Form::Standard]),
+            _ => vec![],
+        }
+    }
+
+    /// Whether the candidate can act on a plant with this context.
+    pub fn applies(&self, ctx: &SiteContext) -> bool {
+        Self::of_effect(self.effect, ctx).contains(self)
+    }
+
+    /// Identifier `effect@site` (with `/form` when not standard), e.g.
+    /// `creep@cable.both/whole`.
+    pub fn id(&self, channel_name: &dyn Fn(usize) -> String) -> String {
+        let mut s = format!("{}@{}", self.effect.name(), self.site.name(channel_name));
+        if self.form != Form::Standard {
+            s.push('/');
+            s.push_str(self.form.name());
+        }
+        s
+    }
+
+    /// Parse `effect`, `effect@site` or `effect@site/form`; an effect alone means its classic
+    /// site ([`Candidate::default_for`]).
+    pub fn parse(
+        id: &str,
+        transmission: bool,
+        channel_index: &dyn Fn(&str) -> Option<usize>,
+    ) -> Result<Self> {
+        let (effect, rest) = match id.split_once('@') {
+            Some((e, r)) => (e, Some(r)),
+            None => (id, None),
+        };
+        let effect = Effect::from_name(effect)?;
+        let Some(rest) = rest else {
+            return Ok(Self::default_for(effect, transmission));
+        };
+        let (site, form) = match rest.split_once('/') {
+            Some((s, f)) => (s, Form::parse(f)?),
+            None => (rest, Form::Standard),
+        };
+        Ok(Self {
+            effect,
+            site: Site::parse(site, channel_index)?,
+            form,
+        })
+    }
+
+    /// One sentence a user reads, e.g. "hysteresis (Dahl) in the cable–pulley contact of the
+    /// drive cable".
+    pub fn sentence(&self, channel_name: &dyn Fn(usize) -> String) -> String {
+        let what = match (self.effect, self.form) {
+            (Effect::CoulombFriction, Form::LoadDependent) => {
+                "dry friction growing with the transmitted load"
+            }
+            (Effect::DahlHysteresis, Form::Generalised) => {
+                "hysteresis (Dahl, fitted shape exponent)"
+            }
+            (Effect::DahlHysteresis, _) => "hysteresis (Dahl)",
+            (Effect::Creep, Form::Whole) => "creep relaxing the whole tension, pretension included",
+            (Effect::NonlinearStiffness, Form::Cubic) => "cubic hardening of the cable law",
+            (Effect::SensorLag, Form::SecondOrder) => "second-order (critically damped) lag",
+            (e, _) => e.description(),
+        };
+        format!("{what} {}", self.site.phrase(channel_name))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ctx() -> SiteContext {
+        SiteContext {
+            transmission: false,
+            links: 1,
+            channels: vec![
+                "tension_motor_drive".into(),
+                "tension_motor_return".into(),
+                "theta".into(),
+            ],
+            force: vec![true, true, false],
+            coupled: true,
+        }
+    }
+
+    fn name_of(i: usize) -> String {
+        ctx().channels[i].clone()
+    }
+
+    fn index_of(s: &str) -> Option<usize> {
+        ctx().channels.iter().position(|c| c == s)
+    }
+
+    #[test]
+    fn ids_round_trip_and_are_unique() {
+        let lib = Candidate::library(&ctx());
+        assert!(lib.len() > 40, "{}", lib.len());
+        let mut ids: Vec<String> = lib.iter().map(|c| c.id(&name_of)).collect();
+        for (c, id) in lib.iter().zip(&ids) {
+            assert_eq!(Candidate::parse(id, false, &index_of).unwrap(), *c, "{id}");
+            assert!(c.applies(&ctx()));
+        }
+        ids.sort();
+        ids.dedup();
+        assert_eq!(ids.len(), lib.len());
+        // every canonical effect has at least one site on a fully measured joint
+        for e in Effect::ALL {
+            assert!(lib.iter().any(|c| c.effect == e), "{e:?}");
+        }
+    }
+
+    #[test]
+    fn names_and_sentences_read_as_documented() {
+        let c = Candidate::new(Effect::DahlHysteresis, Site::Contact(Side::Drive));
+        assert_eq!(c.id(&name_of), "dahl_hysteresis@contact.drive");
+        assert_eq!(
+            c.sentence(&name_of),
+            "hysteresis (Dahl) in the cable–pulley contact of the drive cable"
+        );
+        let d = Candidate::new(Effect::TimeDelay, Site::Sensor(1));
+        assert_eq!(d.id(&name_of), "time_delay@sensor.tension_motor_return");
+        let w = Candidate::new(Effect::Creep, Site::Cable(Side::Both)).with_form(Form::Whole);
+        assert_eq!(w.id(&name_of), "creep@cable.both/whole");
+        // an effect alone is its classic site
+        assert_eq!(
+            Candidate::parse("sensor_lag", false, &index_of).unwrap(),
+            Candidate::new(Effect::SensorLag, Site::ForceSensors)
+        );
+    }
+
+    #[test]
+    fn bad_ids_are_typed_errors_and_sites_must_apply() {
+        for bad in [
+            "creep@cable.left",
+            "creep@nowhere",
+            "sensor_lag@sensor.T9",
+            "friction@joint",
+            "creep@cable.both/sideways",
+        ] {
+            assert!(
+                matches!(
+                    Candidate::parse(bad, false, &index_of),
+                    Err(CableError::InvalidOption { .. })
+                ),
+                "{bad}"
+            );
+        }
+        // a lag on the encoder, capstan without a motor-side sensor
+        assert!(!Candidate::new(Effect::SensorLag, Site::Sensor(2)).applies(&ctx()));
+        let mut no_motor = ctx();
+        no_motor.channels = vec!["theta".into()];
+        no_motor.force = vec![false];
+        assert!(Candidate::of_effect(Effect::CapstanFriction, &no_motor).is_empty());
+    }
+}
