@@ -623,7 +623,7 @@ def diagnose(
     gap_significant = g_hold > NOISE_LEVEL and g_lo > 1.0
     # every applicable candidate alone: a short fit of each screens, the shortlist is fitted in
     # full from where its screen ended
-    screened: dict[str, str] = {}
+    screened_out: dict[str, str] = {}
     if opts.shortlist and len(prep.candidates) > opts.shortlist:
         quick = _pmap(prep, [([e], None) for e in prep.candidates], opts, "screen", opts.screen_fit_iter)
         ok = sorted((c for c in quick if not c.error), key=lambda c: c.cost)
@@ -631,15 +631,15 @@ def diagnose(
         best_cost = keep[0].cost if keep else math.nan
         for c in quick:
             if c.error:
-                screened[c.effects[0]] = f"screen fit failed: {c.error}"
+                screened_out[c.effects[0]] = f"screen fit failed: {c.error}"
             elif c not in keep:
-                screened[c.effects[0]] = (
+                screened_out[c.effects[0]] = (
                     f"screened out: after a {opts.screen_fit_iter}-iteration fit its fit-run cost was "
                     f"{c.cost:.4g} (shortlist of {opts.shortlist} ends at {keep[-1].cost:.4g}, "
                     f"best {best_cost:.4g})"
                 )
         singles = _pmap(prep, [(c.effects, c.params) for c in keep], opts, "candidates")
-        singles += [c for c in quick if c.effects[0] in screened]
+        singles += [c for c in quick if c.effects[0] in screened_out]
     else:
         singles = _pmap(prep, [([e], None) for e in prep.candidates], opts, "candidates")
     fits = {c.effects[0]: c for c in singles}
@@ -656,7 +656,7 @@ def diagnose(
             }
         else:
             scores[name] = compare(base.hold_resid, c.hold_resid, dt, opts, rng)
-            if name in screened:  # never ranked as if it were a full fit
+            if name in screened_out:  # never ranked as if it were a full fit
                 scores[name]["significant"] = False
     n_eff = sum(r.shape[0] for r in base.fit_resid) / _integrated_time(
         np.concatenate([r[:, 0] for r in base.fit_resid])
@@ -665,13 +665,13 @@ def diagnose(
     ranked = sorted(
         fits,
         key=lambda k: (
-            k in screened,
+            k in screened_out,
             -scores[k]["closed_fraction"],
             _bic(fits[k], n_eff) if not fits[k].error else math.inf,
         ),
     )
-    ranked = parsimony([k for k in ranked if k not in screened], fits, scores) + [
-        k for k in ranked if k in screened
+    ranked = parsimony([k for k in ranked if k not in screened_out], fits, scores) + [
+        k for k in ranked if k in screened_out
     ]
     # forward selection
     chosen: list[str] = []
@@ -686,7 +686,9 @@ def diagnose(
             else:
                 # screen every remaining candidate with a few iterations from a warm start, then
                 # refine the most promising ones (by fit cost: held-out data stays for scoring)
-                others = [k for k in ranked if k not in chosen and not fits[k].error]
+                others = [
+                    k for k in ranked if k not in chosen and not fits[k].error and k not in screened_out
+                ]
                 jobs = [([*chosen, k], _warm_start(prep, current_fit, [*chosen, k], fits[k])) for k in others]
                 screened = _pmap(prep, jobs, opts, f"round {round_ + 1}", opts.screen_iter) if jobs else []
                 screened = sorted((c for c in screened if not c.error), key=lambda c: c.cost)[: opts.refine]
@@ -740,7 +742,7 @@ def diagnose(
                 "form": info["form"],
                 "sentence": info["sentence"],
                 "selected": k in chosen,
-                "status": _status(c, screened.get(k)),
+                "status": _status(c, screened_out.get(k)),
                 "description": info["sentence"],
                 "parameters": _params_out(c) if not c.error else [],
                 "fit": {
@@ -822,7 +824,7 @@ def diagnose(
             ],
             "substeps": prep.substeps,
             "candidates": prep.candidates,
-            "screened_out": screened,
+            "screened_out": screened_out,
             "warnings": prep.warnings,
             "options": {k: v for k, v in vars(opts).items() if k != "progress"},
         },
