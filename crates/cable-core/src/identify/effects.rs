@@ -273,19 +273,6 @@ impl Effect {
         }
     }
 
-    /// Whether the effect applies to the cable transmission (torque in, angles out).
-    pub fn applies_to_transmission(self, links: usize) -> bool {
-        match self {
-            Effect::StribeckFriction
-            | Effect::DahlHysteresis
-            | Effect::CapstanFriction
-            | Effect::Creep
-            | Effect::Backlash => false,
-            Effect::Coupling => links >= 2,
-            _ => true,
-        }
-    }
-
     /// Transmission-specific parameter layouts (per link or per coupling coefficient); `None`
     /// where the joint's layout applies unchanged.
     fn transmission_params(self, s: &Scales, p: &SpecFn<'_>) -> Option<Vec<ParamSpec>> {
