@@ -442,7 +442,7 @@ def run_self_test(
             "correct": (
                 top == effects[0] and res["verdict"] != "no_significant_gap"
                 if kind == "single"
-                else set(effects) <= set(selected)
+                else set(effects) <= {s.split("@")[0] for s in selected}
                 if kind == "pair"
                 else res["verdict"] == "no_significant_gap"
             ),
