@@ -100,6 +100,26 @@ def _diagnose(args: argparse.Namespace) -> int:
         (out / "self_test.json").write_text(json.dumps(res, indent=2, default=float))
         print(f"  wrote {out / 'self_test.txt'} and {out / 'self_test.json'}")
         return 0 if res["passed"] else 1
+    if args.independent:
+        from cablekit.diagnose.selftest_independent import CI_SUBSET, format_independent, run_independent
+
+        print(
+            "cablekit: independent self-test (runs from a separate LSODA simulator with its own effect "
+            f"forms; {'CI subset' if args.independent == 'ci' else 'every case'}) ...",
+            flush=True,
+        )
+        res = run_independent(
+            seed=args.seed + 2216,
+            duration=args.duration if args.duration != 8.0 else 20.0,
+            progress=not args.quiet,
+            only=CI_SUBSET if args.independent == "ci" else None,
+        )
+        table = format_independent(res)
+        print(table)
+        (out / "independent.txt").write_text(table + "\n")
+        (out / "independent.json").write_text(json.dumps(res, indent=2, default=float))
+        print(f"  wrote {out / 'independent.txt'} and {out / 'independent.json'}")
+        return 0 if res["passed"] else 1
     if args.davinci:
         from cablekit.diagnose.davinci import CITATION, DEFAULT_SPLIT, describe, prepare_bench
 
@@ -197,9 +217,16 @@ def build_parser() -> argparse.ArgumentParser:
         "--self-test", action="store_true", help="score the diagnoser on generated runs with withheld effects"
     )
     d.add_argument(
+        "--independent",
+        choices=["all", "ci"],
+        help="score the diagnoser on runs from the independent simulator (every case, or the CI subset)",
+    )
+    d.add_argument(
         "--davinci", metavar="DIR", help="diagnose the da Vinci Maryland bench data in DIR (real data)"
     )
-    d.add_argument("--duration", type=float, default=8.0, help="self-test run length, s")
+    d.add_argument(
+        "--duration", type=float, default=8.0, help="self-test run length, s (independent: 20 s unless given)"
+    )
     d.add_argument("--seed", type=int, default=2026)
     d.add_argument("--workers", type=int, default=0, help="parallel candidate fits (0 = all cores)")
     d.add_argument("--no-html", action="store_true", help="skip the HTML report (no matplotlib needed)")

@@ -40,7 +40,28 @@ def noise_sigma(y: _F) -> float:
             s = float(np.sqrt(np.mean(dk * dk) / math.comb(2 * k, k)))
         estimates.append(s)
     sigma = min(estimates) if estimates else 0.0
+    # a quantised signal (an encoder's counts, an ADC's codes) is off its true value by up to
+    # half a step however smoothly it moves, a rounding error of rms q/√12 that the differences
+    # of a slowly moving signal do not see (they are mostly zero)
+    sigma = max(sigma, quantum(y) / math.sqrt(12.0))
     return max(sigma, 1e-10 * spread, 1e-12)
+
+
+def quantum(y: _F) -> float:
+    """The step ``q`` of the lattice a quantised signal lives on (its smallest non-zero
+    sample-to-sample change, when 99 % of the changes are whole multiples of it within 1 %),
+    else 0."""
+    spread = float(np.ptp(y)) if y.size else 0.0
+    d = np.abs(np.diff(y))
+    nz = d[d > 1e-9 * spread]
+    if nz.size < 20 or spread == 0.0:
+        return 0.0
+    q = float(np.min(nz))
+    ratio = nz / q
+    if np.max(ratio) > 1e6:  # finer than any converter: a continuous signal
+        return 0.0
+    on_lattice = np.abs(ratio - np.round(ratio)) < 0.01
+    return q if float(np.mean(on_lattice)) >= 0.99 else 0.0
 
 
 @dataclass

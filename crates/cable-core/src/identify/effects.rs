@@ -93,9 +93,15 @@ pub struct ParamSpec {
     /// Fitted by grid search, not by gradient steps (discrete-time effects).
     pub grid: bool,
     /// Further starting values tried before the local search (non-convex parameters such as
-    /// time constants); the fit starts from the best combination.
+    /// time constants); the fit starts from the best combination. With [`SWEEP`] or more
+    /// values, the parameter is swept alone first (a 1-D global search) and its best value
+    /// enters the combinations.
     pub starts: Vec<f64>,
 }
+
+/// Number of starting values from which a parameter is swept on its own (see
+/// [`ParamSpec::starts`]).
+pub const SWEEP: usize = 4;
 
 /// Builds a spec from `(name, unit, reference, initial, lower, upper, scale)`.
 type SpecFn<'a> = dyn Fn(&str, &'static str, f64, f64, f64, f64, f64) -> ParamSpec + 'a;
@@ -318,6 +324,9 @@ impl Effect {
         let p = spec;
         let tq = s.torque;
         let w = s.speed.max(1e-9);
+        // a dense sweep of whole-sample values for the non-convex time parameters (delays, lag
+        // constants): the fit starts from the best of them (a 1-D global search)
+        let samples = |n: &[f64]| -> Vec<f64> { n.iter().map(|k| k * s.dt).collect() };
         if s.transmission {
             if let Some(v) = self.transmission_params(s, &p) {
                 return v;
@@ -450,7 +459,9 @@ impl Effect {
                 0.2 * s.duration,
                 10.0 * s.dt,
             )
-            .starts(&[10.0 * s.dt, 30.0 * s.dt])],
+            .starts(&samples(&[
+                1.0, 3.0, 5.0, 7.0, 10.0, 15.0, 20.0, 30.0, 50.0, 80.0,
+            ]))],
             Effect::SensorSampling => {
                 let mut v = vec![
                     // period 0 = a continuous sensor (the nominal)
@@ -469,7 +480,9 @@ impl Effect {
                 0.1 * s.duration,
                 10.0 * s.dt,
             )
-            .starts(&[8.0 * s.dt, 25.0 * s.dt])],
+            .starts(&samples(&[
+                1.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0, 40.0, 60.0,
+            ]))],
             Effect::SensorGainBias => (0..s.sensors)
                 .flat_map(|i| {
                     [
@@ -486,7 +499,10 @@ impl Effect {
                     ]
                 })
                 .collect(),
-            Effect::InertiaError => vec![p("epsilon", "1", 0.0, 0.0, -0.95, 1e3, 0.5)],
+            // a position-driven joint's resonance moves with its inertia: the cost is not
+            // convex in ε (a 4.5× inertia made no progress from ε = 0), so sweep it
+            Effect::InertiaError => vec![p("epsilon", "1", 0.0, 0.0, -0.95, 1e3, 0.5)
+                .starts(&[-0.6, -0.3, 0.3, 1.0, 2.0, 4.0, 8.0])],
         }
     }
 }

@@ -6,9 +6,10 @@ use crate::dynamics::Model;
 use crate::error::{check, Result};
 use crate::integrate::propose_step;
 
-use super::effects::Effect;
+use super::effects::{Effect, SWEEP};
 use super::lm::{least_squares, LmOptions, LmReport};
 use super::problem::{JointProblem, Replay};
+use super::signal;
 use super::site::{Candidate, Site};
 
 impl JointProblem {
@@ -87,18 +88,54 @@ impl JointProblem {
 
     /// The `keep` lowest-cost combinations of the specs' starting values (`initial` and
     /// `starts`, at most 27 combinations); combinations whose simulation fails are skipped.
-    fn best_starts(&self, x0: Vec<f64>, keep: usize) -> Vec<Vec<f64>> {
+    fn best_starts(&self, mut x0: Vec<f64>, keep: usize) -> Vec<Vec<f64>> {
+        let mut r = vec![0.0; self.n_residuals()];
+        // sensor-site candidates replay the nominal plant whatever their parameters
+        let plants = if self.sensor_only() {
+            self.nominal_plants().ok()
+        } else {
+            None
+        };
+        let mut cost = |x: &[f64]| -> Option<f64> {
+            let ok = match &plants {
+                Some(p) => self.residuals_on(x, p, &mut r),
+                None => self.residuals(x, &mut r),
+            };
+            ok.ok().map(|_| r.iter().map(|v| v * v).sum())
+        };
+        // 1-D sweeps of the non-convex parameters with many starting values, one at a time
+        for (j, s) in self.specs.iter().enumerate() {
+            if s.starts.len() < SWEEP {
+                continue;
+            }
+            let mut best = (cost(&x0).unwrap_or(f64::INFINITY), x0[j]);
+            let mut x = x0.clone();
+            for &v in &s.starts {
+                x[j] = v;
+                if let Some(c) = cost(&x) {
+                    if c < best.0 {
+                        best = (c, v);
+                    }
+                }
+            }
+            x0[j] = best.1;
+        }
         let options: Vec<Vec<f64>> = self
             .specs
             .iter()
             .zip(&x0)
-            .map(|(s, &x)| std::iter::once(x).chain(s.starts.iter().copied()).collect())
+            .map(|(s, &x)| {
+                if s.starts.len() >= SWEEP {
+                    vec![x]
+                } else {
+                    std::iter::once(x).chain(s.starts.iter().copied()).collect()
+                }
+            })
             .collect();
         let total: usize = options.iter().map(Vec::len).product();
         if total <= 1 || total > 27 {
             return vec![x0];
         }
-        let mut r = vec![0.0; self.n_residuals()];
         let mut scored: Vec<(f64, Vec<f64>)> = Vec::new();
         for mut code in 0..total {
             let x: Vec<f64> = options
@@ -109,8 +146,8 @@ impl JointProblem {
                     v
                 })
                 .collect();
-            if self.residuals(&x, &mut r).is_ok() {
-                scored.push((r.iter().map(|v| v * v).sum(), x));
+            if let Some(c) = cost(&x) {
+                scored.push((c, x));
             }
         }
         if scored.is_empty() {
@@ -197,9 +234,16 @@ impl JointProblem {
                 consider(cost(period, phase), period, phase, &mut best);
             }
         }
-        // a held signal shows its update instants directly: take them as a further candidate
+        // a held signal shows its update instants in its jumps: take them, and their
+        // neighbourhood at a fiftieth of a sample in period and a quarter in phase
         if let Some((period, phase)) = self.hold_from_updates_of(held[0]) {
-            consider(cost(period, phase), period, phase, &mut best);
+            for ip in -10..=10 {
+                let p = period + ip as f64 * 0.02 * dt;
+                for jp in -4..=4 {
+                    let ph = (phase + jp as f64 * 0.25 * dt).rem_euclid(p);
+                    consider(cost(p, ph), p, ph, &mut best);
+                }
+            }
         }
         // fine: ±12 % around the best period, phases at the sample resolution
         let (_, p0, _) = best;
@@ -217,13 +261,10 @@ impl JointProblem {
         Ok((best.1, best.2))
     }
 
-    /// Sample-and-hold period and phase read off the update instants of the measured force
-    /// channels (samples where a held signal changes), when the first sensor channel of the
-    /// first run changes at fewer than half of its samples; `None` otherwise.
-    ///
-    /// The instants `t_j` are fitted by least squares to `phase + n_j·period`, with `n_j` the
-    /// update count accumulated from the intervals in units of the median interval, so missed
-    /// updates (a value that did not change) do not bias the estimate.
+    /// Sample-and-hold period and phase of the first measured force channel of the first run:
+    /// from its exactly repeated values when it has them, else from its jumps
+    /// ([`signal::hold_period`]: robust to noise after the hold, sub-sample period
+    /// resolution); `None` when neither finds a hold.
     pub fn hold_from_updates(&self) -> Option<(f64, f64)> {
         let c = self.channels.iter().position(|c| c.sensor)?;
         self.hold_from_updates_of(c)
@@ -234,9 +275,19 @@ impl JointProblem {
         let run = &self.runs[0];
         let q = self.channels.len();
         let y: Vec<f64> = (0..run.len()).map(|k| run.measured[k * q + c]).collect();
+        Self::hold_from_repeats(&y, run.dt)
+            .or_else(|| signal::hold_period(&y, run.dt, 0.25 * self.scales.duration))
+    }
+
+    /// Update instants of a held channel whose value repeats exactly between updates (no
+    /// noise after the hold): the instants `t_j` where it changes are fitted by least squares
+    /// to `phase + n_j·period`, with `n_j` the update count accumulated from the intervals in
+    /// units of the median interval, so missed updates (a value that did not change) do not
+    /// bias the estimate. `None` when the channel changes at more than half of its samples.
+    fn hold_from_repeats(y: &[f64], dt: f64) -> Option<(f64, f64)> {
         let events: Vec<f64> = (1..y.len())
             .filter(|&k| y[k].to_bits() != y[k - 1].to_bits()) // a held value repeats exactly
-            .map(|k| k as f64 * run.dt)
+            .map(|k| k as f64 * dt)
             .collect();
         if events.len() < 3 || 2 * events.len() > y.len() {
             return None;
@@ -261,7 +312,7 @@ impl JointProblem {
         let period = (m * snt - sn * st) / den;
         let first = (st - period * sn) / m;
         // an update seen at sample k was taken at the instant in (t_{k−1}, t_k]
-        Some((period, (first - 0.5 * run.dt).rem_euclid(period)))
+        Some((period, (first - 0.5 * dt).rem_euclid(period)))
     }
 
     /// RK4 substeps the augmented model at `theta` needs at the run's sample interval, from its
