@@ -748,9 +748,11 @@ def test_noise_level_of_a_quantised_encoder_is_its_rounding_error(counts, f, amp
     t = np.arange(8000) * DT
     y = np.round(amp * np.sin(2 * np.pi * f * t) / q) * q
     assert quantum(y) == pytest.approx(q, rel=1e-6)
-    # never below the rounding error; a fast encoder's differences see it as (non-Gaussian)
-    # noise, which the median-based estimate over-reads by up to ~20 %
-    assert q / math.sqrt(12) * (1 - 1e-9) <= noise_sigma(y) <= 1.25 * q / math.sqrt(12)
+    # never below the rounding error (a coarse, fast encoder's differences over-read it: up to
+    # 1.8x at 1024 counts, the differences estimator's own bias on non-Gaussian noise)
+    assert q / math.sqrt(12) * (1 - 1e-9) <= noise_sigma(y) <= 2.0 * q / math.sqrt(12)
+    slow = np.round(0.3 * np.sin(2 * np.pi * 0.05 * t) / q) * q
+    assert noise_sigma(slow) == pytest.approx(q / math.sqrt(12), rel=0.05)
     assert quantum(amp * np.sin(2 * np.pi * f * t)) == 0.0
 
 
