@@ -263,25 +263,30 @@ class _Plant:
             damp = c + p["delta_c"] * max(t0 + elastic, 0.0) / t0
         return max(0.0, t0 + elastic + damp * sd - relax)
 
-    def rhs(self, t: float, x: np.ndarray, xm: float, vm: float, xc: float) -> np.ndarray:
-        nom, p, key = self.nom, self.p, self.key
-        r = nom["radius"]
-        th, om = x[0], x[1]
-        dx = np.zeros_like(x)
-        s1, sd1 = xm - r * th, vm - r * om
+    def _joint_side(
+        self, x: np.ndarray, xm: float, vm: float, xc: float
+    ) -> tuple[float, float, float, float]:
+        """Stretches (s₁, s₂) and joint-side tensions (T_j,1, T_j,2) at one state."""
+        p, key, r = self.p, self.key, self.nom["radius"]
+        s1, sd1 = xm - r * x[0], vm - r * x[1]
         s2, sd2 = -s1, -sd1
         if self.effect == "coupling":
-            if self.form == "linear":
-                s1, s2 = s1 + p["kappa_c"] * xc, s2 - p["kappa_c"] * xc
-            else:  # the return cable is routed over the coupled axis on a smaller radius
-                s1, s2 = s1 + p["kappa_c"] * xc, s2 - 0.4 * p["kappa_c"] * xc
+            # asymmetric form: the return cable is routed over the coupled axis on a smaller radius
+            c2 = 1.0 if self.form == "linear" else 0.4
+            s1, s2 = s1 + p["kappa_c"] * xc, s2 - c2 * p["kappa_c"] * xc
         relax = (0.0, 0.0)
         if key == "creep@cable.both/prony2":
             relax = (x[2] + x[3], x[4] + x[5])
         elif key == "creep@cable.both/whole_tension":
             relax = (x[2], x[3])
-        t1 = self._cable(0, s1, sd1, relax[0])
-        t2 = self._cable(1, s2, sd2, relax[1])
+        return s1, s2, self._cable(0, s1, sd1, relax[0]), self._cable(1, s2, sd2, relax[1])
+
+    def rhs(self, t: float, x: np.ndarray, xm: float, vm: float, xc: float) -> np.ndarray:
+        nom, p, key = self.nom, self.p, self.key
+        r = nom["radius"]
+        th, om = x[0], x[1]
+        dx = np.zeros_like(x)
+        s1, s2, t1, t2 = self._joint_side(x, xm, vm, xc)
         torque = r * (t1 - t2) - nom["viscous"] * om
         # contact with the object
         lever = nom["contact_lever_arm"]
@@ -353,20 +358,8 @@ class _Plant:
     def motor_tensions(self, x: np.ndarray, xm: float, vm: float, xc: float) -> tuple[float, float, float]:
         """(T_m,drive, T_m,return, θ) at one state."""
         nom, p, key = self.nom, self.p, self.key
-        r = nom["radius"]
-        th, om = x[0], x[1]
-        s1, sd1 = xm - r * th, vm - r * om
-        s2, sd2 = -s1, -sd1
-        if self.effect == "coupling":
-            c2 = 1.0 if self.form == "linear" else 0.4
-            s1, s2 = s1 + p["kappa_c"] * xc, s2 - c2 * p["kappa_c"] * xc
-        relax = (0.0, 0.0)
-        if key == "creep@cable.both/prony2":
-            relax = (x[2] + x[3], x[4] + x[5])
-        elif key == "creep@cable.both/whole_tension":
-            relax = (x[2], x[3])
-        t1 = self._cable(0, s1, sd1, relax[0])
-        t2 = self._cable(1, s2, sd2, relax[1])
+        th = x[0]
+        _, _, t1, t2 = self._joint_side(x, xm, vm, xc)
         if self.effect == "capstan_friction":
             # the cable slides over the routing pulleys at ẋ_m; the drive side is hauled in
             if self.form == "saturated_exponential":
