@@ -7,7 +7,7 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -84,6 +84,15 @@ def _write_example(directory: Path) -> tuple[Path, Path, Path]:
     return paths[0], paths[1], model
 
 
+def _write_self_test(out: Path, stem: str, table: str, res: dict[str, Any]) -> int:
+    """Print a self-test's table, write it and its JSON to OUT; exit code 0 when goals are met."""
+    print(table)
+    (out / f"{stem}.txt").write_text(table + "\n")
+    (out / f"{stem}.json").write_text(json.dumps(res, indent=2, default=float))
+    print(f"  wrote {out / (stem + '.txt')} and {out / (stem + '.json')}")
+    return 0 if res["passed"] else 1
+
+
 def _diagnose(args: argparse.Namespace) -> int:
     from cablekit.diagnose import load_model_spec, load_run
 
@@ -94,12 +103,7 @@ def _diagnose(args: argparse.Namespace) -> int:
 
         print("cablekit: diagnosis self-test (effects withheld from the diagnoser) ...", flush=True)
         res = run_self_test(seed=args.seed, duration=args.duration, progress=not args.quiet)
-        table = format_confusion(res)
-        print(table)
-        (out / "self_test.txt").write_text(table + "\n")
-        (out / "self_test.json").write_text(json.dumps(res, indent=2, default=float))
-        print(f"  wrote {out / 'self_test.txt'} and {out / 'self_test.json'}")
-        return 0 if res["passed"] else 1
+        return _write_self_test(out, "self_test", format_confusion(res), res)
     if args.independent:
         from cablekit.diagnose.selftest_independent import CI_SUBSET, format_independent, run_independent
 
@@ -114,12 +118,7 @@ def _diagnose(args: argparse.Namespace) -> int:
             progress=not args.quiet,
             only=CI_SUBSET if args.independent == "ci" else None,
         )
-        table = format_independent(res)
-        print(table)
-        (out / "independent.txt").write_text(table + "\n")
-        (out / "independent.json").write_text(json.dumps(res, indent=2, default=float))
-        print(f"  wrote {out / 'independent.txt'} and {out / 'independent.json'}")
-        return 0 if res["passed"] else 1
+        return _write_self_test(out, "independent", format_independent(res), res)
     if args.davinci:
         from cablekit.diagnose.davinci import CITATION, DEFAULT_SPLIT, describe, prepare_bench
 
