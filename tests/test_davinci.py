@@ -78,3 +78,50 @@ def test_jaw_torque_network_from_drive_side_signals_beats_the_linear_map_on_unse
     mlp = Mlp.load(export(res, tmp_path / "jaw.safetensors", output_units=data.output_units))
     np.testing.assert_allclose(mlp.predict(data.x_test), res.predict(data.x_test), rtol=0, atol=1e-10)
     assert mlp.output_units == ["mN·m"]
+
+
+def test_named_splits_hold_out_a_new_frequency_or_a_new_load():
+    from cablekit.diagnose.davinci import FREQS, LOADS, SPLITS
+
+    def conditions(names: tuple[str, ...]) -> tuple[set[float], set[int]]:
+        return {FREQS[int(n[0])] for n in names}, {LOADS[int(n[1])] for n in names}
+
+    for split, new in (("frequency", 0), ("load", 1)):
+        sp = SPLITS[split]
+        fit, hold = conditions(sp.fit + sp.calibration), conditions(sp.held_out)
+        assert not hold[new] & fit[new]  # the held-out frequency (load) was never fitted
+        assert hold[1 - new] <= conditions(sp.fit)[1 - new]  # the other condition was
+        _, _, runs = prepare_bench(_data_dir(), sp, decimate=20)
+        assert [r.name for r in runs] == list(sp.held_out)
+
+
+def test_bench_folder_errors_name_the_expected_files(tmp_path):
+    from cablekit.diagnose.davinci import BenchSplit, bench_directory
+
+    with pytest.raises(ck.DataError, match=r"no bench files found; expected files named FL\.TXT"):
+        bench_directory(tmp_path)
+    (tmp_path / "notes.txt").write_text("hello")
+    with pytest.raises(ck.DataError, match="no bench files found"):
+        bench_directory(tmp_path)
+    (tmp_path / "00.TXT").write_text("% header\n1,2,3\n")
+    with pytest.raises(ck.DataError, match=r"1 rows x 3 columns; expected files named"):
+        prepare_bench(tmp_path, BenchSplit(("00",), ("01",), ("02",)))
+    (tmp_path / "00.TXT").write_text("a,b,c,d,e,f\n" * 20)
+    with pytest.raises(ck.DataError, match="not a bench file"):
+        load_bench_run(tmp_path / "00.TXT")
+    rows = "\n".join(f"{i * 1e-3},{i},{i},0.1,{i},nan" for i in range(20))
+    (tmp_path / "00.TXT").write_text(rows)
+    with pytest.raises(ck.DataError, match="non-finite value at row 1, column 6"):
+        load_bench_run(tmp_path / "00.TXT")
+    rows = "\n".join(f"{i * 1e-3},{i},{i},0.1,{i},{i}" for i in range(20))
+    (tmp_path / "00.TXT").write_text(rows)
+    with pytest.raises(ck.DataError, match=r"no bench run '42' \(have 00, notes\)"):
+        prepare_bench(tmp_path, BenchSplit(("00",), ("42",), ("01",)))
+    with pytest.raises(ck.DataError, match="both held out and fitted"):
+        BenchSplit(("00",), ("11",), ("11",))
+    with pytest.raises(ck.DataError, match="no fit runs"):
+        BenchSplit(("00",), (), ("11",))
+    for stem in ("01", "02"):
+        (tmp_path / f"{stem}.TXT").write_text(rows)
+    with pytest.raises(ck.DataError, match="0 samples after the 1 s warm-up"):
+        prepare_bench(tmp_path, BenchSplit(("00",), ("01",), ("02",)))

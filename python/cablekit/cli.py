@@ -120,11 +120,16 @@ def _diagnose(args: argparse.Namespace) -> int:
         )
         return _write_self_test(out, "independent", format_independent(res), res)
     if args.davinci:
-        from cablekit.diagnose.davinci import CITATION, DEFAULT_SPLIT, describe, prepare_bench
+        from cablekit.diagnose.davinci import CITATION, SPLITS, BenchSplit, describe, prepare_bench
 
-        spec, fit, hold = prepare_bench(args.davinci)
+        preset = SPLITS[args.bench_split]
+        sp = BenchSplit(
+            calibration=tuple(args.bench_calibration or preset.calibration),
+            fit=tuple(args.bench_fit or preset.fit),
+            held_out=tuple(args.bench_holdout or preset.held_out),
+        )
+        spec, fit, hold = prepare_bench(args.davinci, sp)
         print(f"cablekit: da Vinci Maryland bench ({CITATION})")
-        sp = DEFAULT_SPLIT
         print(f"  calibration runs {sp.calibration}, fit runs {sp.fit}, held out {sp.held_out}")
         print(f"  {describe(spec)}")
         return _run_diagnosis(spec, fit, hold, out, args, "da Vinci bench")
@@ -168,6 +173,8 @@ def _run_diagnosis(
     for w in res["meta"].get("warnings", []):
         print(f"  warning: {w}")
     print(f"  verdict: {res['verdict']}")
+    for f in res["flags"]:
+        print(f"  FLAG: {f}")
     for e in res["effects"][:5]:
         h = e["held_out"]
         cf = h["closed_fraction"]
@@ -220,9 +227,29 @@ def build_parser() -> argparse.ArgumentParser:
         choices=["all", "ci"],
         help="score the diagnoser on runs from the independent simulator (every case, or the CI subset)",
     )
-    d.add_argument(
+    b = d.add_argument_group(
+        "bench data (--davinci)",
+        "A folder in the da Vinci Maryland bench's format (any instrument): files FL.TXT[.gz], F = "
+        "frequency index 0-4 (0.1-0.5 Hz), L = load index 0-3 (10-40 % resistive torque); run names are "
+        "the file stems. The nominal model is calibrated on the calibration runs, fitted on the fit runs "
+        "and scored on the held-out runs.",
+    )
+    b.add_argument(
         "--davinci", metavar="DIR", help="diagnose the da Vinci Maryland bench data in DIR (real data)"
     )
+    b.add_argument(
+        "--bench-split",
+        choices=["default", "frequency", "load"],
+        default="default",
+        help="preset split: default (calibrate 00; fit 11 22; hold out 43 40: new frequency at new loads), "
+        "frequency (hold out 41 42: 0.5 Hz at the fit loads), load (hold out 13 23: 40 %% at the fit "
+        "frequencies)",
+    )
+    b.add_argument(
+        "--bench-calibration", nargs="+", metavar="RUN", help="calibration runs (override the split)"
+    )
+    b.add_argument("--bench-fit", nargs="+", metavar="RUN", help="fit runs (override the split)")
+    b.add_argument("--bench-holdout", nargs="+", metavar="RUN", help="held-out runs (override the split)")
     d.add_argument(
         "--duration", type=float, default=8.0, help="self-test run length, s (independent: 20 s unless given)"
     )

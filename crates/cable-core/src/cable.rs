@@ -91,6 +91,22 @@ impl CableLaw {
         }
     }
 
+    /// The same law with its stiffness multiplied by `factor` (> 0).
+    pub fn scaled(&self, factor: f64) -> Self {
+        match *self {
+            CableLaw::Linear { stiffness } => CableLaw::Linear {
+                stiffness: stiffness * factor,
+            },
+            CableLaw::Exponential {
+                stiffness,
+                length_scale,
+            } => CableLaw::Exponential {
+                stiffness: stiffness * factor,
+                length_scale,
+            },
+        }
+    }
+
     /// Elastic force `F(s)` (N) at stretch `s` (m).
     #[inline]
     pub fn elastic(&self, s: f64) -> f64 {

@@ -35,7 +35,16 @@ from cablekit.diagnose.data import Run
 from cablekit.diagnose.spec import ModelSpec, model_spec_from_dict
 from cablekit.errors import DataError
 
-__all__ = ["CITATION", "DEFAULT_SPLIT", "BenchSplit", "calibrate", "load_bench_run"]
+__all__ = [
+    "BENCH_PATTERN",
+    "CITATION",
+    "DEFAULT_SPLIT",
+    "SPLITS",
+    "BenchSplit",
+    "bench_directory",
+    "calibrate",
+    "load_bench_run",
+]
 
 CITATION = (
     "J. O'Neill, T. Stephens, T. Kowalewski, 'Evaluation of Torque Measurement Surrogates as Applied to "
@@ -49,6 +58,13 @@ MAXON_COUNTS = 4000.0
 FUTEK_NM = 3.9811e-5
 FREQS = (0.1, 0.2, 0.3, 0.4, 0.5)
 LOADS = (10, 20, 30, 40)
+#: what a bench folder holds (the MRDLab recording format, one file per condition)
+BENCH_PATTERN = (
+    "files named FL.TXT or FL.TXT.gz (F = frequency index 0-4 for 0.1-0.5 Hz, L = load index 0-3 for "
+    "10-40 % resistive torque; any other stem works when named explicitly), each with >= 6 "
+    "comma-separated columns: time s, spindle encoder counts, spindle torque counts, motor current A, "
+    "jaw encoder counts, jaw torque counts"
+)
 
 
 def load_bench_run(path: str | Path, jaw_reference: float | None = None) -> Run:
@@ -62,10 +78,16 @@ def load_bench_run(path: str | Path, jaw_reference: float | None = None) -> Run:
     if not path.exists():
         raise DataError(f"{path}: no such bench file")
     opener = gzip.open if path.suffix == ".gz" else open
-    with opener(path, "rt") as fh:  # type: ignore[operator]
-        d = np.loadtxt(fh, comments="%", delimiter=",")
-    if d.ndim != 2 or d.shape[1] < 6:
-        raise DataError(f"{path}: expected >= 6 comma-separated columns, got shape {d.shape}")
+    try:
+        with opener(path, "rt") as fh:  # type: ignore[operator]
+            d = np.loadtxt(fh, comments="%", delimiter=",", ndmin=2)
+    except (ValueError, OSError, EOFError, UnicodeDecodeError) as exc:
+        raise DataError(f"{path}: not a bench file ({exc}); expected {BENCH_PATTERN}") from exc
+    if d.shape[0] < 10 or d.shape[1] < 6:
+        raise DataError(f"{path}: got {d.shape[0]} rows x {d.shape[1]} columns; expected {BENCH_PATTERN}")
+    if not np.all(np.isfinite(d[:, :6])):
+        bad = np.argwhere(~np.isfinite(d[:, :6]))[0]
+        raise DataError(f"{path}: non-finite value at row {bad[0] + 1}, column {bad[1] + 1}")
     t = d[:, 0] - d[0, 0]
     keep = np.concatenate([[True], np.diff(t) > 0])
     d, t = d[keep], t[keep]
@@ -86,7 +108,7 @@ def load_bench_run(path: str | Path, jaw_reference: float | None = None) -> Run:
     }
     name = path.name.split(".")[0]
     notes = [] if keep.all() else [f"removed {int((~keep).sum())} rows with non-increasing time"]
-    if len(name) == 2 and name.isdigit():
+    if len(name) == 2 and name.isdigit() and int(name[0]) < len(FREQS) and int(name[1]) < len(LOADS):
         notes.append(f"{FREQS[int(name[0])]} Hz, {LOADS[int(name[1])]} % resistive torque")
     return Run(name, t, {k: np.ascontiguousarray(v) for k, v in cols.items()}, notes)
 
@@ -101,8 +123,18 @@ def calibrate(runs: list[Run], warmup: float = 1.0) -> dict[str, Any]:
     f = np.concatenate([r.column("net_motor_force")[int(warmup / r.dt) :] for r in runs])
     load = np.concatenate([r.column("tau_load")[int(warmup / r.dt) :] for r in runs])
     w = np.concatenate([np.gradient(r.column("theta"), r.dt)[int(warmup / r.dt) :] for r in runs])
+    if th.size < 100:
+        raise DataError(
+            f"calibration runs {[r.name for r in runs]}: {th.size} samples after the {warmup:g} s warm-up "
+            "(need at least 100)"
+        )
     # θ = x_m / r + c: ratio
     a = np.linalg.lstsq(np.column_stack([xm, np.ones_like(xm)]), th, rcond=None)[0]
+    if not (np.ptp(xm) > 0.0 and np.isfinite(a[0]) and a[0] > 0.0):
+        raise DataError(
+            f"calibration runs {[r.name for r in runs]}: the jaw does not follow the spindle "
+            f"(fitted jaw/spindle slope {a[0]:.3g}); check the encoder columns and signs"
+        )
     radius = 1.0 / a[0]
     # quasi-static joint balance: r·F = b·θ̇ − τ_load + c  → b
     m = np.column_stack([w / radius, -load / radius, np.ones_like(w)])
@@ -124,18 +156,77 @@ def calibrate(runs: list[Run], warmup: float = 1.0) -> dict[str, Any]:
     return params
 
 
-@dataclass
+@dataclass(frozen=True)
 class BenchSplit:
-    """Which bench files calibrate the nominal, which the diagnosis fits, which it holds out."""
+    """Which bench files calibrate the nominal, which the diagnosis fits, which it holds out
+    (file stems, e.g. ``"43"`` for 0.5 Hz at 40 % load)."""
 
     calibration: tuple[str, ...]
     fit: tuple[str, ...]
     held_out: tuple[str, ...]
 
+    def __post_init__(self) -> None:
+        for what, names in (
+            ("calibration", self.calibration),
+            ("fit", self.fit),
+            ("held-out", self.held_out),
+        ):
+            if not names:
+                raise DataError(f"bench split: no {what} runs given")
+        both = set(self.held_out) & (set(self.fit) | set(self.calibration))
+        if both:
+            raise DataError(f"bench split: run(s) {sorted(both)} are both held out and fitted/calibrated")
+
 
 #: calibrate at the slowest, lightest condition; fit at middle frequencies and loads; hold out the
 #: fastest frequency at the heaviest and the lightest load (new frequency and new load)
 DEFAULT_SPLIT = BenchSplit(calibration=("00",), fit=("11", "22"), held_out=("43", "40"))
+#: named splits (``--bench-split``): ``frequency`` holds out 0.5 Hz at the fit runs' loads (20 and
+#: 30 %), ``load`` holds out 40 % at the fit runs' frequencies (0.2 and 0.3 Hz)
+SPLITS = {
+    "default": DEFAULT_SPLIT,
+    "frequency": BenchSplit(calibration=("00",), fit=("11", "22"), held_out=("41", "42")),
+    "load": BenchSplit(calibration=("00",), fit=("11", "22"), held_out=("13", "23")),
+}
+
+
+def _stems(folder: Path) -> dict[str, Path]:
+    out = {}
+    for f in sorted(folder.iterdir()) if folder.is_dir() else []:
+        for suffix in (".TXT.gz", ".TXT", ".txt.gz", ".txt"):
+            if f.name.endswith(suffix) and f.is_file():
+                out.setdefault(f.name[: -len(suffix)], f)
+                break
+    return out
+
+
+def bench_directory(directory: str | Path) -> Path:
+    """The folder that holds the bench files: ``directory`` itself, or its ``tool4_load_sweep``
+    (the shared layout), or its only sub-folder with bench files. A clear error names the
+    expected file pattern otherwise."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise DataError(f"{directory}: not a folder (expected a bench folder with {BENCH_PATTERN})")
+    candidates = [directory / "tool4_load_sweep", directory]
+    candidates += [d for d in sorted(directory.iterdir()) if d.is_dir() and d.name != "tool4_load_sweep"]
+    with_files = [d for d in candidates if any(len(k) == 2 and k.isdigit() for k in _stems(d))]
+    if not with_files:
+        raise DataError(f"{directory}: no bench files found; expected {BENCH_PATTERN}")
+    if with_files[0] in candidates[:2] or len(with_files) == 1:
+        return with_files[0]
+    raise DataError(
+        f"{directory}: several sub-folders hold bench files ({', '.join(d.name for d in with_files)}); "
+        "pass one of them"
+    )
+
+
+def bench_file(folder: Path, stem: str) -> Path:
+    """The file of run ``stem`` in a bench folder (``.TXT.gz`` or ``.TXT``)."""
+    stems = _stems(folder)
+    if stem not in stems:
+        have = ", ".join(sorted(stems)) or "none"
+        raise DataError(f"{folder}: no bench run {stem!r} (have {have}); expected {BENCH_PATTERN}")
+    return stems[stem]
 
 
 def bench_spec(params: dict[str, Any], warmup: float = 1.0) -> ModelSpec:
@@ -155,14 +246,12 @@ def prepare_bench(
     directory: str | Path, split: BenchSplit = DEFAULT_SPLIT, decimate: int = 1
 ) -> tuple[ModelSpec, list[Run], list[Run]]:
     """Load the split, calibrate the nominal on its calibration runs, return (spec, fit, held-out)."""
-    directory = Path(directory)
-    sub = directory / "tool4_load_sweep" if (directory / "tool4_load_sweep").is_dir() else directory
-
-    first = load_bench_run(sub / f"{split.calibration[0]}.TXT.gz")
+    sub = bench_directory(directory)
+    first = load_bench_run(bench_file(sub, split.calibration[0]))
     jaw_ref = float(first.column("jaw_angle")[0])
 
     def load(name: str) -> Run:
-        run = load_bench_run(sub / f"{name}.TXT.gz", jaw_reference=jaw_ref)
+        run = load_bench_run(bench_file(sub, name), jaw_reference=jaw_ref)
         if decimate > 1:
             run = Run(
                 run.name,
@@ -173,9 +262,10 @@ def prepare_bench(
         return run
 
     cal = [load(n) for n in split.calibration]
-    params = calibrate(cal)
-    spec = bench_spec(params)
-    return spec, [load(n) for n in split.fit], [load(n) for n in split.held_out]
+    fit = [load(n) for n in split.fit]
+    hold = [load(n) for n in split.held_out]
+    spec = bench_spec(calibrate(cal))
+    return spec, fit, hold
 
 
 def describe(spec: ModelSpec) -> str:

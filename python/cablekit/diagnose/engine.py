@@ -58,6 +58,8 @@ class Options:
     max_effects: int = 3
     #: candidates fitted in full after the screen (by fit cost of a short fit); 0 = all
     shortlist: int = 14
+    #: and the best of each channel's own fit cost, however they rank pooled
+    shortlist_per_channel: int = 2
     #: iterations of the screening fits
     screen_fit_iter: int = 4
     #: iterations of the screening fits of later selection rounds, and how many are refined
@@ -605,6 +607,58 @@ def _per_channel(prep: Prepared, resid: list[_F]) -> dict[str, Any]:
     return out
 
 
+def _channel_cost(c: CandidateFit, ch: int) -> float:
+    return float(sum(float(np.sum(r[:, ch] ** 2)) for r in c.fit_resid))
+
+
+def _shortlist(cands: list[CandidateFit], n: int, per_channel: int) -> list[CandidateFit]:
+    """The ``n`` candidates of lowest pooled fit cost, then the ``per_channel`` best of each
+    channel's own cost not yet in: the pooled cost is dominated by the channel with the largest
+    gap in noise units, and an effect that shows on another channel only (a compliance seen by
+    the joint encoder, not by the force sensor) must still reach the full fit."""
+    ranked = sorted(cands, key=lambda c: c.cost)
+    keep = ranked[:n]
+    q = min((c.fit_resid[0].shape[1] if c.fit_resid else 0) for c in cands) if cands else 0
+    for ch in range(q if per_channel > 0 else 0):
+        for c in sorted(ranked[n:], key=lambda c: _channel_cost(c, ch))[:per_channel]:
+            if not any(c is k for k in keep):
+                keep.append(c)
+    return keep
+
+
+def channel_changes(
+    prep: Prepared, before: list[_F], after: list[_F], dt: float, opts: Options, rng: np.random.Generator
+) -> list[dict[str, Any]]:
+    """Held-out gap of each channel before and after, with the segment bootstrap of
+    :func:`compare`. A channel is ``worsened`` when its gap ends above the noise level and grew by
+    at least 10 %, or by at least 5 % when the growth is significant (in 97.5 % of the bootstrap
+    resamples): the pooled gap is dominated by the channel with the largest gap in noise units,
+    so a selected effect can make a small channel worse while the headline improves, and a slow
+    residual (a hysteresis loop at 0.2 Hz) leaves few independent segments to prove it."""
+    out = []
+    for c, name in enumerate(prep.channel_names):
+        cmp_ = compare([r[:, [c]] for r in before], [r[:, [c]] for r in after], dt, opts, rng)
+        g_b, g_a = cmp_["gap_before"], cmp_["gap_after"]
+        p_better = 1.0 - cmp_["p_no_improvement"]  # share of resamples in which it improved
+        significantly_worse = bool(p_better < 0.025)
+        worsened = bool(g_a > NOISE_LEVEL and g_a > (1.05 if significantly_worse else 1.10) * g_b)
+        out.append(
+            {
+                "channel": name,
+                "gap_before": g_b,
+                "gap_after": g_a,
+                "change": g_a / g_b - 1.0 if g_b > 0 else 0.0,
+                "closed_fraction": cmp_["closed_fraction"],
+                "interval": cmp_["interval"],
+                "worsened": worsened,
+                "significantly_worse": significantly_worse,
+                # a significant improvement of a channel whose gap is above the noise
+                "better": bool(cmp_["significant"] and g_b > NOISE_LEVEL),
+            }
+        )
+    return out
+
+
 def diagnose(
     spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run], opts: Options | None = None
 ) -> dict[str, Any]:
@@ -624,19 +678,25 @@ def diagnose(
     # every applicable candidate alone: a short fit of each screens, the shortlist is fitted in
     # full from where its screen ended
     screened_out: dict[str, str] = {}
+    #: screened-out candidates still offered to later selection rounds: among the best few on
+    #: one channel's own cost, they may matter once the dominant channel's effect is in
+    second_chance: set[str] = set()
     if opts.shortlist and len(prep.candidates) > opts.shortlist:
         quick = _pmap(prep, [([e], None) for e in prep.candidates], opts, "screen", opts.screen_fit_iter)
-        ok = sorted((c for c in quick if not c.error), key=lambda c: c.cost)
-        keep = ok[: opts.shortlist]
+        ok = [c for c in quick if not c.error]
+        keep = _shortlist(ok, opts.shortlist, opts.shortlist_per_channel)
+        second_chance = {c.effects[0] for c in _shortlist(ok, 0, 2 * opts.shortlist_per_channel)}
         best_cost = keep[0].cost if keep else math.nan
+        cut = keep[min(opts.shortlist, len(keep)) - 1].cost if keep else math.nan
         for c in quick:
             if c.error:
                 screened_out[c.effects[0]] = f"screen fit failed: {c.error}"
             elif c not in keep:
                 screened_out[c.effects[0]] = (
                     f"screened out: after a {opts.screen_fit_iter}-iteration fit its fit-run cost was "
-                    f"{c.cost:.4g} (shortlist of {opts.shortlist} ends at {keep[-1].cost:.4g}, "
-                    f"best {best_cost:.4g})"
+                    f"{c.cost:.4g} (shortlist of {opts.shortlist} ends at {cut:.4g}, "
+                    f"best {best_cost:.4g}) and it was not among the best {opts.shortlist_per_channel} "
+                    "on any channel"
                 )
         singles = _pmap(prep, [(c.effects, c.params) for c in keep], opts, "candidates")
         singles += [c for c in quick if c.effects[0] in screened_out]
@@ -653,9 +713,15 @@ def diagnose(
                 "interval": [math.nan, math.nan],
                 "p_no_improvement": 1.0,
                 "significant": False,
+                "worsened_channels": [],
             }
         else:
             scores[name] = compare(base.hold_resid, c.hold_resid, dt, opts, rng)
+            scores[name]["worsened_channels"] = [
+                ch["channel"]
+                for ch in channel_changes(prep, base.hold_resid, c.hold_resid, dt, opts, rng)
+                if ch["worsened"]
+            ]
             if name in screened_out:  # never ranked as if it were a full fit
                 scores[name]["significant"] = False
     n_eff = sum(r.shape[0] for r in base.fit_resid) / _integrated_time(
@@ -682,37 +748,60 @@ def diagnose(
         pool = [k for k in ranked if scores[k]["significant"]]
         for round_ in range(opts.max_effects):
             if round_ == 0:
-                trials = [fits[k] for k in pool[:1]]
+                trials = [fits[k] for k in pool[: opts.refine + 2]]
             else:
                 # screen every remaining candidate with a few iterations from a warm start, then
                 # refine the most promising ones (by fit cost: held-out data stays for scoring)
                 others = [
-                    k for k in ranked if k not in chosen and not fits[k].error and k not in screened_out
+                    k
+                    for k in ranked
+                    if k not in chosen and not fits[k].error and (k not in screened_out or k in second_chance)
                 ]
                 jobs = [([*chosen, k], _warm_start(prep, current_fit, [*chosen, k], fits[k])) for k in others]
                 screened = _pmap(prep, jobs, opts, f"round {round_ + 1}", opts.screen_iter) if jobs else []
-                screened = sorted((c for c in screened if not c.error), key=lambda c: c.cost)[: opts.refine]
+                screened = _shortlist([c for c in screened if not c.error], opts.refine, 1)
                 jobs = [(c.effects, c.params) for c in screened]
                 trials = _pmap(prep, jobs, opts, "  refine", opts.max_iter) if jobs else []
-            best, best_cmp = None, None
+            # a trial that makes a measured channel significantly worse on held-out data is
+            # contradicted by that channel: it is taken only when every trial does so
+            best, best_cmp, best_key = None, None, None
+            g_cur = gap(current.hold_resid)
             for t in trials:
                 if t.error:
                     continue
                 cmp_ = compare(current.hold_resid, t.hold_resid, dt, opts, rng)
-                if best_cmp is None or cmp_["closed_fraction"] > best_cmp["closed_fraction"]:
-                    best, best_cmp = t, cmp_
-            if best is None or best_cmp is None or not best_cmp["significant"]:
+                ch = channel_changes(prep, current.hold_resid, t.hold_resid, dt, opts, rng)
+                worse = any(c["worsened"] for c in ch)
+                if worse and round_ > 0:
+                    continue  # a later step never trades one channel for another
+                # practical significance: a real share of the original gap, most of a remainder
+                # that is still above the noise (a small second effect behind a large first
+                # one), or a quarter of one channel's remaining gap (an effect the pooled gap,
+                # dominated by another channel, cannot see)
+                g_new = gap(t.hold_resid)
+                practical = (
+                    g_cur - g_new >= MIN_CLOSED * (g_hold - 1.0)
+                    or (g_cur > NOISE_LEVEL and g_cur - g_new >= 0.5 * (g_cur - 1.0))
+                    or any(c["better"] and c["closed_fraction"] >= 0.25 for c in ch)
+                )
+                ok = cmp_["p_no_improvement"] < 0.025 and practical and not worse
+                key = (ok, cmp_["closed_fraction"])
+                if best_key is None or key > best_key:
+                    best, best_cmp, best_key = t, cmp_, key
+            if best is None or best_cmp is None or best_key is None:
                 break
-            # practical significance: a real share of the original gap, or most of a remainder
-            # that is still above the noise (a small second effect behind a large first one)
-            g_cur, g_new = gap(current.hold_resid), gap(best.hold_resid)
-            big_vs_original = g_cur - g_new >= MIN_CLOSED * (g_hold - 1.0)
-            big_vs_remainder = g_cur > NOISE_LEVEL and g_cur - g_new >= 0.5 * (g_cur - 1.0)
-            if not (big_vs_original or big_vs_remainder):
-                break
+            if not best_key[0] and not (round_ == 0 and best_cmp["significant"]):
+                break  # round 1 may take a significant effect that worsens a channel (flagged)
             added = [e for e in best.effects if e not in chosen]
             chosen = sorted(set(chosen) | set(added), key=best.effects.index)
-            steps.append({"added": added, "held_out": best_cmp})
+            ch = channel_changes(prep, current.hold_resid, best.hold_resid, dt, opts, rng)
+            steps.append(
+                {
+                    "added": added,
+                    "held_out": best_cmp,
+                    "worsened_channels": [c["channel"] for c in ch if c["worsened"]],
+                }
+            )
             current = best
             current_fit = best
             if gap(current.hold_resid) < NOISE_LEVEL:
@@ -723,9 +812,16 @@ def diagnose(
         "gap_after": gap(current.fit_resid),
         "closed_fraction": closed_fraction(g_fit, gap(current.fit_resid)),
     }
+    channels = channel_changes(prep, base.hold_resid, current.hold_resid, dt, opts, rng)
+    worse = [c for c in channels if c["worsened"]] if chosen else []
+    flags = [
+        f"the selected effects make channel {c['channel']} worse on held-out data "
+        f"(gap {c['gap_before']:.3g} -> {c['gap_after']:.3g}, {c['change']:+.0%})"
+        for c in worse
+    ]
     if not gap_significant:
         verdict = "no_significant_gap"
-    elif chosen and (gap(current.hold_resid) < NOISE_LEVEL or total["closed_fraction"] >= 0.8):
+    elif chosen and not worse and (gap(current.hold_resid) < NOISE_LEVEL or total["closed_fraction"] >= 0.8):
         verdict = "explained"
     else:
         verdict = "partially_explained"
@@ -787,6 +883,7 @@ def diagnose(
     result = {
         "schema": SCHEMA,
         "verdict": verdict,
+        "flags": flags,
         "effects": effects_out,
         "selected": {
             "effects": chosen,
@@ -794,6 +891,7 @@ def diagnose(
             "parameters": _params_out(current) if chosen else [],
             "held_out": total,
             "fit": total_fit,
+            "channels_held_out": channels,
             "per_channel": {
                 "held_out_before": _per_channel(prep, base.hold_resid),
                 "held_out_after": _per_channel(prep, current.hold_resid),

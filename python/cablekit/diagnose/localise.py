@@ -14,7 +14,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Condition", "conditions_table", "cross_correlation", "loop_area", "noise_sigma", "whiteness"]
+__all__ = [
+    "Condition",
+    "conditions_table",
+    "cross_correlation",
+    "loop_area",
+    "noise_sigma",
+    "smooth_velocity",
+    "turning_points",
+    "whiteness",
+]
 
 _F = NDArray[np.float64]
 
@@ -93,20 +102,81 @@ def _terciles(v: _F, names: tuple[str, str, str]) -> list[tuple[str, NDArray[np.
     return [(names[0], v <= lo), (names[1], (v > lo) & (v <= hi)), (names[2], v > hi)]
 
 
+def smooth_velocity(x: _F, dt: float) -> _F:
+    """Velocity of a sampled, possibly quantised or noisy position: a central difference over
+    ``±w`` samples, ``w`` the smallest power of two over which the signal typically moves ten
+    times its resolution (its lattice step or noise), at most 1/20 of the record. A plain
+    ``np.gradient`` of a slow 4000-count encoder is zero between counts and one count per sample
+    at each step, which makes speed terciles meaningless."""
+    n = len(x)
+    if n < 3:
+        return np.zeros(n)
+    res = max(quantum(x), noise_sigma(x))
+    w = 1
+    while 2 * w < n // 20 and float(np.median(np.abs(x[2 * w :] - x[: -2 * w]))) < 10.0 * res:
+        w *= 2
+    xp = np.concatenate([np.full(w, x[0]), x, np.full(w, x[-1])])
+    v = (xp[2 * w :] - xp[: -2 * w]) / (2 * w * dt)
+    # the padded edges see half the displacement over the full window: one-sided there
+    v[:w] = (x[w : 2 * w] - x[:w]) / (w * dt) if n >= 2 * w else v[:w]
+    v[n - w :] = (x[n - w :] - x[n - 2 * w : n - w]) / (w * dt) if n >= 2 * w else v[n - w :]
+    return v
+
+
+def turning_points(x: _F, band: float) -> NDArray[np.intp]:
+    """Indices where ``x`` reverses: the running extremum once the signal has retreated from it
+    by more than ``band`` (a hysteresis band, so encoder counts flickering at a standstill or
+    noise on a plateau are not reversals, and a velocity passing through exact zero between two
+    counts is not needed)."""
+    out: list[int] = []
+    if len(x) < 2 or not band > 0.0:
+        return np.zeros(0, dtype=np.intp)
+    direction = 0  # +1 rising, −1 falling, 0 unknown
+    i_ext = j_ext = 0  # first and last sample at the running extremum (a quantised plateau)
+    lo_i, hi_i = 0, 0
+    for i in range(1, len(x)):
+        xi = x[i]
+        if direction == 0:
+            if xi > x[hi_i]:
+                hi_i = i
+            if xi < x[lo_i]:
+                lo_i = i
+            if x[hi_i] - x[lo_i] > band:
+                direction = 1 if hi_i > lo_i else -1
+                i_ext = j_ext = hi_i if direction > 0 else lo_i
+            continue
+        d = direction * (xi - x[i_ext])
+        if d > 0.0:
+            i_ext = j_ext = i
+        elif d == 0.0:
+            j_ext = i
+        elif -d > band:
+            out.append((i_ext + j_ext) // 2)
+            direction, i_ext, j_ext = -direction, i, i
+    return np.asarray(out, dtype=np.intp)
+
+
+def reversal_band(x: _F) -> float:
+    """Hysteresis band of :func:`turning_points` for a measured position: four resolution steps
+    (lattice step or noise), at least 1 % of its range."""
+    return max(4.0 * max(quantum(x), noise_sigma(x)), 0.01 * float(np.ptp(x)) if len(x) else 0.0)
+
+
 def condition_masks(
     t: _F, x: _F, dt: float, load: _F, contact: _F | None = None
 ) -> list[tuple[str, str, NDArray[np.bool_]]]:
     """Masks of the operating conditions of one run: reversals, speed, acceleration, load,
-    position, time (drift) and, when given, contact."""
-    v = np.gradient(x, dt)
-    a = np.gradient(v, dt)
+    position, time (drift) and, when given, contact. Velocity and acceleration come from
+    :func:`smooth_velocity` and reversals from :func:`turning_points`, so a quantised encoder
+    is localised as well as a clean signal."""
+    v = smooth_velocity(x, dt)
+    a = smooth_velocity(v, dt)
     out: list[tuple[str, str, NDArray[np.bool_]]] = []
-    # reversals: within 5 % of the median half-cycle (at least 5 samples) of a velocity sign change
-    sign = np.sign(v)
-    flips = np.flatnonzero(sign[1:] * sign[:-1] < 0)
+    # reversals: within 5 % of the median half-cycle (at least 5 samples) of a turning point
+    flips = turning_points(x, reversal_band(x))
     near = np.zeros(len(t), dtype=bool)
     if flips.size >= 2:
-        half = float(np.median(np.diff(flips))) if flips.size > 2 else float(len(t))
+        half = float(np.median(np.diff(flips)))
         w = max(5, int(0.05 * half))
         for f in flips:
             near[max(0, f - w) : f + w + 1] = True

@@ -61,7 +61,11 @@ def validate(doc: dict[str, Any]) -> None:
             if k not in d:
                 raise ValueError(f"diagnosis JSON: {where} lacks {k!r}")
 
-    need(doc, ["schema", "verdict", "effects", "selected", "where", "gap", "skipped", "meta"], "document")
+    need(
+        doc,
+        ["schema", "verdict", "flags", "effects", "selected", "where", "gap", "skipped", "meta"],
+        "document",
+    )
     if doc["schema"] != SCHEMA:
         raise ValueError(f"diagnosis JSON: unknown schema {doc['schema']!r}")
     if doc["verdict"] not in VERDICTS:
@@ -99,9 +103,15 @@ def validate(doc: dict[str, Any]) -> None:
             raise ValueError(f"diagnosis JSON: selected effect {s!r} is not among the ranked effects")
     need(
         doc["selected"],
-        ["held_out", "fit", "per_channel", "per_condition_held_out", "unexplained_gap"],
+        ["held_out", "fit", "channels_held_out", "per_channel", "per_condition_held_out", "unexplained_gap"],
         "selected",
     )
+    for i, c in enumerate(doc["selected"]["channels_held_out"]):
+        need(
+            c,
+            ["channel", "gap_before", "gap_after", "change", "worsened"],
+            f"selected.channels_held_out[{i}]",
+        )
     need(doc["where"], ["conditions_fit", "conditions_held_out", "residual_tests"], "where")
 
 
@@ -236,6 +246,7 @@ body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;color:#22
 table{border-collapse:collapse;margin:0.5em 0 1.5em;font-size:0.9em}
 td,th{border:1px solid #ccc;padding:3px 8px;text-align:left}
 th{background:#f0f0f0}.verdict{font-size:1.3em;padding:0.5em;background:#eef}
+.flag{padding:0.5em;background:#fdd;border-left:4px solid #c00}
 img{max-width:100%}code{background:#f5f5f5}
 """
 
@@ -264,6 +275,21 @@ def write_html(result: dict[str, Any], path: str | Path) -> Path:
         )
         + "</p>"
     )
+    for f in doc["flags"]:
+        parts.append(f"<p class='flag'>⚠ {html.escape(f)}</p>")
+    if sel["effects"]:
+        rows = [
+            [
+                c["channel"],
+                _fmt(c["gap_before"]),
+                _fmt(c["gap_after"]),
+                f"{100 * c['change']:+.0f} %",
+                "WORSE" if c["worsened"] else "",
+            ]
+            for c in sel["channels_held_out"]
+        ]
+        parts.append("<p>Held-out gap per channel (noise units) with the selected effects:</p>")
+        parts.append(_table(rows, ["channel", "nominal", "selected", "change", "flag"]))
     parts.append(
         "<h2>Where the gap lies</h2><p>Residual energy by operating condition (held-out runs), "
         "most concentrated first:</p>"

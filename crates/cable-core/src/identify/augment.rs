@@ -91,6 +91,24 @@ pub fn augment_joint(nom: &AntagonisticJoint, effects: &[(Candidate, &[f64])]) -
         }
     };
     for &(c, p) in effects {
+        if c.site == Site::Motor {
+            match c.effect {
+                Effect::CoulombFriction => {
+                    m.motor.coulomb = p[0].max(0.0);
+                    m.motor.smoothing = p[1];
+                }
+                Effect::ViscousFriction => m.motor.viscous = p[0].max(0.0),
+                Effect::DahlHysteresis if p[0] > 0.0 => {
+                    m.motor.dahl = Some(Hysteresis {
+                        level: p[0],
+                        breakaway: p[1],
+                        exponent: 1.0,
+                    })
+                }
+                _ => {}
+            }
+            continue;
+        }
         match c.effect {
             Effect::CoulombFriction => {
                 m.friction.coulomb += p[0];
@@ -139,6 +157,8 @@ pub fn augment_joint(nom: &AntagonisticJoint, effects: &[(Candidate, &[f64])]) -
                 for k in sides(c.site) {
                     if c.form == Form::Cubic {
                         m.cables[k].cubic = p[0];
+                    } else if c.form == Form::Scale {
+                        m.cables[k].run.law = m.cables[k].run.law.scaled(1.0 + p[0]);
                     } else {
                         m.cables[k].run.law = exponential(&m.cables[k].run, p[0]);
                     }

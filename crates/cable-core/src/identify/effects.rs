@@ -526,6 +526,18 @@ impl Candidate {
             }
         };
         let p = spec;
+        // a friction level at the motor side (N at the motor)
+        let motor_level = || {
+            p(
+                "F_m",
+                "N",
+                0.0,
+                0.1 * s.force,
+                0.0,
+                100.0 * s.force,
+                s.force,
+            )
+        };
         match (self.effect, self.site, self.form) {
             (Effect::CoulombFriction, _, Form::LoadDependent) => {
                 let mut v = base;
@@ -559,6 +571,30 @@ impl Candidate {
                     30.0 / (st * st),
                     0.3 / (st * st),
                 )]
+            }
+            // motor side: forces in N at the motor, driven by the motor displacement
+            (Effect::CoulombFriction, Site::Motor, _) => {
+                let v = s.motor_speed.max(1e-9);
+                vec![
+                    motor_level(),
+                    p("eps_m", "m/s", 0.0, 0.01 * v, 1e-4 * v, v, 0.01 * v),
+                ]
+            }
+            (Effect::ViscousFriction, Site::Motor, _) => {
+                let b = s.force / s.motor_speed.max(1e-9);
+                vec![p("b_m", "N·s/m", 0.0, 0.0, 0.0, 100.0 * b, b)]
+            }
+            (Effect::DahlHysteresis, Site::Motor, _) => {
+                let st = s.stretch.max(1e-9);
+                let lo = (s.motor_speed * s.dt * 0.1).max(1e-9);
+                vec![
+                    motor_level(),
+                    p("x_d", "m", st, st, lo, 0.5 * s.travel.max(10.0 * st), st)
+                        .starts(&[0.1 * st, 10.0 * st]),
+                ]
+            }
+            (Effect::NonlinearStiffness, _, Form::Scale) => {
+                vec![p("eps_k", "1", 0.0, 0.0, -0.95, 20.0, 0.2).starts(&[-0.6, -0.3, 0.5, 2.0])]
             }
             (Effect::SensorGainBias, Site::Sensor(_), _) => base.into_iter().take(2).collect(),
             (

@@ -10,6 +10,7 @@
 //! ẇ_k = (κ_k·(T₀,k + F_k(s_k)) − w_k)/τ_k         creep of the whole tension ("whole")
 //! J·θ̈ = r·(T_j,1 − T_j,2) − F_f(θ̇) − (μ_L·|r·(T_j,1 − T_j,2)|)·σ_ε(θ̇) − z − l_e·F_c + τ_ext
 //! T_m,k = T_j,k·exp(±(μφ_k·σ(ẋ) + μφʰ_k·ζ_k))    motor-side tensions, + for the drive cable
+//! F_m = T_m,1 − T_m,2 + F_cm·σ(ẋ) + b_m·ẋ + F_dm·ζ_m  force at the motor (drum/spindle friction)
 //! ```
 //!
 //! **Hysteresis without stiffness.** A Dahl element is rate independent: over a monotone
@@ -102,6 +103,27 @@ pub struct CreepLaw {
     pub whole: bool,
 }
 
+/// Friction on the motor side of the cables (the actuator's drum or input spindle, its bearings
+/// and seals): the motor overcomes it, the cables never carry it, so it shows only in the force
+/// measured at the motor (`net_motor_force`), driven by the motor's own motion.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MotorFriction {
+    /// Coulomb level `F_cm` (N).
+    pub coulomb: f64,
+    /// Sign smoothing velocity (m/s).
+    pub smoothing: f64,
+    /// Viscous coefficient `b_m` (N·s/m).
+    pub viscous: f64,
+    /// Dahl hysteresis in the motor displacement (level N, break-away m).
+    pub dahl: Option<Hysteresis>,
+}
+
+impl MotorFriction {
+    fn is_active(&self) -> bool {
+        self.coulomb != 0.0 || self.viscous != 0.0 || self.dahl.is_some()
+    }
+}
+
 /// One cable of the diagnosis joint.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CablePart {
@@ -152,6 +174,8 @@ pub struct JointPlant {
     pub contact_hysteresis: [Option<Hysteresis>; 2],
     /// Dahl hysteresis at the joint.
     pub dahl: Option<Hysteresis>,
+    /// Friction on the motor side of the cables.
+    pub motor: MotorFriction,
     /// Optional contact with an object.
     pub contact: Option<Contact>,
     dahl_at: Option<usize>,
@@ -186,6 +210,7 @@ impl From<&AntagonisticJoint> for JointPlant {
                 breakaway: d.coulomb / d.sigma0,
                 exponent: d.exponent,
             }),
+            motor: MotorFriction::default(),
             contact: j.contact,
             dahl_at: None,
             creep_at: [None, None],
@@ -337,7 +362,8 @@ impl JointPlant {
     }
 
     /// Multiply the motor-side tensions by `exp(±μφʰ·ζ)` of each contact's hysteresis, driven by
-    /// the motor displacement (the cable's sliding over the routing pulleys).
+    /// the motor displacement (the cable's sliding over the routing pulleys), and add the motor
+    /// side's friction to the force at the motor.
     fn apply_contact_hysteresis(&self, u: &[f64], out: &mut [f64]) {
         for (k, h) in self.contact_hysteresis.iter().enumerate() {
             let Some(h) = h else { continue };
@@ -353,6 +379,24 @@ impl JointPlant {
         }
         for row in out.chunks_exact_mut(JOINT_OUTPUTS) {
             row[6] = row[0] - row[1];
+        }
+        let mf = self.motor;
+        if mf.is_active() {
+            let mut zeta = 0.0;
+            let mut prev = u[0];
+            for (t, row) in out.chunks_exact_mut(JOINT_OUTPUTS).enumerate() {
+                let (xm, v) = (u[3 * t], u[3 * t + 1]);
+                let mut f = mf.viscous * v;
+                if mf.coulomb != 0.0 {
+                    f += mf.coulomb * smooth_sign(v, mf.smoothing);
+                }
+                if let Some(h) = mf.dahl {
+                    zeta = h.advance(zeta, xm - prev);
+                    prev = xm;
+                    f += h.level * zeta;
+                }
+                row[6] += f;
+            }
         }
     }
 
@@ -613,6 +657,43 @@ mod tests {
             assert_relative_eq!(b[k * 7 + 1], b[k * 7 + 3], max_relative = 1e-12);
         }
         assert!(same > t_len / 2);
+    }
+
+    #[test]
+    fn motor_side_friction_shows_only_in_the_force_at_the_motor() {
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        let (dt, t_len) = (1e-3, 2000);
+        let u = inputs(t_len, dt, 2e-4);
+        let nominal = JointPlant::from(&j);
+        let mut p = JointPlant::from(&j);
+        p.motor = MotorFriction {
+            coulomb: 0.5,
+            smoothing: 1e-9,
+            viscous: 30.0,
+            dahl: Some(Hysteresis {
+                level: 0.2,
+                breakaway: 1e-12,
+                exponent: 1.0,
+            }),
+        };
+        let a = nominal.simulate(&u, &[0.0, 0.0], dt, 2).unwrap();
+        let b = p.simulate(&u, &[0.0, 0.0], dt, 2).unwrap();
+        let mut moving = 0;
+        for k in 1..t_len {
+            // every output but the force at the motor is the nominal's: the cables never carry it
+            for i in 0..6 {
+                assert_eq!(a[k * 7 + i].to_bits(), b[k * 7 + i].to_bits());
+            }
+            let v = u[3 * k + 1];
+            if v.abs() > 1e-4 && (u[3 * k] - u[3 * k - 3]) * v > 0.0 {
+                // a sharp Dahl is the sign law: (0.5 + 0.2)·sign(v) + 30·v
+                let expect = 0.7 * v.signum() + 30.0 * v;
+                assert_relative_eq!(b[k * 7 + 6] - a[k * 7 + 6], expect, max_relative = 1e-6);
+                moving += 1;
+            }
+        }
+        assert!(moving > t_len / 2);
     }
 
     #[test]

@@ -8,6 +8,7 @@
 //! | `input` | the command path: the recorded motor displacement before it reaches the cables |
 //! | `cable.drive`, `cable.return`, `cable.both` | the elastic cable runs |
 //! | `contact.drive`, `contact.return`, `contact.both` | the cable–pulley contacts of the routing between the motor-side tension sensors and the joint (they act on the tension) |
+//! | `motor` | the motor side of the cables: the actuator's drum or input spindle, its bearings and seals (seen only by a force measured at the motor) |
 //! | `joint` | the joint: its bearing, its inertia |
 //! | `sensor.<output>` | one measured channel's own path (e.g. `sensor.tension_motor_drive`, `sensor.theta`) |
 //! | `sensors.force` | every force channel together (one amplifier, one bus) |
@@ -64,6 +65,9 @@ pub enum Site {
     Cable(Side),
     /// Cable–pulley contacts between the motor-side sensors and the joint.
     Contact(Side),
+    /// The motor side of the cables (drum or spindle bearings and seals), seen only by a force
+    /// measured at the motor.
+    Motor,
     /// The joint.
     Joint,
     /// Every link of a transmission (one parameter per link).
@@ -83,6 +87,7 @@ impl Site {
             Site::Input => "input".into(),
             Site::Cable(s) => format!("cable.{}", s.name()),
             Site::Contact(s) => format!("contact.{}", s.name()),
+            Site::Motor => "motor".into(),
             Site::Joint => "joint".into(),
             Site::Links => "links".into(),
             Site::Cables => "cables".into(),
@@ -96,14 +101,16 @@ impl Site {
         let bad = || CableError::InvalidOption {
             name: "site".into(),
             value: name.into(),
-            allowed: "input, cable.{drive,return,both}, contact.{drive,return,both}, joint, \
+            allowed:
+                "input, cable.{drive,return,both}, contact.{drive,return,both}, motor, joint, \
                       links, cables, sensor.<output>, sensors.force"
-                .into(),
+                    .into(),
         };
         let side = |s: &str| Side::ALL.into_iter().find(|x| x.name() == s);
         Ok(match name {
             "input" => Site::Input,
             "joint" => Site::Joint,
+            "motor" => Site::Motor,
             "links" => Site::Links,
             "cables" => Site::Cables,
             "sensors.force" => Site::ForceSensors,
@@ -131,6 +138,10 @@ impl Site {
             Site::Cable(s) => format!("in {}", cable(s)),
             Site::Contact(Side::Both) => "in the cable–pulley contacts of both cables".into(),
             Site::Contact(s) => format!("in the cable–pulley contact of {}", cable(s)),
+            Site::Motor => {
+                "on the motor side (the drum or input spindle and its bearings, before the cables)"
+                    .into()
+            }
             Site::Joint => "at the joint".into(),
             Site::Links => "at every link".into(),
             Site::Cables => "in every cable pair".into(),
@@ -155,10 +166,13 @@ pub enum Form {
     Cubic,
     /// Second-order (critically damped) sensor dynamics (standard: first order).
     SecondOrder,
+    /// The cable law's stiffness off by a factor `1 + ε_k` (standard: exponential hardening).
+    Scale,
 }
 
 impl Form {
-    /// `"standard"`, `"load_dependent"`, `"generalised"`, `"whole"`, `"cubic"`, `"second_order"`.
+    /// `"standard"`, `"load_dependent"`, `"generalised"`, `"whole"`, `"cubic"`, `"second_order"`,
+    /// `"scale"`.
     pub fn name(self) -> &'static str {
         match self {
             Form::Standard => "standard",
@@ -167,6 +181,7 @@ impl Form {
             Form::Whole => "whole",
             Form::Cubic => "cubic",
             Form::SecondOrder => "second_order",
+            Form::Scale => "scale",
         }
     }
 
@@ -179,13 +194,15 @@ impl Form {
             Form::Whole,
             Form::Cubic,
             Form::SecondOrder,
+            Form::Scale,
         ]
         .into_iter()
         .find(|f| f.name() == name)
         .ok_or_else(|| CableError::InvalidOption {
             name: "form".into(),
             value: name.into(),
-            allowed: "standard, load_dependent, generalised, whole, cubic, second_order".into(),
+            allowed: "standard, load_dependent, generalised, whole, cubic, second_order, scale"
+                .into(),
         })
     }
 }
@@ -219,6 +236,12 @@ pub struct SiteContext {
 impl SiteContext {
     fn force_channels(&self) -> impl Iterator<Item = usize> + '_ {
         (0..self.force.len()).filter(|&i| self.force[i])
+    }
+
+    /// Whether a force is measured at the motor itself (a motor torque): motor-side friction
+    /// shows there and nowhere else.
+    fn motor_force_measured(&self) -> bool {
+        self.channels.iter().any(|c| c == "net_motor_force")
     }
 
     /// Whether a motor-side tension is measured (contact effects show there).
@@ -305,23 +328,33 @@ impl Candidate {
                 _ => vec![],
             };
         }
+        let motor = |mut v: Vec<Candidate>| {
+            if ctx.motor_force_measured() {
+                v.push(c(Site::Motor));
+            }
+            v
+        };
         match effect {
-            CoulombFriction => vec![
+            CoulombFriction => motor(vec![
                 c(Site::Joint),
                 c(Site::Joint).with_form(Form::LoadDependent),
-            ],
-            ViscousFriction | StribeckFriction | InertiaError => vec![c(Site::Joint)],
+            ]),
+            ViscousFriction => motor(vec![c(Site::Joint)]),
+            StribeckFriction | InertiaError => vec![c(Site::Joint)],
             DahlHysteresis => {
                 let mut v = vec![c(Site::Joint), c(Site::Joint).with_form(Form::Generalised)];
                 if ctx.motor_side_measured() {
                     v.extend(sides(Site::Contact));
                 }
-                v
+                motor(v)
             }
             CapstanFriction if ctx.motor_side_measured() => sides(Site::Contact),
             NonlinearStiffness => {
                 let mut v = sides(Site::Cable);
                 v.push(c(Site::Cable(Side::Both)).with_form(Form::Cubic));
+                // the nominal stiffness itself is wrong (a calibration from one load level, an
+                // unmodelled compliant stage in series with the cables)
+                v.push(c(Site::Cable(Side::Both)).with_form(Form::Scale));
                 v
             }
             CableDamping | Slack => sides(Site::Cable),
@@ -408,6 +441,9 @@ impl Candidate {
             (Effect::DahlHysteresis, _) => "hysteresis (Dahl)",
             (Effect::Creep, Form::Whole) => "creep relaxing the whole tension, pretension included",
             (Effect::NonlinearStiffness, Form::Cubic) => "cubic hardening of the cable law",
+            (Effect::NonlinearStiffness, Form::Scale) => {
+                "a stiffness other than the nominal (a compliant stage in series)"
+            }
             (Effect::SensorLag, Form::SecondOrder) => "second-order (critically damped) lag",
             (e, _) => e.description(),
         };
@@ -501,5 +537,41 @@ mod tests {
         no_motor.channels = vec!["theta".into()];
         no_motor.force = vec![false];
         assert!(Candidate::of_effect(Effect::CapstanFriction, &no_motor).is_empty());
+    }
+
+    #[test]
+    fn motor_side_friction_needs_a_force_measured_at_the_motor() {
+        let motor = |e| Candidate::new(e, Site::Motor);
+        // cable tension sensors do not see a drum's bearing friction
+        for e in [
+            Effect::CoulombFriction,
+            Effect::ViscousFriction,
+            Effect::DahlHysteresis,
+        ] {
+            assert!(!motor(e).applies(&ctx()), "{e:?}");
+        }
+        let mut spindle = ctx();
+        spindle.channels = vec!["net_motor_force".into(), "theta".into()];
+        spindle.force = vec![true, false];
+        for e in [
+            Effect::CoulombFriction,
+            Effect::ViscousFriction,
+            Effect::DahlHysteresis,
+        ] {
+            assert!(motor(e).applies(&spindle), "{e:?}");
+        }
+        assert!(!motor(Effect::StribeckFriction).applies(&spindle));
+        let c = motor(Effect::DahlHysteresis);
+        let name = |i: usize| spindle.channels[i].clone();
+        assert_eq!(c.id(&name), "dahl_hysteresis@motor");
+        let index = |s: &str| spindle.channels.iter().position(|c| c == s);
+        assert_eq!(
+            Candidate::parse("dahl_hysteresis@motor", false, &index).unwrap(),
+            c
+        );
+        let k = Candidate::new(Effect::NonlinearStiffness, Site::Cable(Side::Both))
+            .with_form(Form::Scale);
+        assert_eq!(k.id(&name), "nonlinear_stiffness@cable.both/scale");
+        assert!(k.applies(&spindle));
     }
 }
