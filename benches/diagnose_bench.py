@@ -33,8 +33,8 @@ def main() -> int:
         worst = max(worst, dt)
         label = "+".join(effects) or "control"
         print(
-            f"{label:<32} {dt:6.1f} s  verdict={res['verdict']:<20} "
-            f"selected={','.join(res['selected']['effects']) or '-'}"
+            f"{label:<32} {dt:6.1f} s  verdict={res.verdict:<20} "
+            f"selected={','.join(res.selected.effects) or '-'}"
         )
     ok = worst <= budget
     print(f"slowest: {worst:.1f} s (budget {budget} s)  {'ok' if ok else 'OVER BUDGET'}")

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import cablekit as ck
 from cablekit.diagnose.davinci import SPINDLE_RADIUS, calibrate, load_bench_run, prepare_bench
@@ -125,3 +127,36 @@ def test_bench_folder_errors_name_the_expected_files(tmp_path):
         (tmp_path / f"{stem}.TXT").write_text(rows)
     with pytest.raises(ck.DataError, match="0 samples after the 1 s warm-up"):
         prepare_bench(tmp_path, BenchSplit(("00",), ("01",), ("02",)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    rows=st.integers(0, 40),
+    cols=st.integers(1, 8),
+    bad=st.sampled_from(["", "nan", "inf", "-inf", "1e400", "abc", "1,2", "0x10", "\x00"]),
+    where=st.integers(0, 10_000),
+    gz=st.booleans(),
+)
+def test_any_malformed_bench_file_is_a_data_error_or_a_finite_run(
+    tmp_path_factory, rows, cols, bad, where, gz
+):
+    """Bench files with too few rows or columns, non-numbers, NaN/inf, huge values or NUL bytes in
+    any cell: a DataError naming the file, or a run whose every column is finite."""
+    import gzip
+
+    cells = [[f"{(i * 1e-3 if j == 0 else i * (j + 1)):g}" for j in range(cols)] for i in range(rows)]
+    if rows:
+        cells[where % rows][where % cols] = bad
+    text = "% header\n" + "\n".join(",".join(r) for r in cells) + "\n"
+    d = tmp_path_factory.mktemp("bench")
+    path = d / ("00.TXT.gz" if gz else "00.TXT")
+    if gz:
+        path.write_bytes(gzip.compress(text.encode()))
+    else:
+        path.write_text(text)
+    try:
+        run = load_bench_run(path)
+    except ck.DataError as exc:
+        assert str(path) in str(exc)
+        return
+    assert all(np.isfinite(v).all() for v in run.columns.values())

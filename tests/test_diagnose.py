@@ -393,18 +393,16 @@ def control_result():
 
 def test_contact_is_a_localisation_condition(control_result):
     """The self-test jaw closes on an object: in-contact and free samples split the record."""
-    rows = {
-        c["condition"]: c for c in control_result["where"]["conditions_held_out"] if c["family"] == "contact"
-    }
+    rows = {c.condition: c for c in control_result.where.conditions_held_out if c.family == "contact"}
     assert set(rows) == {"in contact", "free"}
-    assert rows["in contact"]["time_share"] + rows["free"]["time_share"] == pytest.approx(1.0)
-    assert 0.05 < rows["in contact"]["time_share"] < 0.95
+    assert rows["in contact"].time_share + rows["free"].time_share == pytest.approx(1.0)
+    assert 0.05 < rows["in contact"].time_share < 0.95
 
 
 def test_control_run_has_no_significant_gap(control_result):
-    assert control_result["verdict"] == "no_significant_gap"
-    assert control_result["selected"]["effects"] == []
-    assert control_result["gap"]["held_out"] < 1.15
+    assert control_result.verdict == "no_significant_gap"
+    assert control_result.selected.effects == []
+    assert control_result.gap.held_out < 1.15
 
 
 @pytest.fixture(scope="module")
@@ -415,18 +413,19 @@ def lag_result():
 
 def test_withheld_effect_is_named_and_closes_the_held_out_gap(lag_result):
     case, res = lag_result
-    top = res["effects"][0]
-    assert top["name"] == "sensor_lag"
-    assert top["site"] == "sensors.force"  # both tension channels share the lag
-    assert res["verdict"] == "explained"
-    assert res["selected"]["held_out"]["closed_fraction"] > 0.8
-    lo, hi = res["selected"]["held_out"]["interval"]
-    assert lo <= res["selected"]["held_out"]["closed_fraction"] <= hi
+    top = res.effects[0]
+    assert top.name == "sensor_lag"
+    assert top.site == "sensors.force"  # both tension channels share the lag
+    assert res.verdict == "explained"
+    assert res.selected.held_out.closed_fraction > 0.8
+    lo, hi = res.selected.held_out.interval
+    assert lo <= res.selected.held_out.closed_fraction <= hi
     # a two-pole sensor (τ, τ/3) has a low-frequency delay of 4τ/3: the one-pole fit's τ_s, or
     # twice the two-equal-pole fit's, lands between τ and 1.4τ
     tau = case.truth["effects"]["sensor_lag"]["tau_s"]
-    fitted = next(p for p in top["parameters"] if p["name"] == "tau_s")["value"]
-    equivalent = 2 * fitted if top["form"] == "second_order" else fitted
+    fitted = next(p for p in top.parameters if p.name == "tau_s").value
+    assert fitted is not None
+    equivalent = 2 * fitted if top.form == "second_order" else fitted
     assert tau < equivalent < 1.4 * tau
 
 
@@ -447,6 +446,25 @@ def test_json_schema(lag_result, control_result, tmp_path):
         validate(broken)
 
 
+def test_result_is_typed_and_round_trips_through_its_json(lag_result):
+    """The result is a typed Diagnosis; its JSON reads back into an equal object, holds no
+    internal objects, and a document with an unknown key is refused (nothing silently lost)."""
+    from cablekit.diagnose import Diagnosis
+    from cablekit.diagnose.result import ChannelChange, EffectResult
+
+    res = lag_result[1]
+    assert isinstance(res, Diagnosis) and all(isinstance(e, EffectResult) for e in res.effects)
+    assert all(isinstance(c, ChannelChange) for c in res.selected.channels_held_out)
+    doc = json.loads(json.dumps(res.to_json()))
+    assert "internal" not in doc and not any(k.startswith("_") for k in doc)
+    back = Diagnosis.from_json(doc)
+    assert back == res and back.internal is None and res.internal is not None
+    assert back.effect(res.effects[0].id) == res.effects[0]
+    doc["selected"]["surprise"] = 1
+    with pytest.raises(ValueError, match=r"Selection has unknown keys \['surprise'\]"):
+        Diagnosis.from_json(doc)
+
+
 def test_diagnose_needs_held_out_runs():
     case = make_case((), seed=3, duration=3.0)
     with pytest.raises(ck.DataError, match="held-out"):
@@ -458,13 +476,13 @@ def test_residual_tests_separate_a_wrong_model_from_noise(control_result):
     are white noise with ~no loop."""
     case = make_case(("backlash",), seed=21, duration=5.0)
     res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200, max_effects=1))
-    assert res["effects"][0]["name"] == "backlash"
-    ctrl = control_result["where"]["residual_tests"]
+    assert res.effects[0].name == "backlash"
+    ctrl = control_result.where.residual_tests
     for ch in ("tension_motor_drive", "tension_motor_return"):
-        t = res["where"]["residual_tests"][ch]
-        assert t["reading"] == "depends on the input: the model is wrong"
-        assert ctrl[ch]["reading"] == "consistent with white measurement noise"
-        assert t["loop_area_velocity"] > 5 * ctrl[ch]["loop_area_velocity"]
+        t = res.where.residual_tests[ch]
+        assert t.reading == "depends on the input: the model is wrong"
+        assert ctrl[ch].reading == "consistent with white measurement noise"
+        assert t.loop_area_velocity > 5 * ctrl[ch].loop_area_velocity
 
 
 @settings(max_examples=30, deadline=None)
@@ -554,11 +572,11 @@ def test_transmission_diagnosis_names_a_coupling_error():
         )
         runs.append(_tx_run(name, gen, np.array([0.2]), tau))
     res = diagnose(spec, [runs[0]], [runs[1]], Options(progress=False, bootstrap=200, max_effects=1))
-    assert res["effects"][0]["name"] == "coupling"
-    assert res["selected"]["held_out"]["closed_fraction"] > 0.9
-    c = next(p for p in res["selected"]["parameters"] if p["name"] == "C[1][0]")["value"]
+    assert res.effects[0].name == "coupling"
+    assert res.selected.held_out.closed_fraction > 0.9
+    c = next(p for p in res.selected.parameters if p.name == "C[1][0]").value
     assert c == pytest.approx(0.2, rel=0.05)
-    assert "dahl_hysteresis" in res["skipped"] and "backlash" in res["skipped"]
+    assert "dahl_hysteresis" in res.skipped and "backlash" in res.skipped
 
 
 def test_servo_replay_diagnosis_names_link_friction():
@@ -609,8 +627,8 @@ def test_servo_replay_diagnosis_names_link_friction():
         cols |= {"r1": qm[:, 0], "r2": qm[:, 1]}
         runs.append(Run(name, t, {k: np.ascontiguousarray(v) for k, v in cols.items()}))
     res = diagnose(spec, [runs[0]], [runs[1]], Options(progress=False, bootstrap=200, max_effects=1))
-    assert res["effects"][0]["name"] == "coulomb_friction"
-    assert res["selected"]["held_out"]["closed_fraction"] > 0.9
+    assert res.effects[0].name == "coulomb_friction"
+    assert res.selected.held_out.closed_fraction > 0.9
     with pytest.raises(ck.DataError, match=r"\[servo\]"):
         model_spec_from_dict({k: v for k, v in doc.items() if k != "servo"})
 
@@ -659,8 +677,8 @@ def test_servo_replay_control_with_encoder_noise_has_no_gap(raven_cases):
     replay from the first noisy motor angles stays at the noise level on the held-out run."""
     case = raven_cases["control"]
     res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200))
-    assert res["verdict"] == "no_significant_gap"
-    assert res["gap"]["held_out"] < 1.15
+    assert res.verdict == "no_significant_gap"
+    assert res.gap.held_out < 1.15
 
 
 def test_servo_replay_finds_a_pretension_loss_from_a_flat_start(raven_cases):
@@ -668,24 +686,24 @@ def test_servo_replay_finds_a_pretension_loss_from_a_flat_start(raven_cases):
     falls back to the start grid and recovers the lost share of the pretension."""
     case = raven_cases["slack"]
     res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200, max_effects=1))
-    assert res["effects"][0]["name"] == "slack"
-    frac = next(p for p in res["selected"]["parameters"] if p["name"] == "delta_T0_frac")["value"]
+    assert res.effects[0].name == "slack"
+    frac = next(p for p in res.selected.parameters if p.name == "delta_T0_frac").value
     assert frac == pytest.approx(case.truth["effects"]["slack"]["fraction"], abs=0.03)
-    assert res["selected"]["held_out"]["closed_fraction"] > 0.9
+    assert res.selected.held_out.closed_fraction > 0.9
 
 
 def test_servo_replay_measures_a_reference_delay(raven_cases):
     case = raven_cases["delay"]
     res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200, max_effects=1))
-    assert res["effects"][0]["name"] == "time_delay"
-    d = next(p for p in res["selected"]["parameters"] if p["name"] == "d")["value"]
+    assert res.effects[0].name == "time_delay"
+    d = next(p for p in res.selected.parameters if p.name == "d").value
     assert d == pytest.approx(case.truth["effects"]["time_delay"]["d"], rel=0.02)
 
 
 def test_a_saturating_servo_replay_is_flagged():
     """References whose accelerations need more than the current limit: the nominal replay sits
     at the limit, and the diagnosis says so (no warning for the feasible control)."""
-    from cablekit.diagnose.engine import prepare
+    from cablekit.diagnose.prepare import prepare
     from cablekit.diagnose.selftest_transmission import make_transmission_case
 
     case = make_transmission_case((), 21, duration=3.0)
@@ -824,7 +842,7 @@ def test_a_channel_made_worse_is_flagged_even_when_the_pooled_gap_improves():
     angle channel is flagged as worse, the force channel is not."""
     from types import SimpleNamespace
 
-    from cablekit.diagnose.engine import channel_changes, compare
+    from cablekit.diagnose.select import channel_changes, compare
 
     rng = np.random.default_rng(0)
     n = 20_000

@@ -55,29 +55,21 @@ EXAMPLE_EFFECTS = ("backlash", "sensor_gain_bias")
 def _write_example(directory: Path) -> tuple[Path, Path, Path]:
     """Write the embedded diagnosis example: a forceps-like joint whose drive has play and whose
     tension sensors are miscalibrated (withheld from the model file)."""
+    from cablekit.diagnose.data import write_csv
     from cablekit.diagnose.selftest import make_case
+    from cablekit.diagnose.spec import write_model_toml
 
     case = make_case(EXAMPLE_EFFECTS, seed=7, duration=8.0)
     directory.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for run, name in ((case.fit[0], "fit.csv"), (case.hold[0], "holdout.csv")):
-        cols = ["t", *run.columns]
-        data = np.column_stack([run.t, *run.columns.values()])
-        np.savetxt(directory / name, data, delimiter=",", header=",".join(cols), comments="", fmt="%.9g")
-        paths.append(directory / name)
-    spec = case.spec.to_dict()
-    lines = [
-        "# cablekit diagnosis example: nominal model of a forceps-like antagonistic joint",
-        f'model = "{spec["model"]}"',
-        "",
+    paths = [
+        write_csv(run, directory / name)
+        for run, name in ((case.fit[0], "fit.csv"), (case.hold[0], "holdout.csv"))
     ]
-    for table in ("parameters", "inputs", "outputs", "diagnosis"):
-        lines.append(f"[{table}]")
-        for k, v in spec[table].items():
-            lines.append(f"{k} = {json.dumps(v)}")
-        lines.append("")
-    model = directory / "model.toml"
-    model.write_text("\n".join(lines))
+    model = write_model_toml(
+        case.spec,
+        directory / "model.toml",
+        "cablekit diagnosis example: nominal model of a forceps-like antagonistic joint",
+    )
     (directory / "TRUTH.json").write_text(
         json.dumps({"withheld_effects": case.truth["effects"]}, indent=2, default=float)
     )
@@ -119,6 +111,25 @@ def _diagnose(args: argparse.Namespace) -> int:
             only=CI_SUBSET if args.independent == "ci" else None,
         )
         return _write_self_test(out, "independent", format_independent(res), res)
+    if args.many:
+        from cablekit.diagnose.many import run_many, summary_table
+
+        print(f"cablekit: diagnosing the campaign in {args.many} ...", flush=True)
+        t0 = time.perf_counter()
+        results = run_many(
+            args.many,
+            out,
+            engine=args.engine,
+            address=args.address,
+            workers=args.workers,
+            seed=args.seed,
+            progress=not args.quiet,
+            html=not args.no_html,
+        )
+        print(summary_table(results))
+        print(f"  wrote {out / 'summary.json'}, {out / 'summary.txt'} and one folder per group")
+        print(f"  done in {time.perf_counter() - t0:.1f} s")
+        return 0 if all(r.error is None for r in results) else 1
     if args.davinci:
         from cablekit.diagnose.davinci import CITATION, SPLITS, BenchSplit, describe, prepare_bench
 
@@ -170,26 +181,30 @@ def _run_diagnosis(
     res = diagnose(spec, fit, hold, Options(progress=not args.quiet, workers=args.workers, seed=args.seed))
     elapsed = time.perf_counter() - t0
     j = write_json(res, out / "diagnosis.json")
-    for w in res["meta"].get("warnings", []):
+    for w in res.meta.warnings:
         print(f"  warning: {w}")
-    print(f"  verdict: {res['verdict']}")
-    for f in res["flags"]:
+    print(f"  verdict: {res.verdict}")
+    for f in res.flags:
         print(f"  FLAG: {f}")
-    for e in res["effects"][:5]:
-        h = e["held_out"]
-        cf = h["closed_fraction"]
+    for e in res.effects[:5]:
+        cf = e.held_out.closed_fraction
         print(
-            f"  {'*' if e['selected'] else ' '} {e['id']:<40} "
+            f"  {'*' if e.selected else ' '} {e.id:<40} "
             f"held-out closed {cf if cf is None else f'{cf:6.1%}'}"
-            f"  significant={h['significant']}"
-            + (f"  (collinear with {e['identifiability'][0]['with']})" if e["identifiability"] else "")
+            f"  significant={e.held_out.significant}"
+            + (f"  (collinear with {e.identifiability[0].with_})" if e.identifiability else "")
         )
-    sel = res["selected"]
-    if sel["effects"]:
+    sel = res.selected
+    if sel.effects:
         print(
-            f"  selected {' + '.join(sel['effects'])}: held-out gap "
-            f"{sel['held_out']['gap_before']:.3g} -> {sel['held_out']['gap_after']:.3g} (noise = 1)"
+            f"  selected {' + '.join(sel.effects)}: held-out gap "
+            f"{sel.held_out.gap_before:.3g} -> {sel.held_out.gap_after:.3g} (noise = 1)"
         )
+        for c in sel.channels_held_out:
+            print(
+                f"    {c.channel:<24} held-out gap {c.gap_before:10.4g} -> {c.gap_after:10.4g} "
+                f"({c.change:+.0%}){'  WORSE' if c.worsened else ''}"
+            )
     print(f"  wrote {j}")
     if not args.no_html:
         h = write_html(res, out / "diagnosis.html")
@@ -226,6 +241,23 @@ def build_parser() -> argparse.ArgumentParser:
         "--independent",
         choices=["all", "ci"],
         help="score the diagnoser on runs from the independent simulator (every case, or the CI subset)",
+    )
+    m = d.add_argument_group(
+        "campaigns (--many)",
+        "DIR/manifest.toml groups the runs of DIR: per [[group]] a name, a model file, fit and held_out "
+        "run lists (docs/diagnosis.md). Candidate fits fan out on Ray when it is installed "
+        "(pip install 'cablekit[scale]'), locally or on a cluster; without Ray the groups run serially. "
+        "Writes OUT/<group>/diagnosis.json, OUT/summary.json and OUT/summary.txt.",
+    )
+    m.add_argument("--many", metavar="DIR", help="diagnose every group of DIR/manifest.toml")
+    m.add_argument(
+        "--address", help="Ray cluster address (e.g. ray://head:10001 or auto); default: local Ray"
+    )
+    m.add_argument(
+        "--engine",
+        choices=["auto", "ray", "serial"],
+        default="auto",
+        help="where candidate fits run: Ray if installed (auto), Ray (ray), or this machine (serial)",
     )
     b = d.add_argument_group(
         "bench data (--davinci)",

@@ -205,3 +205,12 @@ def check_units(run: Run, units: dict[str, str]) -> None:
                 f"run {run.name!r}: column {col!r} is declared in {unit} but reaches {peak:g}; it looks like "
                 f"{other}. Convert it to SI units"
             )
+
+
+def write_csv(run: Run, path: str | Path) -> Path:
+    """Write a run as CSV with a ``t`` column (the format :func:`load_run` reads)."""
+    path = Path(path)
+    cols = ["t", *run.columns]
+    data = np.column_stack([run.t, *run.columns.values()])
+    np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="", fmt="%.9g")
+    return path

@@ -25,6 +25,7 @@ spindle's cables close and open one jaw, which a front-end motor loads with a re
 from __future__ import annotations
 
 import gzip
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -79,7 +80,8 @@ def load_bench_run(path: str | Path, jaw_reference: float | None = None) -> Run:
         raise DataError(f"{path}: no such bench file")
     opener = gzip.open if path.suffix == ".gz" else open
     try:
-        with opener(path, "rt") as fh:  # type: ignore[operator]
+        with opener(path, "rt") as fh, warnings.catch_warnings():  # type: ignore[operator]
+            warnings.simplefilter("ignore")  # an empty file: its shape is reported below
             d = np.loadtxt(fh, comments="%", delimiter=",", ndmin=2)
     except (ValueError, OSError, EOFError, UnicodeDecodeError) as exc:
         raise DataError(f"{path}: not a bench file ({exc}); expected {BENCH_PATTERN}") from exc

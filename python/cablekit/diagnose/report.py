@@ -7,38 +7,22 @@ import base64
 import html
 import io
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from cablekit.diagnose.result import SCHEMA, Diagnosis
+
 __all__ = ["to_json", "validate", "write_html", "write_json"]
 
 
-def _clean(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items() if not str(k).startswith("_")}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
-    return obj
+def to_json(result: Diagnosis) -> dict[str, Any]:
+    """The ``diagnosis.json`` document of a result (:meth:`Diagnosis.to_json`)."""
+    return result.to_json()
 
 
-def to_json(result: dict[str, Any]) -> dict[str, Any]:
-    """The JSON-ready part of a diagnosis result (internal objects dropped, NaN → null)."""
-    return _clean(result)
-
-
-def write_json(result: dict[str, Any], path: str | Path) -> Path:
+def write_json(result: Diagnosis, path: str | Path) -> Path:
     path = Path(path)
     doc = to_json(result)
     validate(doc)
@@ -47,10 +31,6 @@ def write_json(result: dict[str, Any], path: str | Path) -> Path:
 
 
 VERDICTS = ("no_significant_gap", "explained", "partially_explained")
-
-
-#: the schema of diagnosis.json (docs/diagnosis.md)
-SCHEMA = "cablekit.diagnosis/2"
 
 
 def validate(doc: dict[str, Any]) -> None:
@@ -145,7 +125,7 @@ def _fmt(v: Any, digits: int = 3) -> str:
     return str(v)
 
 
-def _figures(result: dict[str, Any]) -> dict[str, str]:
+def _figures(result: Diagnosis) -> dict[str, str]:
     """Plots from the internal objects of a fresh result (not available from JSON alone)."""
     try:
         import matplotlib
@@ -154,7 +134,7 @@ def _figures(result: dict[str, Any]) -> dict[str, str]:
         import matplotlib.pyplot as plt
     except ImportError:  # pragma: no cover - depends on the environment
         return {}
-    inner = result.get("_internal")
+    inner = result.internal
     if not inner:
         return {}
     prep, current = inner["prep"], inner["current"]
@@ -168,7 +148,7 @@ def _figures(result: dict[str, Any]) -> dict[str, str]:
         aug = prep.hold0.with_effects(current.effects, current.substeps).predict(current.params, 0)[start:]
     else:
         aug = nominal
-    worst = result["where"]["conditions_held_out"][0] if result["where"]["conditions_held_out"] else None
+    worst = result.where.conditions_held_out[0] if result.where.conditions_held_out else None
     masks = (
         dict(((f, n), m) for f, n, m in inner.get("hold_masks", [[]])[0]) if inner.get("hold_masks") else {}
     )
@@ -188,8 +168,8 @@ def _figures(result: dict[str, Any]) -> dict[str, str]:
         if current.effects:
             ax.plot(t, aug[:, c] - meas[:, c], color="tab:blue", lw=0.7, label="residual, augmented")
         ax.axhspan(-prep.sigma[c], prep.sigma[c], color="0.85", label="±1σ noise")
-        if worst is not None and (worst["family"], worst["condition"]) in masks:
-            m = masks[(worst["family"], worst["condition"])]
+        if worst is not None and (worst.family, worst.condition) in masks:
+            m = masks[(worst.family, worst.condition)]
             ax.fill_between(
                 t,
                 0,
@@ -198,14 +178,14 @@ def _figures(result: dict[str, Any]) -> dict[str, str]:
                 color="gold",
                 alpha=0.3,
                 transform=ax.get_xaxis_transform(),
-                label=f"worst: {worst['condition']}",
+                label=f"worst: {worst.condition}",
             )
         ax.set_ylabel(f"residual {name}")
         ax.legend(loc="upper right", fontsize=7)
     axes[-1].set_xlabel("t (s), held-out run")
     figs["overlay"] = _png(fig)
     # ranking
-    eff = [e for e in result["effects"] if e["held_out"]["closed_fraction"] is not None]
+    eff = [e for e in result.to_json()["effects"] if e["held_out"]["closed_fraction"] is not None]
     fig, ax = plt.subplots(figsize=(8, 0.35 * len(eff) + 1))
     names = [e["id"] for e in eff][::-1]
     vals = [max(-0.2, e["held_out"]["closed_fraction"]) for e in eff][::-1]
@@ -251,7 +231,7 @@ img{max-width:100%}code{background:#f5f5f5}
 """
 
 
-def write_html(result: dict[str, Any], path: str | Path) -> Path:
+def write_html(result: Diagnosis, path: str | Path) -> Path:
     """Write the HTML report (plots embedded)."""
     path = Path(path)
     doc = to_json(result)

@@ -353,7 +353,9 @@ def visible_runs(
     model's held-out gap — and with ``fit_too`` the fit gap — reaches ``MIN_VISIBLE_GAP``.
     Every attempt replays the same random stream. Returns the runs, the truth used and its
     scale factor. A control (empty truth) is generated once."""
-    from cablekit.diagnose.engine import baseline, gap, prepare
+    from cablekit.diagnose.fit import baseline
+    from cablekit.diagnose.prepare import prepare
+    from cablekit.diagnose.select import gap
 
     scale = 1.0
     for attempt in range(5):
@@ -427,31 +429,31 @@ def run_self_test(
         t0 = time.perf_counter()
         res = diagnose(case.spec, case.fit, case.hold, Options(progress=False))
         elapsed = time.perf_counter() - t0
-        top = res["effects"][0]["name"] if res["effects"] else None
-        selected = res["selected"]["effects"]
+        top = res.effects[0].name if res.effects else None
+        selected = res.selected.effects
         row = {
             "plant": plant,
             "kind": kind,
             "injected": list(effects),
-            "verdict": res["verdict"],
+            "verdict": res.verdict,
             "top1": top,
             "selected": selected,
-            "held_out_closed": res["selected"]["held_out"]["closed_fraction"],
-            "gap_held_out": res["gap"]["held_out"],
+            "held_out_closed": res.selected.held_out.closed_fraction,
+            "gap_held_out": res.gap.held_out,
             "seconds": elapsed,
             "correct": (
-                top == effects[0] and res["verdict"] != "no_significant_gap"
+                top == effects[0] and res.verdict != "no_significant_gap"
                 if kind == "single"
                 else set(effects) <= {s.split("@")[0] for s in selected}
                 if kind == "pair"
-                else res["verdict"] == "no_significant_gap"
+                else res.verdict == "no_significant_gap"
             ),
         }
         rows.append(row)
         if progress:
             mark = "ok " if row["correct"] else "MISS"
             print(
-                f"[{i + 1:>2}/{len(cases)}] {mark} {case.label:<36} verdict={res['verdict']:<20} "
+                f"[{i + 1:>2}/{len(cases)}] {mark} {case.label:<36} verdict={res.verdict:<20} "
                 f"top1={top!s:<20} "
                 f"selected={','.join(selected) or '-':<34} closed={row['held_out_closed']:.2f} "
                 f"({elapsed:.1f}s)",

@@ -765,38 +765,38 @@ def run_independent(
         t0 = time.perf_counter()
         res = diagnose(case.spec, case.fit, case.hold, Options(progress=False))
         elapsed = time.perf_counter() - t0
-        top = res["effects"][0] if res["effects"] and res["verdict"] != "no_significant_gap" else None
+        top = res.effects[0] if res.effects and res.verdict != "no_significant_gap" else None
         row = {
             "label": label,
             "effect": effect,
             "site": site,
             "form": form,
             "scale": case.truth["scale"],
-            "verdict": res["verdict"],
-            "top1": top["name"] if top else None,
-            "top1_site": top["site"] if top else None,
-            "top1_id": top["id"] if top else None,
-            "selected": res["selected"]["effects"],
-            "held_out_closed": res["selected"]["held_out"]["closed_fraction"],
-            "gap_held_out": res["gap"]["held_out"],
+            "verdict": res.verdict,
+            "top1": top.name if top else None,
+            "top1_site": top.site if top else None,
+            "top1_id": top.id if top else None,
+            "selected": res.selected.effects,
+            "held_out_closed": res.selected.held_out.closed_fraction,
+            "gap_held_out": res.gap.held_out,
             "seconds": elapsed,
             "generate_seconds": gen_s,
         }
         # an effect that stays below the noise even at 16x its drawn size cannot be attributed
         # by any method: listed, not scored
-        row["visible"] = effect is None or res["gap"]["held_out"] >= MIN_VISIBLE_GAP
+        row["visible"] = effect is None or res.gap.held_out >= MIN_VISIBLE_GAP
         if effect:
             row["effect_correct"] = row["top1"] == effect
             row["site_correct"] = row["effect_correct"] and row["top1_site"] == site
         else:
-            row["effect_correct"] = row["site_correct"] = res["verdict"] == "no_significant_gap"
+            row["effect_correct"] = row["site_correct"] = res.verdict == "no_significant_gap"
         rows.append(row)
         if progress:
             mark = "ok " if row["effect_correct"] else "MISS"
             smark = "" if not effect else (" site-ok" if row["site_correct"] else " site-MISS")
             print(
                 f"[{i + 1:>2}/{len(plan)}] {mark}{smark:<10} {label:<48} {case.truth['scale']:<12} "
-                f"verdict={res['verdict']:<20} top1={row['top1_id']!s:<40} "
+                f"verdict={res.verdict:<20} top1={row['top1_id']!s:<40} "
                 f"closed={row['held_out_closed']:.2f} "
                 f"({gen_s:.0f}+{elapsed:.0f}s)",
                 flush=True,

@@ -36,6 +36,7 @@ sampling, gain/bias) act on force sensors only.
 
 from __future__ import annotations
 
+import json
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -311,3 +312,20 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
     except CablekitError as exc:  # keep the specific class (ParameterError, ...), add the file
         raise type(exc)(f"{source}: [parameters]: {exc}") from exc
     return spec
+
+
+def write_model_toml(spec: ModelSpec, path: str | Path, comment: str = "") -> Path:
+    """Write a model file that :func:`load_model_spec` reads back into the same spec."""
+    path = Path(path)
+    doc = spec.to_dict()
+    lines = [f"# {comment}"] if comment else []
+    lines += [f'model = "{doc["model"]}"', ""]
+    for table in ("parameters", "inputs", "outputs", "diagnosis"):
+        if table not in doc:
+            continue
+        lines.append(f"[{table}]")
+        for k, v in doc[table].items():
+            lines.append(f"{k} = {json.dumps(v)}")
+        lines.append("")
+    path.write_text("\n".join(lines))
+    return path

@@ -1,0 +1,208 @@
+"""Fit candidates: grey-box least squares of one set of effects on the fit runs through the
+Rust simulator, scored on the held-out runs it never sees; many fits in parallel threads."""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cablekit.diagnose.data import Run
+from cablekit.diagnose.prepare import MAX_SUBSTEPS, Options, Prepared
+from cablekit.diagnose.progress import Progress
+from cablekit.errors import CablekitError
+
+__all__ = ["CandidateFit", "baseline", "fit_candidate", "fit_many", "parameters_out", "warm_start"]
+
+_F = NDArray[np.float64]
+
+
+@dataclass
+class CandidateFit:
+    """One fitted candidate (a set of effects) and its scores."""
+
+    effects: list[str]
+    params: _F
+    specs: list[dict[str, Any]]
+    substeps: int
+    converged: bool
+    fit_resid: list[_F]
+    hold_resid: list[_F]
+    cost: float
+    param_sd: _F
+    iterations: int
+    error: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+    at_bound: bool = False
+
+
+def _split(prep: Prepared, runs: list[Run], r: _F) -> list[_F]:
+    """Flat weighted residual → per run ``(T − start, q)``."""
+    out, off = [], 0
+    for run in runs:
+        n = (len(run) - round(prep.spec.warmup / run.dt)) * prep.q
+        out.append(r[off : off + n].reshape(-1, prep.q))
+        off += n
+    return out
+
+
+#: a fit whose cost fell by less than this share from its start made no progress
+STUCK = 1.0 - 1e-6
+
+
+def fit_candidate(
+    prep: Prepared, effects: list[str], theta0: _F | None = None, max_iter: int = 40
+) -> CandidateFit:
+    """Fit ``effects`` on the fit runs, then evaluate on the held-out runs (never fitted)."""
+    base = prep.fit0.with_effects(effects, prep.substeps)
+    specs = base.param_specs()
+    start = (
+        np.array([s["initial"] for s in specs]) if theta0 is None else np.asarray(theta0, dtype=np.float64)
+    )
+    try:
+        # substeps for the stiffest starting point (largest start of every parameter), so the
+        # search does not begin in a coarsely integrated, distorted landscape
+        corner = np.array([max([s["initial"], *s["starts"]]) for s in specs]) if theta0 is None else start
+        sub = min(
+            MAX_SUBSTEPS, max(prep.substeps, base.advised_substeps(start), base.advised_substeps(corner))
+        )
+        problem = base.with_effects(effects, sub)
+        res = problem.fit(start, max_iter=max_iter)
+        if theta0 is None and res["cost"] >= STUCK * res["initial_cost"] and any(s["starts"] for s in specs):
+            # the cost is flat at the default start (a pretension loss before any cable
+            # slackens): search the parameters' start grid, refine the best start
+            res = problem.fit(None, max_iter=max_iter)
+        theta = res["params"]
+        need = min(MAX_SUBSTEPS, problem.advised_substeps(theta))
+        if need > sub:  # the fitted model is stiffer than the start: refit with enough substeps
+            sub = need
+            problem = base.with_effects(effects, sub)
+            res = problem.fit(theta, max_iter=max_iter)
+            theta = res["params"]
+        hold = prep.hold0.with_effects(effects, sub)
+        r_hold = hold.residuals(theta)
+    except CablekitError as exc:
+        return CandidateFit(
+            effects,
+            start,
+            specs,
+            prep.substeps,
+            False,
+            [],
+            [],
+            math.inf,
+            np.full(len(start), np.nan),
+            0,
+            error=f"{type(exc).__name__}: {exc}",
+        )
+    r_fit = res["residuals"]
+    p = len(theta)
+    try:
+        sd = np.sqrt(np.clip(np.diag(_sandwich(prep, res["jacobian"], r_fit)), 0.0, None))
+    except np.linalg.LinAlgError:
+        sd = np.full(p, np.nan)
+    for j, s in enumerate(specs):
+        if s["grid"]:
+            sd[j] = np.nan
+    return CandidateFit(
+        effects,
+        theta,
+        specs,
+        sub,
+        bool(res["converged"]),
+        _split(prep, prep.fit_runs, r_fit),
+        _split(prep, prep.hold_runs, r_hold),
+        float(res["cost"]),
+        sd,
+        int(res["iterations"]),
+        at_bound=bool(np.any(res["at_bound"])),
+    )
+
+
+def _sandwich(prep: Prepared, jac: _F, r: _F, seconds: float = 1.0) -> _F:
+    """Parameter covariance robust to autocorrelation and to a model that is still wrong: the
+    cluster (segment) sandwich ``B·(Σ_s g_s g_sᵀ)·B`` with ``B = (JᵀJ)⁺`` and the score
+    ``g_s = J_sᵀ r_s`` of each ~1 s segment of the fit runs (Huber–White with segments as
+    clusters). With the model right and white residuals it reduces to ``σ²(JᵀJ)⁻¹``."""
+    bread = np.linalg.pinv(jac.T @ jac)
+    meat = np.zeros_like(bread)
+    off = 0
+    for run in prep.fit_runs:
+        rows = (len(run) - round(prep.spec.warmup / run.dt)) * prep.q
+        seg = max(prep.q, round(seconds / run.dt) * prep.q)
+        for a in range(off, off + rows, seg):
+            b = min(a + seg, off + rows)
+            g = jac[a:b].T @ r[a:b]
+            meat += np.outer(g, g)
+        off += rows
+    return bread @ meat @ bread
+
+
+def baseline(prep: Prepared) -> CandidateFit:
+    """The nominal model scored like a candidate with no effects."""
+    theta = np.zeros(0)
+    r_fit = prep.fit0.residuals(theta)
+    r_hold = prep.hold0.residuals(theta)
+    return CandidateFit(
+        [],
+        theta,
+        [],
+        prep.substeps,
+        True,
+        _split(prep, prep.fit_runs, r_fit),
+        _split(prep, prep.hold_runs, r_hold),
+        0.5 * float(r_fit @ r_fit),
+        np.zeros(0),
+        0,
+    )
+
+
+def fit_many(
+    prep: Prepared, jobs: list[tuple[list[str], _F | None]], opts: Options, label: str, max_iter: int = 0
+) -> list[CandidateFit]:
+    workers = opts.workers or min(len(jobs), os.cpu_count() or 1)
+    out: list[CandidateFit | None] = [None] * len(jobs)
+    with Progress(len(jobs), label, enabled=opts.progress) as bar:
+        if opts.executor is not None:
+            return list(opts.executor.map(prep, jobs, max_iter or opts.max_iter, bar))
+        with ThreadPoolExecutor(max_workers=max(1, workers)) as ex:
+            futs = {
+                ex.submit(fit_candidate, prep, eff, th, max_iter or opts.max_iter): i
+                for i, (eff, th) in enumerate(jobs)
+            }
+            for f in as_completed(futs):
+                i = futs[f]
+                out[i] = f.result()
+                bar.advance("+".join(jobs[i][0]))
+    return [c for c in out if c is not None]
+
+
+def parameters_out(c: CandidateFit) -> list[dict[str, Any]]:
+    rows = []
+    for s, v, sd in zip(c.specs, c.params, c.param_sd, strict=False):
+        half = 1.96 * sd if np.isfinite(sd) else None
+        rows.append(
+            {
+                "effect": s["effect"],
+                "name": s["name"],
+                "unit": s["unit"],
+                "value": float(v),
+                "ci95": [float(v - half), float(v + half)] if half is not None else None,
+            }
+        )
+    return rows
+
+
+def warm_start(prep: Prepared, current: CandidateFit, effects: list[str], single: CandidateFit) -> _F | None:
+    """Start a combined fit from the current model's and the single fit's parameters."""
+    specs = prep.fit0.with_effects(effects, prep.substeps).param_specs()
+    have = {}
+    for src in (single, current):
+        for s, v in zip(src.specs, src.params, strict=False):
+            have[(s["effect"], s["name"])] = v
+    return np.array([have.get((s["effect"], s["name"]), s["initial"]) for s in specs])

@@ -1,0 +1,241 @@
+"""Prepare a diagnosis: validate the runs against the model file, estimate each channel's
+noise, build the nominal problems and the candidate library; the knobs (:class:`Options`) and
+the thresholds every later stage shares."""
+
+from __future__ import annotations
+
+import math
+import uuid
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cablekit._cablekit import JointProblem, effect_catalogue
+from cablekit.diagnose import localise
+from cablekit.diagnose.data import Run, check_units
+from cablekit.diagnose.spec import NOT_IN_TRANSMISSION, ModelSpec
+from cablekit.errors import DataError
+
+__all__ = ["MAX_SUBSTEPS", "MIN_CLOSED", "NOISE_LEVEL", "Options", "Prepared", "prepare", "run_dict"]
+
+_F = NDArray[np.float64]
+
+
+#: held-out mean squared residual (noise units) below which the gap counts as noise
+NOISE_LEVEL = 1.15
+
+#: smallest held-out share of the gap an effect must close to count
+MIN_CLOSED = 0.05
+
+#: RK4 substeps per sample a candidate may use; beyond, the stiff trial points diverge and the
+#: fit rejects them, which bounds e.g. how sharp a fitted friction sign can get
+MAX_SUBSTEPS = 16
+
+
+@dataclass
+class Options:
+    """Knobs of the diagnosis (defaults are what the self-test and the docs use)."""
+
+    max_effects: int = 3
+    #: candidates fitted in full after the screen (by fit cost of a short fit); 0 = all
+    shortlist: int = 14
+    #: and the best of each channel's own fit cost, however they rank pooled
+    shortlist_per_channel: int = 2
+    #: iterations of the screening fits
+    screen_fit_iter: int = 4
+    #: iterations of the screening fits of later selection rounds, and how many are refined
+    screen_iter: int = 5
+    refine: int = 3
+    bootstrap: int = 1000
+    segment_s: float = 1.0
+    max_iter: int = 30
+    workers: int = 0
+    seed: int = 0
+    progress: bool = True
+    #: where candidate fits run: None = this machine's threads; an object with
+    #: ``map(prep, jobs, max_iter, bar)`` (e.g. :class:`cablekit.diagnose.many.RayFits`) otherwise
+    executor: Any = None
+
+
+@dataclass
+class Prepared:
+    """Data and problems shared by every candidate fit."""
+
+    spec: ModelSpec
+    fit_runs: list[Run]
+    hold_runs: list[Run]
+    channel_names: list[str]
+    columns: list[str]
+    sigma: _F
+    substeps: int
+    fit0: JointProblem
+    hold0: JointProblem
+    candidates: list[str]
+    skipped: dict[str, str]
+    warnings: list[str] = field(default_factory=list)
+    #: candidate id → its description from the core (effect, site, form, sentence, parameters)
+    info: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: identity of this preparation (a distributed executor ships its data once per token)
+    token: str = field(default_factory=lambda: uuid.uuid4().hex)
+
+    @property
+    def q(self) -> int:
+        return len(self.channel_names)
+
+
+def run_dict(spec: ModelSpec, run: Run, columns: list[str], model: Any = None) -> dict[str, Any]:
+    measured = np.column_stack([run.column(c) for c in columns])
+    cols = [run.column(c) for c in spec.inputs]
+    if spec.servo():  # references: angles then rates (given, or the angles' derivative)
+        rates = spec.extra.get("dq_m_ref")
+        cols += [run.column(c) for c in rates] if rates else [np.gradient(c, run.dt) for c in cols]
+    d: dict[str, Any] = {
+        "dt": run.dt,
+        "input": np.ascontiguousarray(cols[0] if len(cols) == 1 else np.column_stack(cols)),
+        "measured": np.ascontiguousarray(measured),
+        "start": round(spec.warmup / run.dt),
+    }
+    if spec.coupled:
+        d["coupled"] = np.ascontiguousarray(run.column(spec.coupled))
+    if spec.external:
+        ext = [run.column(c) for c in spec.external]
+        d["external"] = np.ascontiguousarray(ext[0] if len(ext) == 1 else np.column_stack(ext))
+    if spec.kind == "cable_transmission" and model is not None:
+        d["x0"] = _transmission_x0(spec, run, model)
+    return d
+
+
+def _transmission_x0(spec: ModelSpec, run: Run, model: Any) -> _F:
+    """Initial state of a transmission run from its first measured angles, at rest: a link's
+    missing motor (joint) angle follows from its joint (motor) angle through the rigid-cable
+    kinematics ``q_m = T·q_l``; unmeasured links start at 0."""
+    n = spec.links
+    q_m = np.full(n, np.nan)
+    q_l = np.full(n, np.nan)
+    for out, col in spec.outputs:
+        base, idx = out.rstrip("0123456789"), out[len(out.rstrip("0123456789")) :]
+        if base == "q_m":
+            q_m[int(idx) - 1] = run.column(col)[0]
+        elif base == "q_l":
+            q_l[int(idx) - 1] = run.column(col)[0]
+    if not np.isnan(q_m).any():
+        # motor encoders resolve the cable stretch ~100x better than joint encoders: start
+        # from the motor angles with the cables at rest length
+        q_l = model.motor_to_joint(q_m)
+    else:
+        q_l = np.where(np.isnan(q_l), 0.0, q_l)
+        q_m = np.where(np.isnan(q_m), model.joint_to_motor(q_l), q_m)
+    x0 = np.zeros(4 * n)
+    x0[0::4], x0[2::4] = q_m, q_l
+    return x0
+
+
+def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepared:
+    """Validate runs against the model file, estimate noise, build the base problems."""
+    if not fit_runs:
+        raise DataError("the diagnosis needs at least one fit run")
+    if not hold_runs:
+        raise DataError("the diagnosis needs at least one held-out run (a different trajectory, load or rig)")
+    for run in fit_runs + hold_runs:
+        check_units(run, spec.units())
+        if spec.warmup >= 0.5 * run.duration:
+            raise DataError(
+                f"run {run.name!r} ({run.duration:g} s) is too short for a warm-up of {spec.warmup:g} s"
+            )
+    dts = {round(r.dt, 12) for r in fit_runs + hold_runs}
+    if max(dts) > 1.01 * min(dts):
+        raise DataError(f"runs have different sample intervals {sorted(dts)}; resample them to one")
+    names = [o for o, _ in spec.outputs]
+    columns = [c for _, c in spec.outputs]
+    sigma = np.array(
+        [math.sqrt(np.mean([localise.noise_sigma(r.column(c)) ** 2 for r in fit_runs])) for c in columns]
+    )
+    chans = [(spec.output(o)[0], 1.0 / s, spec.output(o)[2]) for o, s in zip(names, sigma, strict=False)]
+    model = spec.model()
+    fit_dicts = [run_dict(spec, r, columns, model) for r in fit_runs]
+    hold_dicts = [run_dict(spec, r, columns, model) for r in hold_runs]
+    servo = spec.servo()
+    probe = JointProblem(model, chans, fit_dicts, [], 1, servo)
+    substeps = spec.substeps or max(1, probe.advised_substeps(np.zeros(0)))
+    fit0 = JointProblem(model, chans, fit_dicts, [], substeps, servo)
+    hold0 = JointProblem(model, chans, hold_dicts, [], substeps, servo)
+    all_effects = [e["name"] for e in effect_catalogue()]
+    wanted = spec.effects or []
+    library = [
+        c for c in probe.candidate_library() if not wanted or c["effect"] in wanted or c["id"] in wanted
+    ]
+    # explicitly named candidates outside the default library (a form or site the user asks for)
+    for w in wanted:
+        if "@" in w and all(c["id"] != w for c in library):
+            library.append(probe.describe(w))
+    info = {c["id"]: c for c in library}
+    skipped: dict[str, str] = {}
+    has_sensor = any(spec.output(o)[2] for o in names)
+    motor_tension = any(o.startswith("tension_motor") or o == "net_motor_force" for o in names)
+    offered = {c["effect"] for c in library}
+    for e in all_effects:
+        if e in offered:
+            continue
+        if wanted and not any(w.split("@")[0] == e for w in wanted):
+            skipped[e] = "not in the model file's [diagnosis] effects"
+        elif spec.kind == "cable_transmission" and e in NOT_IN_TRANSMISSION:
+            skipped[e] = "no counterpart in the cable transmission model"
+        elif e == "coupling" and spec.kind == "cable_transmission" and spec.links < 2:
+            skipped[e] = "a single link has no coupling"
+        elif e == "coupling" and spec.kind == "antagonistic_joint" and not spec.coupled:
+            skipped[e] = "no coupled-axis column in [inputs]"
+        elif e in ("sensor_lag", "sensor_sampling", "sensor_gain_bias") and not has_sensor:
+            skipped[e] = "no force-sensor channel measured"
+        elif e == "capstan_friction" and not motor_tension:
+            skipped[e] = "no motor-side tension measured"
+        else:
+            skipped[e] = "no site of this plant where it can act on the measured channels"
+    candidates = list(info)
+    warnings = _servo_saturation(spec, model, fit_runs + hold_runs, fit_dicts + hold_dicts, substeps)
+    return Prepared(
+        spec,
+        fit_runs,
+        hold_runs,
+        names,
+        columns,
+        sigma,
+        substeps,
+        fit0,
+        hold0,
+        candidates,
+        skipped,
+        warnings,
+        info,
+    )
+
+
+#: share of a run's samples at the servo's torque limit above which the replay is flagged
+SATURATION_WARN = 0.02
+
+
+def _servo_saturation(
+    spec: ModelSpec, model: Any, runs: list[Run], dicts: list[dict[str, Any]], substeps: int
+) -> list[str]:
+    """Warnings for runs whose nominal servo replay sits at the torque limit: a saturated servo
+    is open loop, and an open-loop replay of a frictional transmission amplifies any initial
+    error (docs/diagnosis.md)."""
+    servo = spec.servo()
+    if not servo:
+        return []
+    n = spec.links
+    limit = np.asarray(servo[2])
+    chans = [(5 * n + i, 1.0, False) for i in range(n)]
+    out = []
+    for run, d in zip(runs, dicts, strict=True):
+        probe = JointProblem(model, chans, [{**d, "measured": np.zeros((len(run), n))}], [], substeps, servo)
+        tau = probe.predict(np.zeros(0), 0)
+        share = np.mean(np.abs(tau) >= 0.99 * limit, axis=0)
+        for i in np.flatnonzero(share > SATURATION_WARN):
+            out.append(
+                f"run {run.name!r}: the nominal servo replay holds axis {i + 1} at its torque limit "
+                f"{100 * share[i]:.0f} % of the time; a saturated servo is open loop and its replay "
+                "is sensitive to the initial state: slow the references or raise the limit"
+            )
+    return out
