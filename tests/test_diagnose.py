@@ -858,3 +858,59 @@ def test_a_channel_made_worse_is_flagged_even_when_the_pooled_gap_improves():
     after[0][:, 1] = rng.normal(size=n) * 1.02
     before[0][:, 1] = rng.normal(size=n)
     assert not any(c["worsened"] for c in channel_changes(prep, before, after, DT, opts, rng))  # type: ignore[arg-type]
+
+
+def test_parsimony_prefers_the_simpler_unless_the_richer_is_better_on_held_out_data():
+    """Coulomb (2 parameters) and Stribeck (4) leave equivalent held-out gaps: Coulomb is ranked
+    first, unless the held-out test says Stribeck is significantly better, then Stribeck."""
+    from types import SimpleNamespace
+
+    from cablekit.diagnose.select import parsimony
+
+    fits = {"stribeck": SimpleNamespace(params=[0.0] * 4), "coulomb": SimpleNamespace(params=[0.0] * 2)}
+    scores = {"stribeck": {"gap_after": 1.9}, "coulomb": {"gap_after": 2.0}}
+    ranked = ["stribeck", "coulomb"]
+    assert parsimony(ranked, fits, scores) == ["coulomb", "stribeck"]  # type: ignore[arg-type]
+    assert parsimony(ranked, fits, scores, lambda a, b: False) == ["coulomb", "stribeck"]  # type: ignore[arg-type]
+    richer_wins = parsimony(ranked, fits, scores, lambda a, b: (a, b) == ("stribeck", "coulomb"))  # type: ignore[arg-type]
+    assert richer_wins == ["stribeck", "coulomb"]
+    # not equivalent at all (Coulomb's gap 3x): the ranking stands whatever the test says
+    scores["coulomb"]["gap_after"] = 3.7
+    assert parsimony(ranked, fits, scores, lambda a, b: False) == ["stribeck", "coulomb"]  # type: ignore[arg-type]
+
+
+def test_a_fit_left_on_a_bound_away_from_off_is_named():
+    """The bound check: a parameter on a bound other than its "off" value is named; one at its
+    "off" bound (the nested model without the effect) is not; grid parameters never are."""
+    from cablekit.diagnose.fit import CandidateFit, _bound_away
+
+    specs = [
+        {"effect": "creep@cable.both", "name": "kappa", "reference": 0.0, "grid": False},
+        {"effect": "creep@cable.both", "name": "tau", "reference": 0.0, "grid": False},
+        {"effect": "sensor_sampling@sensors.force", "name": "period", "reference": 0.0, "grid": True},
+    ]
+    res = {"params": np.array([0.0, 0.005, 0.1]), "at_bound": np.array([True, True, True])}
+    assert _bound_away(res, specs) == ["creep@cable.both:tau"]
+    res["at_bound"] = np.array([True, False, True])
+    assert _bound_away(res, specs) == []
+    c = CandidateFit(["creep@cable.both"], res["params"], specs, 1, True, [], [], 0.0, res["params"], 3)
+    assert c.bound == []
+
+
+def test_bootstrap_refit_intervals_bracket_the_estimate():
+    """Refits on block-bootstrap resamples of the fit run: the blocks tile the run, and the
+    refit interval of the lag's time constant contains the fitted value, has a real width and
+    stays inside the parameter's range; without refits there is no such interval."""
+    from cablekit.diagnose.intervals import blocks
+
+    case = make_case(("sensor_lag",), seed=5, duration=5.0)
+    pieces = blocks(case.fit, warmup=0.3)
+    assert len(pieces) == 4 and sum(len(p) for p in pieces) == len(case.fit[0])
+    res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200, interval_refits=6))
+    p = next(p for p in res.selected.parameters if p.name == "tau_s")
+    assert p.ci95_refit is not None and p.value is not None
+    lo, hi = p.ci95_refit
+    assert lo is not None and hi is not None
+    assert lo <= p.value <= hi and hi - lo > 1e-4 * p.value and lo >= 0.0
+    plain = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200, max_effects=1))
+    assert all(q.ci95_refit is None for q in plain.selected.parameters)

@@ -125,6 +125,7 @@ def _diagnose(args: argparse.Namespace) -> int:
             seed=args.seed,
             progress=not args.quiet,
             html=not args.no_html,
+            interval_refits=args.intervals,
         )
         print(summary_table(results))
         print(f"  wrote {out / 'summary.json'}, {out / 'summary.txt'} and one folder per group")
@@ -178,7 +179,14 @@ def _run_diagnosis(
         flush=True,
     )
     t0 = time.perf_counter()
-    res = diagnose(spec, fit, hold, Options(progress=not args.quiet, workers=args.workers, seed=args.seed))
+    res = diagnose(
+        spec,
+        fit,
+        hold,
+        Options(
+            progress=not args.quiet, workers=args.workers, seed=args.seed, interval_refits=args.intervals
+        ),
+    )
     elapsed = time.perf_counter() - t0
     j = write_json(res, out / "diagnosis.json")
     for w in res.meta.warnings:
@@ -200,6 +208,12 @@ def _run_diagnosis(
             f"  selected {' + '.join(sel.effects)}: held-out gap "
             f"{sel.held_out.gap_before:.3g} -> {sel.held_out.gap_after:.3g} (noise = 1)"
         )
+        for p in sel.parameters:
+            ci = p.ci95_refit
+            print(
+                f"    {p.effect}: {p.name} = {p.value:.4g} {p.unit}"
+                + (f"  [{ci[0]:.4g}, {ci[1]:.4g}] (bootstrap refits)" if ci and None not in ci else "")
+            )
         for c in sel.channels_held_out:
             print(
                 f"    {c.channel:<24} held-out gap {c.gap_before:10.4g} -> {c.gap_after:10.4g} "
@@ -284,6 +298,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--bench-holdout", nargs="+", metavar="RUN", help="held-out runs (override the split)")
     d.add_argument(
         "--duration", type=float, default=8.0, help="self-test run length, s (independent: 20 s unless given)"
+    )
+    d.add_argument(
+        "--intervals",
+        type=int,
+        default=20,
+        metavar="N",
+        help="refit the selected effects on N bootstrap resamples of fit-run segments for the parameters' "
+        "ci95_refit (0: linearised intervals only; self-tests use 0)",
     )
     d.add_argument("--seed", type=int, default=2026)
     d.add_argument("--workers", type=int, default=0, help="parallel candidate fits (0 = all cores)")

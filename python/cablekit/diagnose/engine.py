@@ -31,6 +31,7 @@ from cablekit.diagnose import localise
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.fit import CandidateFit, baseline, parameters_out
 from cablekit.diagnose.identifiability import identifiability
+from cablekit.diagnose.intervals import refit_intervals
 from cablekit.diagnose.prepare import NOISE_LEVEL, Options, Prepared, prepare
 from cablekit.diagnose.result import SCHEMA, Diagnosis, jsonable
 from cablekit.diagnose.screen import screen
@@ -120,9 +121,17 @@ def diagnose(
             bic(fits[k], n_eff) if not fits[k].error else math.inf,
         ),
     )
-    ranked = parsimony([k for k in ranked if k not in screened_out], fits, scores) + [
-        k for k in ranked if k in screened_out
-    ]
+    good = [k for k in ranked if k not in screened_out]
+
+    def better(a: str, b: str) -> bool:
+        """``a`` significantly better than ``b`` on the held-out runs, where ``b`` leaves more
+        than noise: once the simpler one is at the noise level there is nothing left to earn."""
+        g_b = scores[b]["gap_after"]
+        if not (g_b is not None and math.isfinite(g_b) and g_b > NOISE_LEVEL):
+            return False
+        return bool(compare(fits[b].hold_resid, fits[a].hold_resid, dt, opts, rng)["significant"])
+
+    ranked = parsimony(good, fits, scores, better) + [k for k in ranked if k not in good]
     # forward selection
     sel = (
         forward_select(prep, base, fits, ranked, scores, screening, opts, rng)
@@ -137,6 +146,11 @@ def diagnose(
         "closed_fraction": closed_fraction(g_fit, gap(current.fit_resid)),
     }
     channels = channel_changes(prep, base.hold_resid, current.hold_resid, dt, opts, rng)
+    refit = (
+        refit_intervals(prep, current, opts, np.random.default_rng(opts.seed + 1))
+        if chosen and opts.interval_refits > 0
+        else None
+    )
     worse = [c for c in channels if c["worsened"]] if chosen else []
     flags = [
         f"the selected effects make channel {c['channel']} worse on held-out data "
@@ -177,6 +191,7 @@ def diagnose(
                 },
                 "identifiability": notes.get(k, []),
                 "converged": c.converged,
+                "bound": c.bound,
                 "error": c.error,
             }
         )
@@ -212,7 +227,7 @@ def diagnose(
         "selected": {
             "effects": chosen,
             "steps": steps,
-            "parameters": parameters_out(current) if chosen else [],
+            "parameters": parameters_out(current, refit) if chosen else [],
             "held_out": total,
             "fit": total_fit,
             "channels_held_out": channels,
@@ -263,11 +278,12 @@ def diagnose(
 
 def _status(c: CandidateFit, screened: str | None) -> str:
     """``failed`` (the fit raised), ``screened_out`` (not on the shortlist), ``at_bound`` (a
-    parameter ended on a bound), ``not_converged`` or ``converged``."""
+    parameter ended on a bound away from its "off" value, listed in ``bound``),
+    ``not_converged`` or ``converged``."""
     if c.error:
         return "failed"
     if screened:
         return "screened_out"
-    if c.at_bound:
+    if c.bound:
         return "at_bound"
     return "converged" if c.converged else "not_converged"

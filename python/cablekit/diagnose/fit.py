@@ -39,6 +39,8 @@ class CandidateFit:
     error: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
     at_bound: bool = False
+    #: parameters left on a bound away from their "off" value
+    bound: list[str] = field(default_factory=list)
 
 
 def _split(prep: Prepared, runs: list[Run], r: _F) -> list[_F]:
@@ -84,6 +86,7 @@ def fit_candidate(
             problem = base.with_effects(effects, sub)
             res = problem.fit(theta, max_iter=max_iter)
             theta = res["params"]
+
         hold = prep.hold0.with_effects(effects, sub)
         r_hold = hold.residuals(theta)
     except CablekitError as exc:
@@ -121,7 +124,19 @@ def fit_candidate(
         sd,
         int(res["iterations"]),
         at_bound=bool(np.any(res["at_bound"])),
+        bound=_bound_away(res, specs),
     )
+
+
+def _bound_away(res: dict[str, Any], specs: list[dict[str, Any]]) -> list[str]:
+    """Parameters that ended on a bound of their range other than the effect's "off" value (a
+    Coulomb level at 0 is the nested model without the effect and is not listed; a creep time
+    constant at its smallest allowed value is)."""
+    out = []
+    for s, v, hit in zip(specs, res["params"], res["at_bound"], strict=True):
+        if hit and not s["grid"] and abs(float(v) - float(s["reference"])) > 1e-12 * max(1.0, abs(float(v))):
+            out.append(f"{s['effect']}:{s['name']}")
+    return out
 
 
 def _sandwich(prep: Prepared, jac: _F, r: _F, seconds: float = 1.0) -> _F:
@@ -182,9 +197,10 @@ def fit_many(
     return [c for c in out if c is not None]
 
 
-def parameters_out(c: CandidateFit) -> list[dict[str, Any]]:
+def parameters_out(c: CandidateFit, refit: list[list[float] | None] | None = None) -> list[dict[str, Any]]:
+    """The fitted parameters with their linearised ``ci95`` and, when given, ``ci95_refit``."""
     rows = []
-    for s, v, sd in zip(c.specs, c.params, c.param_sd, strict=False):
+    for j, (s, v, sd) in enumerate(zip(c.specs, c.params, c.param_sd, strict=False)):
         half = 1.96 * sd if np.isfinite(sd) else None
         rows.append(
             {
@@ -193,6 +209,7 @@ def parameters_out(c: CandidateFit) -> list[dict[str, Any]]:
                 "unit": s["unit"],
                 "value": float(v),
                 "ci95": [float(v - half), float(v + half)] if half is not None else None,
+                "ci95_refit": refit[j] if refit is not None else None,
             }
         )
     return rows

@@ -234,6 +234,7 @@ def run_many(
     seed: int = 2026,
     progress: bool = True,
     html: bool = True,
+    interval_refits: int = 0,
 ) -> list[GroupResult]:
     """Diagnose every group of ``DIR/manifest.toml``; write ``OUT/<group>/diagnosis.json`` (and
     ``.html``), ``OUT/summary.json`` and ``OUT/summary.txt``. ``engine``: ``"ray"``, ``"serial"``
@@ -259,7 +260,9 @@ def run_many(
             ray.init(logging_level="ERROR", log_to_driver=False, **kw)
             started_ray = True
         executor = RayFits(ray)
-    opts = Options(progress=False, workers=workers, seed=seed, executor=executor)
+    opts = Options(
+        progress=False, workers=workers, seed=seed, executor=executor, interval_refits=interval_refits
+    )
 
     def one(g: Group) -> GroupResult:
         t0 = time.perf_counter()

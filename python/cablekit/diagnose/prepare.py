@@ -54,6 +54,8 @@ class Options:
     workers: int = 0
     seed: int = 0
     progress: bool = True
+    #: bootstrap-segment refits of the selected model for ``ci95_refit`` (0 = linearised only)
+    interval_refits: int = 0
     #: where candidate fits run: None = this machine's threads; an object with
     #: ``map(prep, jobs, max_iter, bar)`` (e.g. :class:`cablekit.diagnose.many.RayFits`) otherwise
     executor: Any = None

@@ -83,6 +83,8 @@ class Parameter:
     unit: str
     value: float | None
     ci95: list[float | None] | None
+    #: from refits on bootstrap segments of the fit runs (selected effects, when asked for)
+    ci95_refit: list[float | None] | None = None
 
 
 @dataclass(frozen=True)
@@ -112,6 +114,8 @@ class EffectResult:
     identifiability: list[IdentifiabilityNote]
     converged: bool
     error: str | None
+    #: parameters that stayed on a bound away from their "off" value after the retries
+    bound: list[str] = field(default_factory=list)
 
 
 @dataclass(frozen=True)

@@ -4,6 +4,7 @@ parsimony among nested candidates."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -135,15 +136,20 @@ def channel_changes(
 
 
 def parsimony(
-    ranked: list[str], fits: dict[str, CandidateFit], scores: dict[str, dict[str, Any]]
+    ranked: list[str],
+    fits: dict[str, CandidateFit],
+    scores: dict[str, dict[str, Any]],
+    better: Callable[[str, str], bool] | None = None,
 ) -> list[str]:
     """Reorder so that, at each rank, the candidate with the fewest parameters among those whose
     held-out remaining gap is equivalent (within 25 % of it plus 5 % of the noise variance) comes
-    first: a nested, richer effect must earn its extra parameters on held-out data."""
+    first — unless ``better(top, simpler)`` says the best of them is significantly better on the
+    held-out runs (a paired segment bootstrap): a nested, richer effect (Stribeck over Coulomb)
+    must earn its extra parameters on held-out data, and wins when it does."""
 
     def excess(k: str) -> float:
         g = scores[k]["gap_after"]
-        return max(float(g) - 1.0, 0.0) if math.isfinite(g) else math.inf
+        return max(float(g) - 1.0, 0.0) if g is not None and math.isfinite(g) else math.inf
 
     order = list(ranked)
     for i in range(len(order)):
@@ -151,7 +157,12 @@ def parsimony(
         if not math.isfinite(ref):
             break
         same = [k for k in order[i:] if excess(k) <= 1.25 * ref + 0.05]
-        pick = min(same, key=lambda k: (len(fits[k].params), excess(k)))
+        top = min(same, key=excess)
+        pick = top
+        for k in sorted(same, key=lambda k: (len(fits[k].params), excess(k))):
+            if k == top or better is None or not better(top, k):
+                pick = k
+                break
         order.remove(pick)
         order.insert(i, pick)
     return order

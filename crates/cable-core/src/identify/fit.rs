@@ -245,16 +245,32 @@ impl JointProblem {
                 }
             }
         }
-        // fine: ±12 % around the best period, phases at the sample resolution
+        // fine: ±12 % around the best period, phases at the sample resolution (at most
+        // FINE_PHASES per period; a longer period's best phase is then refined sample by sample
+        // around it, so a spurious long period costs ~2k evaluations, not period/dt × 25)
         let (_, p0, _) = best;
         if p0 <= 0.0 {
             return Ok((0.0, 0.0));
         }
+        const FINE_PHASES: usize = 64;
         for ip in 0..=24 {
             let period = p0 * (0.88 + 0.01 * ip as f64);
-            let n_phase = ((period / dt).ceil() as usize).max(1);
+            let n_phase = ((period / dt).ceil() as usize).clamp(1, FINE_PHASES);
+            let step = if n_phase == FINE_PHASES {
+                period / n_phase as f64
+            } else {
+                dt
+            };
             for jp in 0..n_phase {
-                let phase = jp as f64 * dt;
+                let phase = jp as f64 * step;
+                consider(cost(period, phase), period, phase, &mut best);
+            }
+        }
+        let (_, period, ph0) = best;
+        let half = (period / FINE_PHASES as f64 / dt).ceil() as i64;
+        if (period / dt).ceil() as usize > FINE_PHASES {
+            for j in -half..=half {
+                let phase = (((ph0 / dt).round() + j as f64) * dt).rem_euclid(period);
                 consider(cost(period, phase), period, phase, &mut best);
             }
         }
