@@ -664,6 +664,45 @@ def test_noise_level_of_held_and_noise_free_signals_is_finite_and_small():
     assert 0 < noise_sigma(np.zeros(100)) <= 1e-12
 
 
+@settings(max_examples=15, deadline=None)
+@given(
+    mains=st.sampled_from([50.0, 60.0]),
+    ratio=st.floats(0.2, 1.0),
+    f=st.floats(0.1, 2.0),
+    seed=st.integers(0, 2**16),
+)
+def test_mains_hum_is_measurement_error(mains, ratio, f, seed):
+    """A supply tone added to a moving load cell is found at its frequency with its rms within
+    20 %, and counted with the white noise in the measurement error (a hum 0.3 of the noise must
+    not read as a model gap on a control run)."""
+    from cablekit.diagnose.localise import mains_interference, measurement_sigma
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(20000) * DT
+    sigma = 0.05
+    y = 10 * np.sin(2 * np.pi * f * t) + rng.normal(0.0, sigma, t.size)
+    hum = ratio * sigma * math.sqrt(2) * np.sin(2 * np.pi * mains * t + rng.uniform(0, 6.3))
+    lines = mains_interference(y + hum, DT)
+    assert [fr for fr, _ in lines] == [mains]
+    assert lines[0][1] == pytest.approx(ratio * sigma, rel=0.2)
+    s, _ = measurement_sigma(y + hum, DT)
+    assert s == pytest.approx(sigma * math.sqrt(1 + ratio**2), rel=0.1)
+    assert mains_interference(y, DT) == []
+
+
+def test_motion_modulated_lines_are_not_mains_hum():
+    """A 10 Hz sample-and-hold has harmonics at 50 and 60 Hz: on a sine they are modulated by
+    the motion (no constant phasor), on a steady ramp they are constant but come with their own
+    10 Hz fundamental. Neither is counted as interference (it is an effect to diagnose)."""
+    from cablekit.diagnose.localise import mains_interference
+
+    rng = np.random.default_rng(1)
+    t = np.arange(20000) * DT
+    held_t = np.floor(t / 0.1) * 0.1
+    for y in (50 * np.sin(2 * np.pi * 0.5 * held_t), 5 * held_t):
+        assert mains_interference(y + rng.normal(0.0, 0.05, t.size), DT) == []
+
+
 @pytest.fixture(scope="module")
 def raven_cases():
     from cablekit.diagnose.selftest_transmission import make_transmission_case
@@ -914,3 +953,20 @@ def test_bootstrap_refit_intervals_bracket_the_estimate():
     assert lo <= p.value <= hi and hi - lo > 1e-4 * p.value and lo >= 0.0
     plain = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=200, max_effects=1))
     assert all(q.ci95_refit is None for q in plain.selected.parameters)
+
+
+def test_refit_interval_of_a_parameter_no_refit_moves_is_none(monkeypatch):
+    """A parameter the replicates never move (a flat direction of the cost) gets no refit
+    interval rather than a zero-width one that would read as certainty."""
+    from cablekit.diagnose import intervals
+    from cablekit.diagnose.fit import fit_candidate
+    from cablekit.diagnose.prepare import prepare
+
+    case = make_case(("sensor_lag",), seed=5, duration=5.0)
+    prep = prepare(case.spec, case.fit, case.hold)
+    cur = fit_candidate(prep, ["sensor_lag"], None, 10)
+    monkeypatch.setattr(intervals, "fit_candidate", lambda *a, **k: cur)
+    out = intervals.refit_intervals(
+        prep, cur, Options(progress=False, interval_refits=4), np.random.default_rng(0)
+    )
+    assert out == [None] * len(cur.params)

@@ -256,8 +256,10 @@ def diagnose(
                 {"name": r.name, "samples": len(r), "dt": r.dt, "notes": r.notes} for r in hold_runs
             ],
             "channels": [
-                {"output": o, "column": c, "noise_sigma": float(s)}
-                for o, c, s in zip(prep.channel_names, prep.columns, prep.sigma, strict=False)
+                {"output": o, "column": c, "noise_sigma": float(s), "interference_hz": hz}
+                for o, c, s, hz in zip(
+                    prep.channel_names, prep.columns, prep.sigma, prep.interference_hz, strict=False
+                )
             ],
             "substeps": prep.substeps,
             "candidates": prep.candidates,

@@ -41,7 +41,9 @@ def refit_intervals(
     prep: Prepared, current: CandidateFit, opts: Options, rng: np.random.Generator
 ) -> list[list[float] | None]:
     """Per parameter of ``current``: ``[lo, hi]`` from ``opts.interval_refits`` replicates, or
-    None when fewer than half of them could be refitted (or the parameter is a grid one)."""
+    None when fewer than half of them could be refitted, the parameter is a grid one, or no
+    replicate moved it (a flat direction of the cost: a zero-width interval would read as
+    certainty where the data say nothing)."""
     pieces = blocks(prep.fit_runs, prep.spec.warmup)
     draws = []
     with Progress(opts.interval_refits, "intervals", enabled=opts.progress) as bar:
@@ -59,7 +61,12 @@ def refit_intervals(
     out: list[list[float] | None] = []
     p = np.array(draws)
     for j, s in enumerate(current.specs):
-        if s["grid"] or len(draws) < max(2, opts.interval_refits // 2):
+        v = float(current.params[j])
+        if (
+            s["grid"]
+            or len(draws) < max(2, opts.interval_refits // 2)
+            or float(np.ptp(p[:, j])) <= 1e-9 * max(1.0, abs(v))
+        ):
             out.append(None)
         else:
             lo, hi = np.quantile(p[:, j], [0.025, 0.975])

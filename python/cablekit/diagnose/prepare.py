@@ -79,6 +79,8 @@ class Prepared:
     warnings: list[str] = field(default_factory=list)
     #: candidate id → its description from the core (effect, site, form, sentence, parameters)
     info: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: per channel: mains-interference lines (Hz) found in the fit runs, counted as noise
+    interference_hz: list[list[float]] = field(default_factory=list)
     #: identity of this preparation (a distributed executor ships its data once per token)
     token: str = field(default_factory=lambda: uuid.uuid4().hex)
 
@@ -151,9 +153,13 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
         raise DataError(f"runs have different sample intervals {sorted(dts)}; resample them to one")
     names = [o for o, _ in spec.outputs]
     columns = [c for _, c in spec.outputs]
-    sigma = np.array(
-        [math.sqrt(np.mean([localise.noise_sigma(r.column(c)) ** 2 for r in fit_runs])) for c in columns]
-    )
+    # measurement error per channel: white noise plus stationary mains lines, pooled over fit runs
+    sigma_list, lines = [], []
+    for c in columns:
+        per_run = [localise.measurement_sigma(r.column(c), r.dt) for r in fit_runs]
+        sigma_list.append(math.sqrt(np.mean([s * s for s, _ in per_run])))
+        lines.append(sorted({f for _, ls in per_run for f, _ in ls}))
+    sigma = np.array(sigma_list)
     chans = [(spec.output(o)[0], 1.0 / s, spec.output(o)[2]) for o, s in zip(names, sigma, strict=False)]
     model = spec.model()
     fit_dicts = [run_dict(spec, r, columns, model) for r in fit_runs]
@@ -210,6 +216,7 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
         skipped,
         warnings,
         info,
+        interference_hz=lines,
     )
 
 

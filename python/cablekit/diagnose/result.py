@@ -242,11 +242,13 @@ class RunInfo:
 
 @dataclass(frozen=True)
 class ChannelInfo:
-    """A measured channel: model output, run column, noise standard deviation."""
+    """A measured channel: model output, run column, measurement-error standard deviation (white
+    noise and any stationary mains lines, whose frequencies are listed)."""
 
     output: str
     column: str
     noise_sigma: float
+    interference_hz: list[float] = field(default_factory=list)
 
 
 @dataclass(frozen=True)

@@ -332,15 +332,22 @@ impl JointProblem {
     }
 
     /// RK4 substeps the augmented model at `theta` needs at the run's sample interval, from its
-    /// stiffest mode at rest (see [`propose_step`]).
+    /// stiffest mode at rest (see [`propose_step`]); the joint's dry friction is left out (its
+    /// substeps are chosen interval by interval, see [`super::plant`]).
     pub fn advised_substeps(&self, theta: &[f64]) -> Result<usize> {
         let a = self.augment(theta)?;
         let mut worst = 1;
         for run in &self.runs {
             let advice = match &a.model {
                 Replay::Joint(m) => {
-                    let x = m.rest(run.input[0] / m.radius);
-                    propose_step(m, &x, &[run.input[0], 0.0, 0.0], run.dt, 0.9)?
+                    // the joint's dry friction gets its substeps interval by interval from its
+                    // local rate (plant.rs): advise for the other modes
+                    let mut q = m.clone();
+                    q.friction.coulomb = 0.0;
+                    q.friction.static_level = 0.0;
+                    q.load_friction = 0.0;
+                    let x = q.rest(run.input[0] / q.radius);
+                    propose_step(&q, &x, &[run.input[0], 0.0, 0.0], run.dt, 0.9)?
                 }
                 Replay::Transmission(m) | Replay::Servo(m, _) => {
                     let x = if run.x0.len() == m.n_states() {
