@@ -195,13 +195,14 @@ def turning_points(x: _F, band: float) -> NDArray[np.intp]:
     """Indices where ``x`` reverses: the running extremum once the signal has retreated from it
     by more than ``band`` (a hysteresis band, so encoder counts flickering at a standstill or
     noise on a plateau are not reversals, and a velocity passing through exact zero between two
-    counts is not needed)."""
+    counts is not needed). An extremum next to either end of the record, which the signal cannot
+    leave by the whole band before the record stops, counts when it is left by half the band."""
     out: list[int] = []
     if len(x) < 2 or not band > 0.0:
         return np.zeros(0, dtype=np.intp)
     direction = 0  # +1 rising, −1 falling, 0 unknown
     i_ext = j_ext = 0  # first and last sample at the running extremum (a quantised plateau)
-    lo_i, hi_i = 0, 0
+    lo_i = hi_i = 0
     for i in range(1, len(x)):
         xi = x[i]
         if direction == 0:
@@ -212,6 +213,12 @@ def turning_points(x: _F, band: float) -> NDArray[np.intp]:
             if x[hi_i] - x[lo_i] > band:
                 direction = 1 if hi_i > lo_i else -1
                 i_ext = j_ext = hi_i if direction > 0 else lo_i
+                # the earlier extremum is a turning point too when the record approached it by
+                # more than half the band (a reversal close to the start, not the start itself)
+                e = lo_i if direction > 0 else hi_i
+                if e > 0 and abs(x[e] - (np.max(x[:e]) if direction > 0 else np.min(x[:e]))) > 0.5 * band:
+                    at = np.flatnonzero(x[: i + 1] == x[e])
+                    out.append(int(at[0] + at[-1]) // 2)
             continue
         d = direction * (xi - x[i_ext])
         if d > 0.0:
@@ -221,7 +228,22 @@ def turning_points(x: _F, band: float) -> NDArray[np.intp]:
         elif -d > band:
             out.append((i_ext + j_ext) // 2)
             direction, i_ext, j_ext = -direction, i, i
-    return np.asarray(out, dtype=np.intp)
+    # likewise the last extremum, when the record leaves it by more than half the band
+    if direction != 0 and j_ext < len(x) - 1 and direction * (x[i_ext] - x[-1]) > 0.5 * band:
+        out.append((i_ext + j_ext) // 2)
+    return np.asarray([_centre(x, p, band) for p in out], dtype=np.intp)
+
+
+def _centre(x: _F, p: int, band: float) -> int:
+    """The middle of the stretch around the extremum ``p`` that stays within half the band of it
+    (a flickering or noisy plateau has no single extreme sample); ``p`` itself when the record
+    ends inside that stretch."""
+    far = np.abs(x - x[p]) > 0.5 * band
+    left = np.flatnonzero(far[:p])
+    right = np.flatnonzero(far[p + 1 :])
+    if left.size == 0 or right.size == 0:
+        return p
+    return int(left[-1] + p + 1 + right[0]) // 2
 
 
 def reversal_band(x: _F) -> float:
