@@ -23,10 +23,12 @@ from cablekit._cablekit import (
 )
 from cablekit.errors import (
     CablekitError,
+    ConvergenceError,
     DataError,
     DTypeError,
     InternalError,
     LayoutError,
+    NonFiniteResultError,
     NotFiniteError,
     ParameterError,
     ShapeError,
@@ -47,6 +49,7 @@ __all__ = [
     "AntagonisticJoint",
     "CableTransmission",
     "CablekitError",
+    "ConvergenceError",
     "DTypeError",
     "DahlElement",
     "DataError",
@@ -57,6 +60,7 @@ __all__ = [
     "Mlp",
     "Model",
     "MotorPD",
+    "NonFiniteResultError",
     "NotFiniteError",
     "ParameterError",
     "ShapeError",

@@ -109,7 +109,8 @@ class CableTransmission(Model):
     def params(self) -> dict[str, Any]:
         """Constructor keywords with per-link lists."""
     def joint_to_motor(self, q_l: _F) -> _F: ...
-    def motor_to_joint(self, q_m: _F) -> _F: ...
+    def motor_to_joint(self, q_m: _F) -> _F:
+        """``q_l = T⁻¹·q_m`` for ``(n,)`` or ``(T, n)`` motor angles."""
     def energy(self, x: _F) -> float:
         """Kinetic + taut-cable + gravity energy (J)."""
 

@@ -36,6 +36,17 @@ class SimulationDivergedError(CablekitError, ArithmeticError):
     """The integrated state became non-finite. ``step`` and ``time`` (s) say where."""
 
 
+class NonFiniteResultError(CablekitError, ArithmeticError):
+    """A result computed from finite inputs left the float range (overflow to inf, or NaN): an
+    input or a parameter is too extreme for the model. ``argument`` names the result and
+    ``index`` the first non-finite element."""
+
+
+class ConvergenceError(CablekitError, ArithmeticError):
+    """An iterative computation reached its iteration cap (every loop in cablekit is bounded).
+    ``argument`` names it and ``limit`` is the cap."""
+
+
 class DataError(CablekitError, ValueError):
     """A data file (CSV, TOML) is malformed: missing column, bad time base, unknown unit."""
 
@@ -70,10 +81,12 @@ class InternalError(CablekitError, RuntimeError):
 
 __all__ = [
     "CablekitError",
+    "ConvergenceError",
     "DTypeError",
     "DataError",
     "InternalError",
     "LayoutError",
+    "NonFiniteResultError",
     "NotFiniteError",
     "OnnxExportError",
     "ParameterError",

@@ -186,10 +186,10 @@ def _setup(
 
 
 def kinematic_joint_angles(model: CableTransmission, q_m: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Joint angles from motor angles through the rigid transmission, ``q_l = T⁻¹·q_m``."""
-    q_m = np.asarray(q_m, dtype=np.float64)
-    tinv = np.linalg.inv(model.transmission_matrix)
-    return q_m @ tinv.T
+    """Joint angles from motor angles through the rigid transmission, ``q_l = T⁻¹·q_m``, for
+    ``(n,)`` or ``(T, n)`` motor angles (the core's forward substitution; non-finite angles are
+    a :class:`~cablekit.NotFiniteError` naming the row)."""
+    return model.motor_to_joint(np.ascontiguousarray(q_m, dtype=np.float64))
 
 
 def estimate_joint_states(

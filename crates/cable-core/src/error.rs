@@ -21,7 +21,7 @@ pub enum CableError {
         got: String,
     },
     /// An input contains NaN or ±inf.
-    #[error("{what} contains a non-finite value ({value}) at flat index {index}{location}")]
+    #[error("{what} contains a non-finite value ({value:?}) at flat index {index}{location}")]
     NotFinite {
         /// Which argument.
         what: String,
@@ -33,7 +33,7 @@ pub enum CableError {
         location: String,
     },
     /// A physical or numerical parameter is out of its admissible range.
-    #[error("invalid parameter {name} = {value}: must be {requirement}")]
+    #[error("invalid parameter {name} = {value:?}: must be {requirement}")]
     InvalidParameter {
         /// Parameter path, e.g. `"links[1].cable_stiffness"`.
         name: String,
@@ -55,7 +55,7 @@ pub enum CableError {
     /// The integrated state became non-finite: the step is too large for the model's stiffest
     /// mode or the model itself diverges.
     #[error(
-        "simulation diverged at step {step} (t = {time_s} s): the state became non-finite; \
+        "simulation diverged at step {step} (t = {time_s:?} s): the state became non-finite; \
          use a smaller dt or more substeps (see propose_step)"
     )]
     Diverged {
@@ -63,6 +63,34 @@ pub enum CableError {
         step: usize,
         /// Time of that sample, s.
         time_s: f64,
+    },
+    /// A computation from finite inputs left the floating-point range (overflow to ±inf, or an
+    /// indeterminate form): the input or a parameter is too extreme for the model.
+    #[error(
+        "{what} is not finite ({value:?}) at flat index {index}{location} although its inputs are: \
+         {hint}"
+    )]
+    NonFiniteResult {
+        /// Which result (e.g. `"derivative"`, `"capstan_ratio"`).
+        what: String,
+        /// Flat (row-major) index of the first non-finite element.
+        index: usize,
+        /// The non-finite value.
+        value: f64,
+        /// Optional `(row, column)` rendering of the index, empty for 1-D data.
+        location: String,
+        /// What to change, in words.
+        hint: &'static str,
+    },
+    /// An iterative computation did not finish within its iteration cap.
+    #[error("{what} did not converge within {limit} iterations: {hint}")]
+    NotConverged {
+        /// Which computation.
+        what: String,
+        /// The iteration cap that was reached.
+        limit: usize,
+        /// What to change, in words.
+        hint: &'static str,
     },
     /// A weight file is unreadable or does not describe a valid network.
     #[error("invalid weight file ({kind}) at {item}: {reason}")]
@@ -153,12 +181,111 @@ pub mod check {
                 what: what.to_owned(),
                 index,
                 value: data[index],
-                location: if cols > 1 {
-                    format!(" (row {}, column {})", index / cols, index % cols)
-                } else {
-                    String::new()
-                },
+                location: location(index, cols),
             }),
+        }
+    }
+
+    /// `" (row r, column c)"` for a flat index into rows of `cols` (> 1) values, else empty.
+    fn location(index: usize, cols: usize) -> String {
+        if cols > 1 {
+            format!(" (row {}, column {})", index / cols, index % cols)
+        } else {
+            String::new()
+        }
+    }
+
+    /// Every element of a result computed from finite inputs must be finite; `cols` (> 0)
+    /// renders the index as (row, col).
+    #[inline]
+    pub fn result_finite(what: &str, data: &[f64], cols: usize, hint: &'static str) -> Result<()> {
+        match data.iter().position(|v| !v.is_finite()) {
+            None => Ok(()),
+            Some(index) => Err(CableError::NonFiniteResult {
+                what: what.to_owned(),
+                index,
+                value: data[index],
+                location: location(index, cols),
+                hint,
+            }),
+        }
+    }
+
+    /// `g` at every element of `input` (named `what`), refusing non-finite elements and
+    /// reporting a non-finite result as [`CableError::NonFiniteResult`] named `result`.
+    pub fn finite_map(
+        what: &str,
+        input: &[f64],
+        result: &str,
+        g: impl Fn(f64) -> f64,
+    ) -> Result<Vec<f64>> {
+        all_finite(what, input, 1)?;
+        let out: Vec<f64> = input.iter().map(|&x| g(x)).collect();
+        result_finite(result, &out, 1, "the input or a parameter is too extreme")?;
+        Ok(out)
+    }
+
+    /// [`finite_map`] over two equally long inputs.
+    pub fn finite_map2(
+        what: (&str, &str),
+        a: &[f64],
+        b: &[f64],
+        result: &str,
+        g: impl Fn(f64, f64) -> f64,
+    ) -> Result<Vec<f64>> {
+        len(what.1, b, a.len())?;
+        all_finite(what.0, a, 1)?;
+        all_finite(what.1, b, 1)?;
+        let out: Vec<f64> = a.iter().zip(b).map(|(&x, &y)| g(x, y)).collect();
+        result_finite(result, &out, 1, "the input or a parameter is too extreme")?;
+        Ok(out)
+    }
+
+    /// `eval` into a fresh buffer of `out_len` values, after checking each argument
+    /// `(name, data, expected length)` for its length and finiteness, and before returning the
+    /// result checked finite (named `result`). One evaluation of a model function for a caller
+    /// outside the hot loops (the bindings, tests).
+    pub fn evaluate(
+        args: &[(&str, &[f64], usize)],
+        result: &str,
+        out_len: usize,
+        eval: impl FnOnce(&mut [f64]),
+    ) -> Result<Vec<f64>> {
+        for (name, data, n) in args {
+            len(name, data, *n)?;
+            all_finite(name, data, 1)?;
+        }
+        let mut out = vec![0.0; out_len];
+        eval(&mut out);
+        result_finite(
+            result,
+            &out,
+            1,
+            "the state, the input or a parameter is too extreme for the model",
+        )?;
+        Ok(out)
+    }
+
+    /// An interval `[lo, hi]` with finite ends, `lo <= hi`; `name` names it.
+    pub fn interval(name: &str, lo: f64, hi: f64) -> Result<(f64, f64)> {
+        finite(&format!("{name}.lower"), lo)?;
+        finite(&format!("{name}.upper"), hi)?;
+        if lo > hi {
+            return Err(invalid(&format!("{name}.lower"), lo, "<= the upper bound"));
+        }
+        Ok((lo, hi))
+    }
+
+    /// A count of RK4 substeps per sample: `1 ..= MAX_SUBSTEPS`.
+    pub fn substeps(name: &str, n: usize) -> Result<usize> {
+        if (1..=crate::integrate::MAX_SUBSTEPS).contains(&n) {
+            Ok(n)
+        } else {
+            Err(invalid(
+                name,
+                n as f64,
+                "an integer in 1 ..= 100000 (MAX_SUBSTEPS); use a smaller dt",
+            ))
         }
     }
 

@@ -137,3 +137,14 @@ pub fn to_matrix(
 pub fn to_vector(py: Python<'_>, data: Vec<f64>) -> Bound<'_, PyArray1<f64>> {
     data.into_pyarray(py)
 }
+
+/// Number of dimensions of an ndarray argument (`DTypeError` if it is not one).
+pub fn ndim_of(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<usize> {
+    obj.cast::<PyUntypedArray>().map(|a| a.ndim()).map_err(|_| {
+        raise(
+            "DTypeError",
+            format!("{name} must be a numpy.ndarray of float64; pass np.asarray({name}, dtype=np.float64)"),
+            &[],
+        )
+    })
+}

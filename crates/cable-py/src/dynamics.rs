@@ -3,7 +3,7 @@
 use cable_core::cable::{CableLaw, CableLoop, CableRun, Creep};
 use cable_core::dynamics::{self as core, Gravity, JointKind, Model as _, TransmissionLink};
 use cable_core::friction::{Dahl, StaticFriction};
-use cable_core::integrate::{jacobian, Rk4};
+use cable_core::integrate::jacobian_rows;
 use cable_core::{check, CableError};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -75,14 +75,17 @@ impl Model {
         x: &Bound<'py, PyAny>,
         u: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let n = self.n_states();
-        self.evaluate(
-            py,
-            x,
-            u,
-            n,
-            |m, x, u, out| with_model!(m, mm => mm.derivative(x, u, out)),
-        )
+        let (x, u) = self.point(x, u)?;
+        let (n, m) = (self.n_states(), self.n_inputs());
+        let out = guarded(|| {
+            check::evaluate(
+                &[("x", &x, n), ("u", &u, m)],
+                "derivative",
+                n,
+                |out| with_model!(&self.inner, mm => mm.derivative(&x, &u, out)),
+            )
+        })?;
+        Ok(to_vector(py, out))
     }
 
     /// `h(x, u)`: the outputs.
@@ -92,14 +95,17 @@ impl Model {
         x: &Bound<'py, PyAny>,
         u: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let p = self.n_outputs();
-        self.evaluate(
-            py,
-            x,
-            u,
-            p,
-            |m, x, u, out| with_model!(m, mm => mm.output(x, u, out)),
-        )
+        let (x, u) = self.point(x, u)?;
+        let (n, m, p) = (self.n_states(), self.n_inputs(), self.n_outputs());
+        let out = guarded(|| {
+            check::evaluate(
+                &[("x", &x, n), ("u", &u, m)],
+                "output",
+                p,
+                |out| with_model!(&self.inner, mm => mm.output(&x, &u, out)),
+            )
+        })?;
+        Ok(to_vector(py, out))
     }
 
     /// One sample interval `dt` of RK4 in `substeps` steps from `x` (inputs held at `u`, or
@@ -114,18 +120,17 @@ impl Model {
         substeps: usize,
         u_next: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (mut x, u) = self.point(x, u)?;
+        let (x, u) = self.point(x, u)?;
         let u_b = match u_next {
             Some(obj) => vector(obj, "u_next", self.n_inputs())?,
             None => u.clone(),
         };
-        check::all_finite("u_next", &u_b, 1).map_err(crate::errors::PyCableError)?;
-        guarded(|| {
-            cable_core::integrate::SimOptions::new(dt, substeps, Default::default())?;
-            with_model!(&self.inner, m => Rk4::for_model(m).advance(m, &mut x, &u, &u_b, dt, substeps));
-            Ok(())
+        let out = py.detach(|| {
+            guarded(|| {
+                with_model!(&self.inner, m => cable_core::integrate::rk4_interval(m, &x, &u, &u_b, dt, substeps))
+            })
         })?;
-        Ok(to_vector(py, x))
+        Ok(to_vector(py, out))
     }
 
     /// Jacobian `∂f/∂x` at `(x, u)` by central differences.
@@ -137,8 +142,7 @@ impl Model {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let (x, u) = self.point(x, u)?;
         let n = self.n_states();
-        let jac = guarded(|| Ok(with_model!(&self.inner, m => jacobian(m, &x, &u))))?;
-        let rows: Vec<f64> = (0..n * n).map(|k| jac[(k / n, k % n)]).collect();
+        let rows = guarded(|| with_model!(&self.inner, m => jacobian_rows(m, &x, &u)))?;
         Ok(to_matrix(py, rows, n, n))
     }
 
@@ -155,30 +159,10 @@ impl Model {
 }
 
 impl Model {
-    /// Validate `(x, u)`, run `eval` into a fresh length-`len` buffer (panics caught).
-    fn evaluate<'py>(
-        &self,
-        py: Python<'py>,
-        x: &Bound<'py, PyAny>,
-        u: &Bound<'py, PyAny>,
-        len: usize,
-        eval: impl Fn(&AnyModel, &[f64], &[f64], &mut [f64]),
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (x, u) = self.point(x, u)?;
-        let mut out = vec![0.0; len];
-        guarded(|| {
-            eval(&self.inner, &x, &u, &mut out);
-            Ok(())
-        })?;
-        Ok(to_vector(py, out))
-    }
-
     /// Validated `(x, u)` evaluation point.
     fn point(&self, x: &Bound<'_, PyAny>, u: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<f64>)> {
         let x = vector(x, "x", self.n_states())?;
         let u = vector(u, "u", self.n_inputs())?;
-        check::all_finite("x", &x, 1).map_err(crate::errors::PyCableError)?;
-        check::all_finite("u", &u, 1).map_err(crate::errors::PyCableError)?;
         Ok((x, u))
     }
 }
@@ -446,29 +430,37 @@ impl CableTransmission {
         q_l: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let t = transmission(&slf);
-        let q = vector(q_l, "q_l", t.n_links())?;
-        let mut out = vec![0.0; t.n_links()];
-        t.joint_to_motor(&q, &mut out);
+        let (q, n) = (vector(q_l, "q_l", t.n_links())?, t.n_links());
+        let out = guarded(|| {
+            check::evaluate(&[("q_l", &q, n)], "q_m", n, |out| t.joint_to_motor(&q, out))
+        })?;
         Ok(to_vector(slf.py(), out))
     }
 
-    /// Transmission-kinematics joint estimate `q_l = T⁻¹·q_m`.
+    /// Transmission-kinematics joint estimate `q_l = T⁻¹·q_m`: `(n,)` or row by row `(T, n)`.
     fn motor_to_joint<'py>(
         slf: PyRef<'py, Self>,
         q_m: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    ) -> PyResult<Bound<'py, PyAny>> {
         let t = transmission(&slf);
-        let q = vector(q_m, "q_m", t.n_links())?;
-        let mut out = vec![0.0; t.n_links()];
-        t.motor_to_joint(&q, &mut out);
-        Ok(to_vector(slf.py(), out))
+        let n = t.n_links();
+        if crate::convert::ndim_of(q_m, "q_m")? == 1 {
+            let q = vector(q_m, "q_m", n)?;
+            let out = guarded(|| t.motor_to_joint_rows(&q))?;
+            return Ok(to_vector(slf.py(), out).into_any());
+        }
+        let (arr, rows) = crate::convert::matrix(q_m, "q_m", Some(n))?;
+        let q = arr.as_slice()?;
+        let out = slf.py().detach(|| guarded(|| t.motor_to_joint_rows(q)))?;
+        Ok(to_matrix(slf.py(), out, rows, n).into_any())
     }
 
     /// Mechanical energy (J) at state `x` (kinetic + taut cable + gravity).
     fn energy(slf: PyRef<'_, Self>, x: &Bound<'_, PyAny>) -> PyResult<f64> {
         let t = transmission(&slf);
-        let x = vector(x, "x", t.n_states())?;
-        Ok(t.energy(&x))
+        let (x, n) = (vector(x, "x", t.n_states())?, t.n_states());
+        let e = guarded(|| check::evaluate(&[("x", &x, n)], "energy", 1, |e| e[0] = t.energy(&x)))?;
+        Ok(e[0])
     }
 }
 

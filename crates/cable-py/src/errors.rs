@@ -61,6 +61,16 @@ impl From<PyCableError> for PyErr {
                         msg,
                         &[("step", int(*step)?), ("time", float(*time_s)?)],
                     ),
+                    CableError::NonFiniteResult { what, index, .. } => raise(
+                        "NonFiniteResultError",
+                        msg,
+                        &[("argument", s(what)?), ("index", int(*index)?)],
+                    ),
+                    CableError::NotConverged { what, limit, .. } => raise(
+                        "ConvergenceError",
+                        msg,
+                        &[("argument", s(what)?), ("limit", int(*limit)?)],
+                    ),
                     CableError::Weights { kind, item, .. } => raise(
                         match kind {
                             WeightsErrorKind::Corrupt => "WeightsCorruptError",

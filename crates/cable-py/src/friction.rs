@@ -5,6 +5,8 @@ use cable_core::friction::{self as f, Dahl, StaticFriction};
 use numpy::PyArray1;
 use pyo3::prelude::*;
 
+use cable_core::check;
+
 use crate::convert::{any_vector, to_vector};
 use crate::errors::guarded;
 
@@ -12,10 +14,29 @@ fn map1<'py>(
     py: Python<'py>,
     v: &Bound<'py, PyAny>,
     name: &str,
+    result: &str,
     g: impl Fn(f64) -> f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let v = any_vector(v, name)?;
-    Ok(to_vector(py, v.into_iter().map(g).collect()))
+    Ok(to_vector(
+        py,
+        guarded(|| check::finite_map(name, &v, result, g))?,
+    ))
+}
+
+fn map2<'py>(
+    py: Python<'py>,
+    a: (&Bound<'py, PyAny>, &str),
+    b: (&Bound<'py, PyAny>, &str),
+    result: &str,
+    g: impl Fn(f64, f64) -> f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let va = any_vector(a.0, a.1)?;
+    let vb = crate::convert::vector(b.0, b.1, va.len())?;
+    Ok(to_vector(
+        py,
+        guarded(|| check::finite_map2((a.1, b.1), &va, &vb, result, g))?,
+    ))
 }
 
 /// Coulomb friction `F_c·v/sqrt(v² + ε²)` at each velocity.
@@ -28,7 +49,7 @@ pub fn coulomb_friction<'py>(
     smoothing: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let law = guarded(|| StaticFriction::coulomb_viscous("friction", coulomb, 0.0, smoothing))?;
-    map1(py, v, "v", |x| law.force(x))
+    map1(py, v, "v", "friction", |x| law.force(x))
 }
 
 /// Stribeck + Coulomb + viscous friction at each velocity.
@@ -55,7 +76,7 @@ pub fn stribeck_friction<'py>(
             smoothing,
         )
     })?;
-    map1(py, v, "v", |x| law.force(x))
+    map1(py, v, "v", "friction", |x| law.force(x))
 }
 
 /// Capstan ratio `T_out/T_in = exp(−μφ·σ_ε(v))` at each cable velocity.
@@ -69,11 +90,13 @@ pub fn capstan_ratio<'py>(
     smoothing: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     guarded(|| {
-        cable_core::check::non_negative("mu", mu)?;
-        cable_core::check::non_negative("wrap", wrap)?;
-        cable_core::check::positive("smoothing", smoothing)
+        check::non_negative("mu", mu)?;
+        check::non_negative("wrap", wrap)?;
+        check::positive("smoothing", smoothing)
     })?;
-    map1(py, v, "v", |x| f::capstan_ratio(mu, wrap, x, smoothing))
+    map1(py, v, "v", "capstan_ratio", |x| {
+        f::capstan_ratio(mu, wrap, x, smoothing)
+    })
 }
 
 /// Dahl rate `dF/dt` at friction states `force` and velocities `v` (same length).
@@ -88,12 +111,9 @@ pub fn dahl_rate<'py>(
     exponent: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let dahl = guarded(|| Dahl::new(sigma0, coulomb, exponent))?;
-    let fs = any_vector(force, "force")?;
-    let vs = crate::convert::vector(v, "v", fs.len())?;
-    Ok(to_vector(
-        py,
-        fs.iter().zip(&vs).map(|(&a, &b)| dahl.rate(a, b)).collect(),
-    ))
+    map2(py, (force, "force"), (v, "v"), "dahl_rate", |a, b| {
+        dahl.rate(a, b)
+    })
 }
 
 /// Cable-run tension `max(0, T₀ + F(s) + c·ṡ)` at each stretch and stretch rate.
@@ -117,13 +137,11 @@ pub fn cable_tension<'py>(
             "cable",
         )
     })?;
-    let s = any_vector(stretch, "stretch")?;
-    let sd = crate::convert::vector(stretch_rate, "stretch_rate", s.len())?;
-    Ok(to_vector(
+    map2(
         py,
-        s.iter()
-            .zip(&sd)
-            .map(|(&a, &b)| run.tension(a, b))
-            .collect(),
-    ))
+        (stretch, "stretch"),
+        (stretch_rate, "stretch_rate"),
+        "tension",
+        |a, b| run.tension(a, b),
+    )
 }

@@ -7,12 +7,12 @@ use numpy::ndarray::Array2;
 use numpy::ndarray::Dimension;
 use numpy::{
     IntoPyArray, PyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray, PyReadwriteArray,
-    PyUntypedArray, PyUntypedArrayMethods,
+    PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
-use crate::convert::{any_vector, matrix, to_vector};
+use crate::convert::{any_vector, matrix, ndim_of, to_vector};
 use crate::errors::{guarded, raise};
 
 /// `(weight, bias)` of one layer as numpy arrays.
@@ -30,16 +30,6 @@ fn layout_error(name: &str) -> PyErr {
         format!("{name} must be C-contiguous; pass np.ascontiguousarray({name})"),
         &[],
     )
-}
-
-fn ndim_of(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<usize> {
-    obj.cast::<PyUntypedArray>().map(|a| a.ndim()).map_err(|_| {
-        raise(
-            "DTypeError",
-            format!("{name} must be a numpy.ndarray of float64; pass np.asarray({name}, dtype=np.float64)"),
-            &[],
-        )
-    })
 }
 
 /// Borrow `x` read-only and `out` read-write (`out` must be writeable and not `x` itself).

@@ -339,6 +339,32 @@ impl CableTransmission {
         }
     }
 
+    /// [`CableTransmission::motor_to_joint`] for each row of row-major `(rows, n)` motor angles
+    /// (rad or m), checked: a length that is not a whole number of rows, a non-finite angle or
+    /// a non-finite result (a degenerate transmission) is an error naming the row.
+    pub fn motor_to_joint_rows(&self, q_m: &[f64]) -> Result<Vec<f64>> {
+        let n = self.n_links();
+        if !q_m.len().is_multiple_of(n) {
+            return Err(CableError::Shape {
+                what: "q_m".into(),
+                expected: format!("(T, {n})"),
+                got: format!("{} values", q_m.len()),
+            });
+        }
+        check::all_finite("q_m", q_m, n)?;
+        let mut q_l = vec![0.0; q_m.len()];
+        for (a, b) in q_m.chunks_exact(n).zip(q_l.chunks_exact_mut(n)) {
+            self.motor_to_joint(a, b);
+        }
+        check::result_finite(
+            "q_l",
+            &q_l,
+            n,
+            "the transmission matrix is too badly scaled",
+        )?;
+        Ok(q_l)
+    }
+
     /// Loop stretches `Δ` (m) and rates `Δ̇` (m/s) at state `x`, for `N = n_links()` (a
     /// const parameter so that the hot loops unroll; see [`by_links`]).
     #[inline(always)]

@@ -109,7 +109,11 @@ type SpecFn<'a> = dyn Fn(&str, &'static str, f64, f64, f64, f64, f64) -> ParamSp
 impl ParamSpec {
     /// The same spec with further starting values (kept inside the bounds).
     fn starts(mut self, v: &[f64]) -> Self {
-        self.starts = v.iter().map(|x| x.clamp(self.lower, self.upper)).collect();
+        // max/min, not clamp: bounds from degenerate data scales must not panic
+        self.starts = v
+            .iter()
+            .map(|x| x.max(self.lower).min(self.upper))
+            .collect();
         self
     }
 }
@@ -338,7 +342,7 @@ impl Effect {
                 // any regularised model, and a fixed smoothing would hand the low-speed part of
                 // the gap to Stribeck or Dahl candidates
                 let eps_lo = (2e-3 * w).max(1e-6);
-                let eps0 = s.smoothing.clamp(eps_lo, 10.0 * w);
+                let eps0 = s.smoothing.min(10.0 * w).max(eps_lo); // never a panicking clamp
                 vec![
                     p("F_c", "N·m", 0.0, 0.02 * tq, 0.0, 10.0 * tq, 0.1 * tq),
                     p(

@@ -189,6 +189,7 @@ impl JointProblem {
         for (i, r) in runs.iter().enumerate() {
             check::positive(&format!("runs[{i}].dt"), r.dt)?;
             let t = r.len();
+            crate::integrate::check_time_base(r.dt, t)?;
             let optional_ok = |v: &Vec<f64>, w: usize| v.is_empty() || v.len() == t * w;
             if t < 4
                 || r.width != width

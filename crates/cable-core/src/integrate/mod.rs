@@ -21,7 +21,11 @@
 
 mod stability;
 
-pub use stability::{jacobian, propose_step, rk4_stability_radius, StepAdvice};
+/// The most RK4 substeps one sample interval may take (every loop in cablekit is bounded; a
+/// sample interval that needs more is a sign of a wrong `dt` or an extreme parameter).
+pub const MAX_SUBSTEPS: usize = 100_000;
+
+pub use stability::{jacobian, jacobian_rows, propose_step, rk4_stability_radius, StepAdvice};
 
 use crate::dynamics::Model;
 use crate::error::{check, CableError, Result};
@@ -270,13 +274,7 @@ impl SimOptions {
     /// Validated options.
     pub fn new(dt: f64, substeps: usize, hold: InputHold) -> Result<Self> {
         check::positive("dt", dt)?;
-        if substeps == 0 {
-            return Err(CableError::InvalidParameter {
-                name: "substeps".into(),
-                value: 0.0,
-                requirement: "an integer >= 1",
-            });
-        }
+        check::substeps("substeps", substeps)?;
         Ok(Self { dt, substeps, hold })
     }
 }
@@ -383,6 +381,52 @@ pub(crate) fn record<M: Model + ?Sized>(
     Ok(())
 }
 
+/// One checked sample interval of RK4 from `x`: inputs going linearly from `u_a` to `u_b`,
+/// `substeps` steps (1 ..= [`MAX_SUBSTEPS`]). Lengths and finiteness are checked, and a
+/// non-finite new state is [`CableError::Diverged`] at step 1. For callers outside the hot loops
+/// (the bindings); a controller loop uses [`Rk4::advance`] on its own workspace.
+pub fn rk4_interval<M: Model + ?Sized>(
+    model: &M,
+    x: &[f64],
+    u_a: &[f64],
+    u_b: &[f64],
+    dt: f64,
+    substeps: usize,
+) -> Result<Vec<f64>> {
+    SimOptions::new(dt, substeps, InputHold::Foh)?;
+    for (name, data, n) in [
+        ("x", x, model.n_states()),
+        ("u", u_a, model.n_inputs()),
+        ("u_next", u_b, model.n_inputs()),
+    ] {
+        check::len(name, data, n)?;
+        check::all_finite(name, data, 1)?;
+    }
+    let mut x = x.to_vec();
+    Rk4::for_model(model).advance(model, &mut x, u_a, u_b, dt, substeps);
+    if x.iter().all(|v| v.is_finite()) {
+        Ok(x)
+    } else {
+        Err(CableError::Diverged {
+            step: 1,
+            time_s: dt,
+        })
+    }
+}
+
+/// The last sample time `dt·(T − 1)` must be finite (a time column of `inf` is no answer).
+pub fn check_time_base(dt: f64, t_len: usize) -> Result<()> {
+    if (dt * t_len.saturating_sub(1) as f64).is_finite() {
+        Ok(())
+    } else {
+        Err(CableError::InvalidParameter {
+            name: "dt".into(),
+            value: dt,
+            requirement: "small enough that dt·(T − 1) is finite",
+        })
+    }
+}
+
 /// Simulate `model` over the sampled inputs (row-major `(T, m)`) from `x0`.
 ///
 /// Errors: shape or non-finite inputs, invalid options, and [`CableError::Diverged`] with the
@@ -411,6 +455,7 @@ pub fn simulate_into<M: Model + ?Sized>(
     mut out: TrajectoryMut<'_>,
 ) -> Result<usize> {
     let t_len = validate_request(model, inputs, x0)?;
+    check_time_base(opts.dt, t_len)?;
     out.check(model, t_len)?;
     let m = model.n_inputs();
     let mut ws = Rk4::for_model(model);

@@ -12,8 +12,13 @@
 
 use nalgebra::DMatrix;
 
+use super::MAX_SUBSTEPS;
 use crate::dynamics::Model;
-use crate::error::{check, Result};
+use crate::error::{check, CableError, Result};
+
+/// Iteration cap of the Schur decomposition behind the eigenvalues (nalgebra's default is
+/// unbounded; a NaN or badly scaled Jacobian would loop for ever).
+const SCHUR_MAX_ITERATIONS: usize = 10_000;
 
 /// Result of [`propose_step`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -22,7 +27,8 @@ pub struct StepAdvice {
     pub max_stable_step: f64,
     /// The eigenvalue that sets `h_max` (real, imaginary parts; 1/s).
     pub stiffest_eigenvalue: (f64, f64),
-    /// Sub-steps per sample interval: `ceil(dt / (safety · h_max))`, at least 1.
+    /// Sub-steps per sample interval: `ceil(dt / (safety · h_max))`, at least 1 and at most
+    /// [`MAX_SUBSTEPS`] (more is an error).
     pub substeps: usize,
 }
 
@@ -89,6 +95,24 @@ pub fn jacobian<M: Model + ?Sized>(model: &M, x: &[f64], u: &[f64]) -> DMatrix<f
     jac
 }
 
+/// [`jacobian`] as a row-major `n × n` buffer, with `x` and `u` checked (length, finite) and
+/// the result checked finite.
+pub fn jacobian_rows<M: Model + ?Sized>(model: &M, x: &[f64], u: &[f64]) -> Result<Vec<f64>> {
+    let n = model.n_states();
+    check::len("x", x, n)?;
+    check::len("u", u, model.n_inputs())?;
+    check::all_finite("x", x, 1)?;
+    check::all_finite("u", u, 1)?;
+    let rows = jacobian(model, x, u).transpose().as_slice().to_vec();
+    check::result_finite(
+        "jacobian",
+        &rows,
+        n,
+        "the model's derivative overflows near this state; check the state and the parameters",
+    )?;
+    Ok(rows)
+}
+
 /// Step-size advice for sample interval `dt` at the linearisation point `(x, u)`.
 ///
 /// `safety` in (0, 1] scales `h_max` (0.9 leaves a 10 % margin for the state-dependent
@@ -106,7 +130,17 @@ pub fn propose_step<M: Model + ?Sized>(
     check::len("u", u, model.n_inputs())?;
     check::all_finite("x", x, 1)?;
     check::all_finite("u", u, 1)?;
-    let eig = jacobian(model, x, u).complex_eigenvalues();
+    let n = model.n_states();
+    let jac = DMatrix::from_row_slice(n, n, &jacobian_rows(model, x, u)?);
+    // a bounded Schur iteration: a matrix it cannot reduce is an error, never a hang
+    let eig = jac
+        .try_schur(f64::EPSILON, SCHUR_MAX_ITERATIONS)
+        .ok_or_else(|| CableError::NotConverged {
+            what: "eigenvalues of the jacobian".into(),
+            limit: SCHUR_MAX_ITERATIONS,
+            hint: "the linearised model is too badly scaled; check the parameters",
+        })?
+        .complex_eigenvalues();
     let mut best = (f64::INFINITY, (0.0, 0.0));
     for l in eig.iter() {
         let radius = rk4_stability_radius(l.re, l.im);
@@ -116,11 +150,16 @@ pub fn propose_step<M: Model + ?Sized>(
         }
     }
     let h_safe = best.0 * safety.min(1.0);
-    let substeps = if h_safe.is_finite() {
-        ((dt / h_safe).ceil() as usize).max(1)
-    } else {
-        1
-    };
+    let need = dt / h_safe; // +inf when h_safe underflows to 0; 0 when no mode limits h
+    if need.is_nan() || need > MAX_SUBSTEPS as f64 {
+        return Err(CableError::InvalidParameter {
+            name: "dt".into(),
+            value: dt,
+            requirement: "at most 100000 (MAX_SUBSTEPS) stable RK4 steps long at this state; \
+                          use a smaller dt or check the stiffness parameters",
+        });
+    }
+    let substeps = (need.ceil() as usize).max(1);
     Ok(StepAdvice {
         max_stable_step: best.0,
         stiffest_eigenvalue: best.1,
@@ -132,6 +171,29 @@ pub fn propose_step<M: Model + ?Sized>(
 #[allow(clippy::float_cmp)] // exact zeros are the claims under test (slack, no contact)
 mod tests {
     use super::*;
+
+    #[test]
+    fn advice_refuses_an_overflowing_jacobian_and_a_dt_past_the_cap() {
+        let model = crate::dynamics::raven2(3).unwrap();
+        let u = [0.0; 6];
+        // a NaN Jacobian once sent the unbounded Schur iteration into an endless loop
+        let huge = vec![1e154; 12];
+        let got = propose_step(&model, &huge, &u, 1e-3, 0.9);
+        assert!(
+            matches!(got, Err(CableError::NonFiniteResult { .. })),
+            "{got:?}"
+        );
+        let rest = model.rest_state();
+        let got = propose_step(&model, &rest, &u, 1e300, 0.9);
+        assert!(matches!(got, Err(CableError::InvalidParameter { ref name, .. }) if name == "dt"));
+        let ok = propose_step(&model, &rest, &u, 1e-3, 0.9).unwrap();
+        assert!((1..=MAX_SUBSTEPS).contains(&ok.substeps));
+        // the cap's number in the error text is the constant's
+        let err = check::substeps("substeps", MAX_SUBSTEPS + 1).unwrap_err();
+        assert!(err.to_string().contains(&MAX_SUBSTEPS.to_string()), "{err}");
+        assert_eq!(check::substeps("substeps", MAX_SUBSTEPS), Ok(MAX_SUBSTEPS));
+        assert!(check::substeps("substeps", 0).is_err());
+    }
 
     #[test]
     fn stability_radius_on_the_axes() {

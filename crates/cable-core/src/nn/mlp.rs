@@ -345,7 +345,22 @@ impl Mlp {
             .max()
             .unwrap_or(0)
             .div_ceil(LANES);
+        range_bound(&layers, &output)?;
         let dense = fold_layers(&layers, &input, &output);
+        for (l, d) in dense.iter().enumerate() {
+            let flat = |v: &[Block]| v.iter().flatten().copied().collect::<Vec<f64>>();
+            finite_values(&format!("layers.{l}.weight"), &flat(&d.weight_b))
+                .and(finite_values(&format!("layers.{l}.bias"), &flat(&d.bias)))
+                .map_err(|_| {
+                    weights_err(
+                        Value,
+                        format!("layers.{l}.weight"),
+                        "overflows once the input normalisation is folded in (weights or \
+                         input range too extreme)"
+                            .into(),
+                    )
+                })?;
+        }
         let out_affine = (layers[layers.len() - 1].activation != Activation::Purelin).then(|| {
             let (h, c) = denormalisation(&output);
             (blocks_of(&h), blocks_of(&c))
@@ -404,14 +419,16 @@ impl Mlp {
     }
 
     /// One sample: `x` `(n⁰,)` physical inputs → `out` `(nᴸ,)` physical outputs. No allocation;
-    /// a wrong length or a non-finite input is an error and leaves `out` untouched.
+    /// a wrong length or a non-finite input is an error and leaves `out` untouched; an input so
+    /// far outside the training range that an output overflows is
+    /// [`CableError::NonFiniteResult`] (`out` then holds the overflowed values).
     pub fn forward(&mut self, x: &[f64], out: &mut [f64]) -> Result<()> {
         check::len("x", x, self.n_inputs())?;
         check::len("out", out, self.n_outputs())?;
         check::all_finite("x", x, 1)?;
         self.net
             .eval_rows(x, out, 1, &mut self.scratch_a, &mut self.scratch_b);
-        Ok(())
+        check::result_finite("prediction", out, 1, OVERFLOW_HINT)
     }
 
     /// [`Mlp::forward`] forced onto the portable (non-AVX2) path, to test that both agree.
@@ -422,7 +439,8 @@ impl Mlp {
     }
 
     /// Rows of `x` `(N, n⁰)` row-major → rows of `out` `(N, nᴸ)`. Parallel (rayon) for
-    /// `N ≥ PARALLEL_MIN_ROWS`. Checks shapes and finiteness first; on error `out` is untouched.
+    /// `N ≥ PARALLEL_MIN_ROWS`. Checks shapes and finiteness first; on those errors `out` is
+    /// untouched. An overflowed output is [`CableError::NonFiniteResult`] with its row.
     pub fn forward_batch(&self, x: &[f64], out: &mut [f64]) -> Result<()> {
         let (n0, nl) = (self.n_inputs(), self.n_outputs());
         let rows = x.len() / n0;
@@ -468,8 +486,52 @@ impl Mlp {
         } else {
             run(x, out);
         }
-        Ok(())
+        check::result_finite("prediction", out, nl, OVERFLOW_HINT)
     }
+}
+
+/// What to do about a prediction that overflowed.
+const OVERFLOW_HINT: &str = "an input is too far outside the network's training range";
+
+/// Every input inside the training range must give finite outputs: with normalised inputs in
+/// [−1, 1], each neuron's net input is bounded by `Σᵢ |Wⱼᵢ|·|aᵢ| + |bⱼ|`, `tansig` and
+/// `logsig` outputs by 1, `purelin` outputs by their net input; the last bound, de-normalised,
+/// must be finite. A file whose finite weights overflow on the data it was trained for is
+/// refused at load, not discovered as NaN predictions.
+fn range_bound(layers: &[Layer], output: &MapMinMax) -> Result<()> {
+    let mut a = vec![1.0; layers[0].n_in];
+    for (l, layer) in layers.iter().enumerate() {
+        let z: Vec<f64> = (0..layer.n_out)
+            .map(|j| {
+                let row = &layer.weight[j * layer.n_in..(j + 1) * layer.n_in];
+                row.iter().zip(&a).map(|(w, b)| w.abs() * b).sum::<f64>() + layer.bias[j].abs()
+            })
+            .collect();
+        if let Some(j) = z.iter().position(|v| !v.is_finite()) {
+            return Err(weights_err(
+                WeightsErrorKind::Value,
+                format!("layers.{l}.weight"),
+                format!("neuron {j}'s net input overflows for inputs inside the training range"),
+            ));
+        }
+        a = match layer.activation {
+            Activation::Purelin => z,
+            Activation::Tansig | Activation::Logsig => vec![1.0; layer.n_out],
+        };
+    }
+    let bound: Vec<f64> = a
+        .iter()
+        .zip(output.gain())
+        .zip(&output.min)
+        .map(|((v, g), lo)| (v + 1.0) / g + lo.abs())
+        .collect();
+    finite_values("output.max", &bound).map_err(|_| {
+        weights_err(
+            WeightsErrorKind::Value,
+            "output.max",
+            "de-normalised outputs overflow for inputs inside the training range".into(),
+        )
+    })
 }
 
 /// The evaluated layers with the affine maps folded in (see [`Dense::new`]): the first layer
