@@ -212,3 +212,162 @@ def test_kinematic_joint_angles_is_the_core_map_row_by_row():
     np.testing.assert_array_equal(ck.kinematic_joint_angles(r3, q_m), rows)
     # and it inverts T (reference: NumPy's solve), 1e-12 of the angles
     np.testing.assert_allclose(rows, np.linalg.solve(r3.transmission_matrix, q_m.T).T, atol=1e-12)
+
+
+# ---- filters: NaN parameters, error locations, divergence, gating, threads ---------------------
+
+
+def _param_filter(bounds):
+    r1 = ck.CableTransmission.raven2(1)
+    return ck.SrUkf.with_parameters(
+        r1, ["cable_stiffness[0]"], np.zeros(5), np.eye(5), 1e-6 * np.eye(5), np.eye(1),
+        dt=1e-3, states=[0], bounds=bounds,
+    )  # fmt: skip
+
+
+def _dual(bounds=None):
+    r1 = ck.CableTransmission.raven2(1)
+    k = r1.params()["cable_stiffness"][0]
+    return ck.DualSrUkf(
+        r1, ["cable_stiffness[0]"], r1.rest_state() if hasattr(r1, "rest_state") else np.zeros(4),
+        1e-6 * np.eye(4), 1e-9 * np.eye(4), np.array([[(0.1 * k) ** 2]]), np.array([[1.0]]),
+        1e-8 * np.eye(2), dt=1e-3, states=[0, 2], bounds=bounds,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("bounds", [[(np.nan, 1.0)], [(0.0, np.nan)], [(np.nan, np.nan)]])
+def test_nan_parameter_bounds_are_refused(bounds):
+    with pytest.raises(ck.ParameterError, match=r"bounds\[0\]"):
+        _param_filter(bounds)
+    with pytest.raises(ck.ParameterError, match=r"bounds\[0\]"):
+        _dual(bounds)
+    _param_filter([(-np.inf, np.inf)])  # infinite ends mean "no bound"
+
+
+def test_fit_tolerances_are_checked():
+    from cablekit._cablekit import JointProblem
+
+    aj = ck.AntagonisticJoint.forceps_example()
+    t = np.arange(400) * 1e-3
+    runs = [dict(dt=1e-3, input=1e-3 * np.sin(6 * t), measured=np.zeros((400, 1)))]
+    prob = JointProblem(aj, [(0, 1.0, True)], runs, ["coulomb_friction"])
+    for kw in (dict(ftol=np.nan), dict(xtol=-1.0), dict(max_iter=10**9), dict(threads=0)):
+        with pytest.raises(ck.ParameterError):
+            prob.fit(None, **kw)
+
+
+def test_dual_run_names_the_row_of_a_nan_measurement():
+    dual = _dual()
+    u = np.zeros((60, 2))
+    y = np.zeros((60, 2))
+    y[37, 1] = np.nan
+    with pytest.raises(ck.NotFiniteError, match=r"row 37, column 1") as e:
+        dual.run(u, y)
+    assert e.value.index == 37 * 2 + 1
+    u[12, 0] = np.inf
+    with pytest.raises(ck.NotFiniteError, match=r"row 12, column 0"):
+        dual.run(u, np.zeros((60, 2)))
+
+
+def _unstable(gain=1e120):
+    """A scalar random walk whose transition overflows within a few steps."""
+    return ck.SrUkf.linear(np.array([[gain]]), np.eye(1), np.ones(1), np.eye(1), np.eye(1), np.eye(1))
+
+
+def test_a_diverged_step_is_typed_and_leaves_the_filter_where_it_was():
+    f = _unstable()
+    with pytest.raises(ck.FilterDivergedError) as e:
+        for _ in range(10):
+            before = (f.x.copy(), f.S.copy())
+            f.step(np.zeros(0), np.zeros(1))
+    step = e.value.step
+    assert 1 <= step < 10 and f.health["steps"] == step
+    np.testing.assert_array_equal(f.x, before[0])
+    np.testing.assert_array_equal(f.S, before[1])
+    # a run reports the row, and the filter is not stuck: a reset makes it usable again
+    g = _unstable()
+    with pytest.raises(ck.FilterDivergedError, match=f"step {step}"):
+        g.run(np.zeros((10, 0)), np.zeros((10, 1)))
+    assert np.isfinite(g.x).all()
+    g.reset(np.zeros(1), np.eye(1))
+    assert g.health["steps"] == 0
+
+
+def _walk():
+    """A 2-state constant-velocity filter measuring position (consistent on a slow sine: NIS
+    below 0.2 after the start)."""
+    dt = 0.01
+    return ck.SrUkf.linear(
+        np.array([[1.0, dt], [0.0, 1.0]]), np.array([[1.0, 0.0]]), np.zeros(2), np.eye(2),
+        np.diag([1e-8, 1e-3]), 1e-4 * np.eye(1),
+    )  # fmt: skip
+
+
+def test_innovation_gate_rejects_a_spike_and_counts_it():
+    ys = np.sin(np.linspace(0, 3, 300))[:, None]
+    spiked = ys.copy()
+    spiked[150] = 1e100
+    clean, gated, open_ = _walk(), _walk(), _walk()
+    gated.nis_gate = 30.0
+    assert gated.nis_gate == 30.0 and open_.nis_gate is None
+    r_clean = clean.run(np.zeros((300, 0)), ys)
+    r_gated = gated.run(np.zeros((300, 0)), spiked)
+    r_open = open_.run(np.zeros((300, 0)), spiked)
+    assert r_gated["gated"].sum() == 1 and r_gated["gated"][150]
+    assert gated.health["rejected_total"] == r_gated["gated"].sum()
+    # the gated filter tracks as if the spike were missing; the open one is thrown far off
+    assert np.max(np.abs(r_gated["x"][-50:, 0] - r_clean["x"][-50:, 0])) < 0.05
+    assert np.max(np.abs(r_open["x"][151:, 0])) > 1e10
+    with pytest.raises(ck.ParameterError):
+        gated.nis_gate = -1.0
+    gated.nis_gate = None
+    assert gated.nis_gate is None
+
+
+def test_filters_are_refused_concurrently_and_networks_shared(tmp_path):
+    import threading
+
+    f = _walk()
+    u, y = np.zeros((20_000, 0)), np.sin(np.linspace(0, 30, 20_000))[:, None]
+    outcomes: list[str] = []
+
+    def use():
+        for _ in range(5):
+            try:
+                f.run(u, y)
+                outcomes.append("ok")
+            except ck.ConcurrentUseError:
+                outcomes.append("busy")
+            except Exception as e:  # pragma: no cover - the regression
+                outcomes.append(f"{type(e).__name__}: {e}")
+
+    threads = [threading.Thread(target=use) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=120)
+    assert not any(t.is_alive() for t in threads)
+    assert set(outcomes) <= {"ok", "busy"} and "ok" in outcomes, outcomes
+
+    net = ck.Mlp.load(_net(tmp_path))
+    xs = np.random.default_rng(2).normal(size=(64, 2))
+    want = np.array([net.predict(np.ascontiguousarray(x)) for x in xs])
+    got: list[object] = []
+
+    def predict():
+        out = np.zeros(1)
+        for _ in range(200):
+            for k, x in enumerate(xs):
+                try:
+                    net.predict_into(np.ascontiguousarray(x), out)
+                    if out[0] != want[k, 0]:
+                        got.append(("mismatch", k))
+                except Exception as e:  # pragma: no cover - the regression
+                    got.append(e)
+
+    threads = [threading.Thread(target=predict) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=120)
+    assert got == []

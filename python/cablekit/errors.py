@@ -47,6 +47,18 @@ class ConvergenceError(CablekitError, ArithmeticError):
     ``argument`` names it and ``limit`` is the cap."""
 
 
+class ConcurrentUseError(CablekitError, RuntimeError):
+    """An object with state (``SrUkf``, ``DualSrUkf``) was called from a second thread while a
+    call was running. Use one object per thread, or serialise the calls with a lock. (``Mlp`` is
+    safe to share.)"""
+
+
+class FilterDivergedError(CablekitError, ArithmeticError):
+    """A filter's mean or square-root covariance became non-finite in a step. The filter is left
+    as it was before that step; ``step`` is the row of the log in ``run``, else the steps since
+    the filter was built or reset."""
+
+
 class DataError(CablekitError, ValueError):
     """A data file (CSV, TOML) is malformed: missing column, bad time base, unknown unit."""
 
@@ -81,9 +93,11 @@ class InternalError(CablekitError, RuntimeError):
 
 __all__ = [
     "CablekitError",
+    "ConcurrentUseError",
     "ConvergenceError",
     "DTypeError",
     "DataError",
+    "FilterDivergedError",
     "InternalError",
     "LayoutError",
     "NonFiniteResultError",

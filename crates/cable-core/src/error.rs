@@ -92,6 +92,19 @@ pub enum CableError {
         /// What to change, in words.
         hint: &'static str,
     },
+    /// The filter's mean or square-root covariance became non-finite in a step (a diverging
+    /// model, too large a step, or inconsistent noise covariances). The filter is left as it
+    /// was before that step.
+    #[error(
+        "filter diverged at step {step}: the state or its covariance became non-finite; the \
+         filter is left as before that step (check the model's dt/substeps, Q and R, or gate \
+         outliers with nis_gate)"
+    )]
+    FilterDiverged {
+        /// The step that failed: the row of the log in a run, else the steps since the filter
+        /// was built or reset.
+        step: usize,
+    },
     /// A weight file is unreadable or does not describe a valid network.
     #[error("invalid weight file ({kind}) at {item}: {reason}")]
     Weights {

@@ -5,6 +5,7 @@
 //! up by name when an error is raised, never on the hot path.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::{Mutex, MutexGuard, TryLockError};
 
 use cable_core::{CableError, WeightsErrorKind};
 use pyo3::prelude::*;
@@ -61,6 +62,9 @@ impl From<PyCableError> for PyErr {
                         msg,
                         &[("step", int(*step)?), ("time", float(*time_s)?)],
                     ),
+                    CableError::FilterDiverged { step } => {
+                        raise("FilterDivergedError", msg, &[("step", int(*step)?)])
+                    }
                     CableError::NonFiniteResult { what, index, .. } => raise(
                         "NonFiniteResultError",
                         msg,
@@ -108,5 +112,25 @@ pub fn guarded<T>(work: impl FnOnce() -> Result<T, CableError>) -> PyResult<T> {
                 &[],
             ))
         }
+    }
+}
+
+/// Lock an object's state for one call. Objects with state (filters, a network's scratch) are
+/// used by one thread at a time: a call while another thread's call is running raises
+/// `cablekit.ConcurrentUseError` at once (never blocks: a blocked thread holding the GIL would
+/// deadlock with the running call, which needs the GIL to return). A lock poisoned by a caught
+/// panic is taken over (the panic was reported as `InternalError`).
+pub fn lock<'a, T>(m: &'a Mutex<T>, what: &str) -> PyResult<MutexGuard<'a, T>> {
+    match m.try_lock() {
+        Ok(g) => Ok(g),
+        Err(TryLockError::Poisoned(p)) => Ok(p.into_inner()),
+        Err(TryLockError::WouldBlock) => Err(raise(
+            "ConcurrentUseError",
+            format!(
+                "this {what} is in use by another thread; use one {what} per thread \
+                 (or serialise the calls with a lock)"
+            ),
+            &[],
+        )),
     }
 }

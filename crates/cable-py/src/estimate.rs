@@ -6,6 +6,8 @@ use cable_core::estimate::{
     ParamTransmission, Process, SigmaScaling, TransmissionParam,
 };
 use cable_core::CableError;
+use std::sync::{Mutex, MutexGuard};
+
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -13,18 +15,21 @@ use pyo3::types::PyDict;
 
 use crate::convert::{matrix, to_matrix, to_vector, vector};
 use crate::dynamics::{with_model, AnyModel, Model};
-use crate::errors::{guarded, raise};
+use crate::errors::{guarded, lock, raise};
 
 type DynProcess = Box<dyn Process + Send + Sync>;
 type DynObserve = Box<dyn Observe + Send + Sync>;
 type Filter = core::SrUkf<DynProcess, DynObserve>;
-/// `(u, y, mask)` of one step.
+/// `(u, y, mask)` of one step; `(Y, U, mask)` of a log.
 type Measurement = (Vec<f64>, Vec<f64>, Option<Vec<bool>>);
+/// `(gamma, (Wm0, Wmi), (Wc0, Wci))`.
+type WeightTuple = (f64, (f64, f64), (f64, f64));
 
-/// Square-root unscented Kalman filter (seed 001, eqs 3.9–3.25).
-#[pyclass(module = "cablekit._cablekit")]
+/// Square-root unscented Kalman filter (seed 001, eqs 3.9–3.25). One thread at a time: a
+/// call while another thread's is running raises `ConcurrentUseError`.
+#[pyclass(frozen, module = "cablekit._cablekit")]
 pub struct SrUkf {
-    inner: Filter,
+    inner: Mutex<Filter>,
     m: usize,
 }
 
@@ -124,7 +129,15 @@ impl SrUkf {
         let q = square(q, "Q", n)?;
         let r = square(r, "R", p)?;
         let inner = guarded(|| core::SrUkf::new(process, observe, &x0, &p0, &q, &r, s))?;
-        Ok(Self { inner, m })
+        Ok(Self {
+            inner: Mutex::new(inner),
+            m,
+        })
+    }
+
+    /// The filter, for this call only (`ConcurrentUseError` if another thread is in a call).
+    fn filter(&self) -> PyResult<MutexGuard<'_, Filter>> {
+        lock(&self.inner, "SrUkf")
     }
 
     /// `u`, `y` and the optional mask of one step, checked.
@@ -134,7 +147,7 @@ impl SrUkf {
         y: &Bound<'_, PyAny>,
         mask: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Measurement> {
-        let p = self.inner.n_outputs();
+        let p = self.filter()?.n_outputs();
         Ok((
             vector(u, "u", self.m)?,
             vector(y, "y", p)?,
@@ -143,13 +156,16 @@ impl SrUkf {
     }
 
     fn health_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let h = self.inner.health();
+        let h = self.filter()?.health();
         let d = PyDict::new(py);
         d.set_item("nis", h.nis)?;
         d.set_item("measured", h.measured)?;
         d.set_item("condition", h.condition)?;
         d.set_item("recovered", h.recovered)?;
         d.set_item("recoveries_total", h.recoveries_total)?;
+        d.set_item("gated", h.gated)?;
+        d.set_item("rejected_total", h.rejected_total)?;
+        d.set_item("steps", h.steps)?;
         Ok(d)
     }
 }
@@ -336,12 +352,12 @@ impl SrUkf {
     }
 
     #[getter]
-    fn n_states(&self) -> usize {
-        self.inner.n_states()
+    fn n_states(&self) -> PyResult<usize> {
+        Ok(self.filter()?.n_states())
     }
     #[getter]
-    fn n_outputs(&self) -> usize {
-        self.inner.n_outputs()
+    fn n_outputs(&self) -> PyResult<usize> {
+        Ok(self.filter()?.n_outputs())
     }
     #[getter]
     fn n_inputs(&self) -> usize {
@@ -349,77 +365,91 @@ impl SrUkf {
     }
     /// Current mean.
     #[getter]
-    fn x<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        to_vector(py, self.inner.x().to_vec())
+    fn x<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        Ok(to_vector(py, self.filter()?.x().to_vec()))
     }
     /// Current lower-triangular square root of the covariance.
     #[getter(S)]
-    fn sqrt_covariance<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
-        let n = self.inner.n_states();
-        to_matrix(
-            py,
-            col_major_from_lower(self.inner.sqrt_covariance(), n),
-            n,
-            n,
-        )
+    fn sqrt_covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let f = self.filter()?;
+        let n = f.n_states();
+        let s = col_major_from_lower(f.sqrt_covariance(), n);
+        Ok(to_matrix(py, s, n, n))
     }
     /// Current covariance `S·Sᵀ`.
     #[getter(P)]
-    fn covariance<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
-        let n = self.inner.n_states();
-        to_matrix(py, self.inner.covariance(), n, n) // symmetric: either order
+    fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let f = self.filter()?;
+        let n = f.n_states();
+        Ok(to_matrix(py, f.covariance(), n, n)) // symmetric: either order
     }
     /// `(gamma, (Wm0, Wmi), (Wc0, Wci))`.
     #[getter]
-    fn weights(&self) -> (f64, (f64, f64), (f64, f64)) {
-        let w = self.inner.weights();
-        (w.gamma, w.wm, w.wc)
+    fn weights(&self) -> PyResult<WeightTuple> {
+        let f = self.filter()?;
+        let w = f.weights();
+        Ok((w.gamma, w.wm, w.wc))
+    }
+    /// Innovation gate: updates whose NIS exceeds it are rejected and counted (`None`: off).
+    #[getter]
+    fn nis_gate(&self) -> PyResult<Option<f64>> {
+        let g = self.filter()?.nis_gate();
+        Ok(g.is_finite().then_some(g))
+    }
+    #[setter]
+    fn set_nis_gate(&self, value: Option<f64>) -> PyResult<()> {
+        let mut f = self.filter()?;
+        guarded(|| f.set_nis_gate(value))
     }
     /// Health of the last step: `nis`, `measured`, `condition`, `recovered`,
-    /// `recoveries_total`.
+    /// `recoveries_total`, `gated`, `rejected_total`, `steps`.
     #[getter]
     fn health<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         self.health_dict(py)
     }
 
     /// Time update with input `u` held over one period.
-    fn predict(&mut self, u: &Bound<'_, PyAny>) -> PyResult<()> {
+    fn predict(&self, u: &Bound<'_, PyAny>) -> PyResult<()> {
         let u = vector(u, "u", self.m)?;
-        guarded(|| self.inner.predict(&u))
+        let mut f = self.filter()?;
+        guarded(|| f.predict(&u))
     }
 
     /// Measurement update with `y` (entries where `mask` is true; all without a mask).
     #[pyo3(signature = (u, y, mask = None))]
     fn update(
-        &mut self,
+        &self,
         u: &Bound<'_, PyAny>,
         y: &Bound<'_, PyAny>,
         mask: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let (u, y, mask) = self.measurement(u, y, mask)?;
-        guarded(|| self.inner.update(&u, &y, mask.as_deref()))
+        let mut f = self.filter()?;
+        guarded(|| f.update(&u, &y, mask.as_deref()))
     }
 
     /// Predict with `u`, then update with `y` (see `update`). Bad input raises before
     /// anything changes.
     #[pyo3(signature = (u, y, mask = None))]
     fn step(
-        &mut self,
+        &self,
         u: &Bound<'_, PyAny>,
         y: &Bound<'_, PyAny>,
         mask: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let (u, y, mask) = self.measurement(u, y, mask)?;
-        guarded(|| self.inner.step(&u, &y, mask.as_deref()))
+        let mut f = self.filter()?;
+        guarded(|| f.step(&u, &y, mask.as_deref()))
     }
 
     /// Replace the mean and covariance.
     #[allow(non_snake_case)]
-    fn reset(&mut self, x: &Bound<'_, PyAny>, P: &Bound<'_, PyAny>) -> PyResult<()> {
-        let n = self.inner.n_states();
+    fn reset(&self, x: &Bound<'_, PyAny>, P: &Bound<'_, PyAny>) -> PyResult<()> {
+        let mut f = self.filter()?;
+        let n = f.n_states();
         let x = vector(x, "x", n)?;
         let p = square(P, "P", n)?;
-        guarded(|| self.inner.reset(&x, &p))
+        guarded(|| f.reset(&x, &p))
     }
 
     /// Filter a whole log: `U` `(T, m)` inputs (the input over the period ending at sample
@@ -432,116 +462,69 @@ impl SrUkf {
     #[pyo3(signature = (U, Y, mask = None, smooth = false))]
     #[allow(non_snake_case)]
     fn run<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         U: &Bound<'py, PyAny>,
         Y: &Bound<'py, PyAny>,
         mask: Option<&Bound<'py, PyAny>>,
         smooth: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let (n, p, m) = (self.inner.n_states(), self.inner.n_outputs(), self.m);
-        let (yarr, t) = matrix(Y, "Y", Some(p))?;
-        let ydata = yarr.as_slice()?.to_vec();
-        let udata: Vec<f64> = if m == 0 {
-            Vec::new()
-        } else {
-            let (uarr, tu) = matrix(U, "U", Some(m))?;
-            if tu != t {
-                return Err(raise(
-                    "ShapeError",
-                    format!("U has {tu} rows but Y has {t}"),
-                    &[],
-                ));
-            }
-            uarr.as_slice()?.to_vec()
-        };
-        let mdata = bool_matrix(mask, t, p)?;
-        if m > 0 {
-            cable_core::check::all_finite("U", &udata, m).map_err(crate::errors::PyCableError)?;
-        }
-        let inner = &mut self.inner;
-        let out = py.detach(|| {
-            guarded(|| {
-                let mut xs = vec![0.0; t * n];
-                let mut ss = vec![0.0; t * n * n];
-                let mut sc = if smooth {
-                    vec![0.0; t * n * n]
-                } else {
-                    Vec::new()
-                };
-                let (mut nis, mut cond) = (vec![0.0; t], vec![0.0; t]);
-                let (mut rec, mut meas) = (vec![0.0; t], vec![0.0; t]);
-                for k in 0..t {
-                    let u = &udata[k * m..(k + 1) * m];
-                    let y = &ydata[k * p..(k + 1) * p];
-                    let mk = mdata.as_ref().map(|v| &v[k * p..(k + 1) * p]);
-                    inner.step(u, y, mk).map_err(|e| match e {
-                        CableError::Diverged { .. } => CableError::Diverged {
-                            step: k,
-                            time_s: f64::NAN,
-                        },
-                        CableError::NotFinite { index, value, .. } => CableError::NotFinite {
-                            what: "Y (mask the missing entries instead)".into(),
-                            index: k * p + index,
-                            value,
-                            location: format!(" (row {k}, column {index})"),
-                        },
-                        other => other,
-                    })?;
-                    xs[k * n..(k + 1) * n].copy_from_slice(inner.x());
-                    let s = inner.sqrt_covariance();
-                    if smooth {
-                        sc[k * n * n..(k + 1) * n * n].copy_from_slice(s);
-                    }
-                    for i in 0..n {
-                        for j in 0..n {
-                            ss[k * n * n + i * n + j] = s[i + j * n];
-                        }
-                    }
-                    let h = inner.health();
-                    nis[k] = h.nis;
-                    cond[k] = h.condition;
-                    rec[k] = h.recovered as f64;
-                    meas[k] = h.measured as f64;
-                }
-                let smoothed = if smooth {
-                    let (xsm, scm, _) = inner.smooth(&xs, &sc, &udata)?;
-                    let mut ssm = vec![0.0; t * n * n];
-                    for k in 0..t {
-                        for i in 0..n {
-                            for j in 0..n {
-                                ssm[k * n * n + i * n + j] = scm[k * n * n + i + j * n];
-                            }
-                        }
-                    }
-                    Some((xsm, ssm))
-                } else {
-                    None
-                };
-                Ok((xs, ss, nis, cond, rec, meas, smoothed))
-            })
-        })?;
-        let (xs, ss, nis, cond, rec, meas, smoothed) = out;
+        let (p, m) = (self.filter()?.n_outputs(), self.m);
+        let (y, u, mk) = log_arrays(U, Y, mask, m, p)?;
+        let mut guard = self.filter()?;
+        let f: &mut Filter = &mut guard; // a plain borrow crosses into the GIL-free closure
+        let run = py.detach(|| guarded(|| f.run(&u, &y, mk.as_deref(), smooth)))?;
+        let (t, n) = (run.len, run.n);
         let d = PyDict::new(py);
-        if let Some((xsm, ssm)) = smoothed {
+        if let Some((xsm, ssm)) = run.smoothed {
             d.set_item("x_smooth", to_matrix(py, xsm, t, n))?;
             d.set_item("S_smooth", cube(py, ssm, t, n))?;
         }
-        d.set_item("x", to_matrix(py, xs, t, n))?;
-        d.set_item("S", cube(py, ss, t, n))?;
-        d.set_item("nis", to_vector(py, nis))?;
-        d.set_item("condition", to_vector(py, cond))?;
-        d.set_item("recovered", to_vector(py, rec))?;
+        let as_f64 = |v: Vec<u32>| v.into_iter().map(f64::from).collect::<Vec<f64>>();
+        d.set_item("x", to_matrix(py, run.x, t, n))?;
+        d.set_item("S", cube(py, run.s, t, n))?;
+        d.set_item("nis", to_vector(py, run.nis))?;
+        d.set_item("condition", to_vector(py, run.condition))?;
+        d.set_item("recovered", to_vector(py, as_f64(run.recovered)))?;
+        let meas: Vec<f64> = run.measured.iter().map(|&q| q as f64).collect();
         d.set_item("measured", to_vector(py, meas))?;
+        d.set_item("gated", run.gated.into_pyarray(py))?;
         Ok(d)
     }
 }
 
+/// `Y` `(T, p)`, `U` `(T, m)` (empty when `m` is 0) and the optional mask of a log, converted.
+#[allow(non_snake_case)]
+fn log_arrays(
+    U: &Bound<'_, PyAny>,
+    Y: &Bound<'_, PyAny>,
+    mask: Option<&Bound<'_, PyAny>>,
+    m: usize,
+    p: usize,
+) -> PyResult<Measurement> {
+    let (yarr, t) = matrix(Y, "Y", Some(p))?;
+    let y = yarr.as_slice()?.to_vec();
+    let u = if m == 0 {
+        Vec::new()
+    } else {
+        let (uarr, tu) = matrix(U, "U", Some(m))?;
+        if tu != t {
+            return Err(raise(
+                "ShapeError",
+                format!("U has {tu} rows but Y has {t}"),
+                &[],
+            ));
+        }
+        uarr.as_slice()?.to_vec()
+    };
+    Ok((y, u, bool_matrix(mask, t, p)?))
+}
+
 /// Dual state–parameter estimation (seed 001 eqs 3.7–3.8): a state filter over the transmission
 /// and a parameter filter over the named parameters, run side by side.
-#[pyclass(module = "cablekit._cablekit")]
+#[pyclass(frozen, module = "cablekit._cablekit")]
 pub struct DualSrUkf {
-    inner: core::DualSrUkf,
+    inner: Mutex<core::DualSrUkf>,
     m: usize,
 }
 
@@ -605,7 +588,10 @@ impl DualSrUkf {
                 scaling(alpha, beta, kappa),
             )
         })?;
-        Ok(Self { inner, m })
+        Ok(Self {
+            inner: Mutex::new(inner),
+            m,
+        })
     }
 
     /// Filter a log (`U` `(T, m)`, `Y` `(T, len(states))`, optional `mask`): returns `x`
@@ -613,53 +599,29 @@ impl DualSrUkf {
     #[pyo3(signature = (U, Y, mask = None))]
     #[allow(non_snake_case)]
     fn run<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         U: &Bound<'py, PyAny>,
         Y: &Bound<'py, PyAny>,
         mask: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let (n, q, m) = (
-            self.inner.state.n_states(),
-            self.inner.state.n_outputs(),
-            self.m,
-        );
-        let p = self.inner.params.n_states();
-        let (yarr, t) = matrix(Y, "Y", Some(q))?;
-        let ydata = yarr.as_slice()?.to_vec();
-        let (uarr, tu) = matrix(U, "U", Some(m))?;
-        if tu != t {
+        let mut f = lock(&self.inner, "DualSrUkf")?;
+        let (n, q, p) = (f.state.n_states(), f.state.n_outputs(), f.params.n_states());
+        if self.m == 0 {
             return Err(raise(
                 "ShapeError",
-                format!("U has {tu} rows but Y has {t}"),
+                "the transmission has no inputs".into(),
                 &[],
             ));
         }
-        let udata = uarr.as_slice()?.to_vec();
-        cable_core::check::all_finite("U", &udata, m).map_err(crate::errors::PyCableError)?;
-        let mdata = bool_matrix(mask, t, q)?;
-        let inner = &mut self.inner;
-        let (xs, th, ts) = py.detach(|| {
-            guarded(|| {
-                let (mut xs, mut th, mut ts) =
-                    (vec![0.0; t * n], vec![0.0; t * p], vec![0.0; t * p]);
-                for k in 0..t {
-                    let mk = mdata.as_ref().map(|v| &v[k * q..(k + 1) * q]);
-                    inner.step(&udata[k * m..(k + 1) * m], &ydata[k * q..(k + 1) * q], mk)?;
-                    xs[k * n..(k + 1) * n].copy_from_slice(inner.state.x());
-                    th[k * p..(k + 1) * p].copy_from_slice(inner.params.x());
-                    let s = inner.params.sqrt_covariance();
-                    for i in 0..p {
-                        ts[k * p + i] = (0..p).map(|j| s[i + j * p].powi(2)).sum::<f64>().sqrt();
-                    }
-                }
-                Ok((xs, th, ts))
-            })
-        })?;
+        let (y, u, mk) = log_arrays(U, Y, mask, self.m, q)?;
+        let fr: &mut core::DualSrUkf = &mut f; // a plain borrow crosses into the closure
+        let run = py.detach(|| guarded(|| fr.run(&u, &y, mk.as_deref())))?;
+        let t = run.len;
         let d = PyDict::new(py);
-        d.set_item("x", to_matrix(py, xs, t, n))?;
-        d.set_item("theta", to_matrix(py, th, t, p))?;
-        d.set_item("theta_std", to_matrix(py, ts, t, p))?;
+        d.set_item("x", to_matrix(py, run.x, t, n))?;
+        d.set_item("theta", to_matrix(py, run.theta, t, p))?;
+        d.set_item("theta_std", to_matrix(py, run.theta_std, t, p))?;
         Ok(d)
     }
 }

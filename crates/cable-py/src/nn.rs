@@ -1,8 +1,9 @@
 //! `Mlp`: a network loaded from a safetensors weight file, evaluated by cable-core.
 
 use std::path::PathBuf;
+use std::sync::{Mutex, TryLockError};
 
-use cable_core::nn::Mlp as CoreMlp;
+use cable_core::nn::{Mlp as CoreMlp, Scratch};
 use numpy::ndarray::Array2;
 use numpy::ndarray::Dimension;
 use numpy::{
@@ -19,9 +20,32 @@ use crate::errors::{guarded, raise};
 type LayerArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
 
 /// A multilayer perceptron with `mapminmax` normalisation (seed 000 §2.3.3, seed 002 eq. 9).
-#[pyclass(module = "cablekit._cablekit")]
+/// Safe to share between threads: the network is immutable, and a single-sample call that finds
+/// the work buffers in use by another thread takes fresh ones (one small allocation).
+#[pyclass(frozen, module = "cablekit._cablekit")]
 pub struct Mlp {
     inner: CoreMlp,
+    scratch: Mutex<Scratch>,
+}
+
+impl Mlp {
+    fn new(inner: CoreMlp) -> Self {
+        let scratch = Mutex::new(inner.scratch());
+        Self { inner, scratch }
+    }
+
+    /// One sample, allocation-free unless another thread is in a single-sample call.
+    fn forward(&self, x: &[f64], out: &mut [f64]) -> PyResult<()> {
+        match self.scratch.try_lock() {
+            Ok(mut s) => guarded(|| self.inner.forward_with(x, out, &mut s)),
+            Err(TryLockError::Poisoned(p)) => {
+                guarded(|| self.inner.forward_with(x, out, &mut p.into_inner()))
+            }
+            Err(TryLockError::WouldBlock) => {
+                guarded(|| self.inner.forward_with(x, out, &mut self.inner.scratch()))
+            }
+        }
+    }
 }
 
 fn layout_error(name: &str) -> PyErr {
@@ -64,9 +88,7 @@ impl Mlp {
     /// Load from the bytes of a weight file.
     #[staticmethod]
     fn from_bytes(data: &[u8]) -> PyResult<Self> {
-        Ok(Self {
-            inner: guarded(|| CoreMlp::from_safetensors(data))?,
-        })
+        Ok(Self::new(guarded(|| CoreMlp::from_safetensors(data))?))
     }
 
     /// The weight file as bytes (what `save` writes).
@@ -84,16 +106,12 @@ impl Mlp {
 
     /// Evaluate: `x` `(n_in,)` → `(n_out,)`, or `x` `(N, n_in)` → `(N, n_out)` (GIL released,
     /// parallel for large N). Physical units in and out.
-    fn predict<'py>(
-        &mut self,
-        py: Python<'py>,
-        x: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyAny>> {
+    fn predict<'py>(&self, py: Python<'py>, x: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
         let (n_in, n_out) = (self.inner.n_inputs(), self.inner.n_outputs());
         if ndim_of(x, "x")? == 1 {
             let xv = any_vector(x, "x")?;
             let mut out = vec![0.0; n_out];
-            guarded(|| self.inner.forward(&xv, &mut out))?;
+            self.forward(&xv, &mut out)?;
             return Ok(to_vector(py, out).into_any());
         }
         let (arr, rows) = matrix(x, "x", Some(n_in))?;
@@ -112,7 +130,7 @@ impl Mlp {
     /// Evaluate into a preallocated `out` without allocating (for controllers): `x` `(n_in,)`
     /// and `out` `(n_out,)`, or `(N, n_in)` and `(N, n_out)`. On error `out` is untouched.
     fn predict_into(
-        &mut self,
+        &self,
         py: Python<'_>,
         x: &Bound<'_, PyAny>,
         out: &Bound<'_, PyAny>,
@@ -123,7 +141,7 @@ impl Mlp {
             let (xr, mut ow) = borrow_pair(xa, oa)?;
             let xs = xr.as_slice().map_err(|_| layout_error("x"))?;
             let os = ow.as_slice_mut().map_err(|_| layout_error("out"))?;
-            return guarded(|| self.inner.forward(xs, os));
+            return self.forward(xs, os);
         }
         if let (Ok(xa), Ok(oa)) = (x.cast::<PyArray2<f64>>(), out.cast::<PyArray2<f64>>()) {
             let (xr, mut ow) = borrow_pair(xa, oa)?;

@@ -20,6 +20,7 @@
 pub mod linalg;
 mod models;
 mod params;
+mod run;
 mod srukf;
 
 pub use models::{
@@ -29,4 +30,5 @@ pub use models::{
 pub use params::{
     with_params, DualSrUkf, ParamObserve, ParamTransmission, RandomWalk, TransmissionParam,
 };
+pub use run::{DualRun, FilterRun};
 pub use srukf::{Health, SigmaScaling, SrUkf, Weights, SPECIALISED_UP_TO};

@@ -181,6 +181,16 @@ impl ParamTransmission {
         }
         let mut bounds = Vec::with_capacity(p);
         for (k, (param, (lo, hi))) in params.iter().zip(user).enumerate() {
+            // NaN first: max/min below would silently replace it by the natural bound
+            for (end, v) in [("lower", lo), ("upper", hi)] {
+                if v.is_nan() {
+                    return Err(CableError::InvalidParameter {
+                        name: format!("bounds[{k}].{end}"),
+                        value: v,
+                        requirement: "a number (-inf or inf for no bound)",
+                    });
+                }
+            }
             let (nlo, nhi) = param.natural_bounds();
             let b = (lo.max(nlo), hi.min(nhi));
             if b.0.is_nan() || b.1.is_nan() || b.0 > b.1 {
@@ -428,6 +438,11 @@ impl DualSrUkf {
         })
     }
 
+    /// Inputs `m` of the transmission.
+    pub(crate) fn base_inputs(&self) -> usize {
+        self.base.n_inputs()
+    }
+
     /// One step: parameters updated from `y` through the state filter's last estimate, the
     /// state filter's model rebuilt with them, then the state predicted and updated.
     pub fn step(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) -> Result<()> {
@@ -435,7 +450,15 @@ impl DualSrUkf {
         self.params.observe.x_prev.copy_from_slice(self.state.x());
         self.params.observe.u.copy_from_slice(u);
         self.params.step(&[], y, mask)?;
-        self.state.process.model = with_params(&self.base, &self.names, self.params.x())?;
-        self.state.step(u, y, mask)
+        let stepped = with_params(&self.base, &self.names, self.params.x()).and_then(|model| {
+            self.state.process.model = model;
+            self.state.step(u, y, mask)
+        });
+        if stepped.is_err() {
+            // leave both filters as they were before this step
+            self.params.undo_last_step();
+            self.state.process.model = with_params(&self.base, &self.names, self.params.x())?;
+        }
+        stepped
     }
 }

@@ -84,6 +84,13 @@ pub struct Health {
     pub recovered: u32,
     /// Failed downdates recovered since construction.
     pub recoveries_total: u64,
+    /// Whether the last update was rejected by the innovation gate (its NIS above
+    /// [`SrUkf::set_nis_gate`]'s threshold): the state is the prediction.
+    pub gated: bool,
+    /// Updates rejected by the gate since construction.
+    pub rejected_total: u64,
+    /// Steps since construction or [`SrUkf::reset`] (a failed step does not count).
+    pub steps: u64,
 }
 
 /// Square-root UKF over a [`Process`] and an [`Observe`] model. `x` and the lower-triangular
@@ -123,6 +130,11 @@ pub struct SrUkf<P: Process, H: Observe> {
     nu: Aligned,
     obs: Vec<usize>,
     last_mask: Vec<bool>,
+    /// `(x, S)` before the running step, restored when it fails.
+    x_prev: Aligned,
+    s_prev: Aligned,
+    /// NIS above which an update is rejected (+∞: never).
+    gate: f64,
     avx2: bool,
 }
 
@@ -523,6 +535,9 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             nu: Aligned::zeros(p),
             obs: (0..p).collect(),
             last_mask: vec![true; p],
+            x_prev: Aligned::zeros(n),
+            s_prev: Aligned::zeros(n * n),
+            gate: f64::INFINITY,
             avx2: cpu_has_avx2(),
         })
     }
@@ -562,6 +577,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         check::all_finite("x", x, 1)?;
         self.s.copy_from_slice(&factor("P", p, self.n, true)?);
         self.x.copy_from_slice(x);
+        self.health.steps = 0;
         Ok(())
     }
 
@@ -583,9 +599,62 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     pub fn predict(&mut self, u: &[f64]) -> Result<()> {
         check::len("u", u, self.process.n_inputs())?;
         check::all_finite("u", u, 1)?;
+        self.save();
         self.health.recovered = 0;
         self.predict_unchecked::<0>(u);
-        self.check_state::<0>()
+        let done = self.check_state::<0>();
+        self.settle(done)
+    }
+
+    /// Undo the last successful step (put back the `(x, S)` it started from): for a caller
+    /// whose compound step failed after this filter's part (the dual filter).
+    pub(crate) fn undo_last_step(&mut self) {
+        self.x.copy_from_slice(&self.x_prev);
+        self.s.copy_from_slice(&self.s_prev);
+        self.health.steps = self.health.steps.saturating_sub(1);
+    }
+
+    /// Keep `(x, S)` so that a failing step can be undone ([`Self::settle`]).
+    #[inline(always)]
+    fn save(&mut self) {
+        self.x_prev.copy_from_slice(&self.x);
+        self.s_prev.copy_from_slice(&self.s);
+    }
+
+    /// After a step: count it, or put `(x, S)` back as they were before it and report the
+    /// divergence with the step's number.
+    #[inline(always)]
+    fn settle(&mut self, done: Result<()>) -> Result<()> {
+        match done {
+            Ok(()) => {
+                self.health.steps += 1;
+                Ok(())
+            }
+            Err(_) => {
+                self.x.copy_from_slice(&self.x_prev);
+                self.s.copy_from_slice(&self.s_prev);
+                Err(CableError::FilterDiverged {
+                    step: self.health.steps as usize,
+                })
+            }
+        }
+    }
+
+    /// Innovation gating: an update whose normalised innovation squared `νᵀP_yy⁻¹ν` exceeds
+    /// `nis_max` is rejected (the state stays the prediction) and counted in [`Health`]
+    /// (`gated`, `rejected_total`). The NIS of `q` consistent channels is χ²(q) distributed:
+    /// e.g. 23.9 is its 1 − 1e-5 quantile for q = 3. `None` (the default) never gates.
+    pub fn set_nis_gate(&mut self, nis_max: Option<f64>) -> Result<()> {
+        self.gate = match nis_max {
+            None => f64::INFINITY,
+            Some(g) => check::positive("nis_gate", g)?,
+        };
+        Ok(())
+    }
+
+    /// The innovation gate's threshold (+∞ when off).
+    pub fn nis_gate(&self) -> f64 {
+        self.gate
     }
 
     #[inline(always)]
@@ -639,8 +708,10 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     /// when `mask` is `None`); `u` is passed to the measurement model.
     pub fn update(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) -> Result<()> {
         self.check_measurement(y, mask)?;
+        self.save();
         self.update_unchecked::<0>(u, y, mask);
-        self.check_state::<0>()
+        let done = self.check_state::<0>();
+        self.settle(done)
     }
 
     /// `y` and `mask` of the right lengths, `y` finite where measured.
@@ -794,6 +865,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         self.set_mask(mask);
         let q = self.obs.len();
         self.health.measured = q;
+        self.health.gated = false;
         if q == 0 {
             self.health.nis = f64::NAN;
             return;
@@ -846,6 +918,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             return;
         }
         self.health.measured = self.obs.len();
+        self.health.gated = false;
         self.finish_update::<N>(y, true);
     }
 
@@ -888,6 +961,17 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         row[..q].copy_from_slice(&self.nu[..q]);
         solve_lower(sy, q, &mut row[..q]);
         self.health.nis = row[..q].iter().map(|v| v * v).sum();
+        if self.health.nis > self.gate {
+            // rejected: keep the prediction (with the 0th point's pending downdate applied)
+            self.dev = row;
+            self.health.gated = true;
+            self.health.rejected_total += 1;
+            if folded {
+                self.dev[..n].copy_from_slice(&self.v0[..n]);
+                self.rank_one::<N>(n, -1.0);
+            }
+            return;
+        }
         // x += K·ν = Z·(S_y⁻¹ν)   (K·ν = Z·S_y⁻¹·ν), summed over the columns of Z
         add_combination::<N>(&self.pxy[..n * q], &row[..q], &mut self.x, &mut self.ucols);
         self.dev = row;
@@ -1067,11 +1151,10 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             }
             so[k * n * n..(k + 1) * n * n].copy_from_slice(&snew);
         }
-        if xo.iter().chain(&so).any(|v| !v.is_finite()) {
-            return Err(CableError::Diverged {
-                step: 0,
-                time_s: f64::NAN,
-            });
+        let bad =
+            |v: &[f64], width: usize| v.iter().position(|v| !v.is_finite()).map(|i| i / width);
+        if let Some(step) = [bad(&xo, n), bad(&so, n * n)].into_iter().flatten().min() {
+            return Err(CableError::FilterDiverged { step });
         }
         Ok((xo, so, recovered))
     }
@@ -1087,6 +1170,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         check::len("u", u, self.process.n_inputs())?;
         check::all_finite("u", u, 1)?;
         self.check_measurement(y, mask)?;
+        self.save();
         macro_rules! sized {
             ($($n:literal)*) => {
                 match self.n {
@@ -1095,7 +1179,8 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
                 }
             };
         }
-        sized!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24)
+        let done = sized!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24);
+        self.settle(done)
     }
 
     /// [`Self::step_unchecked`] for `N = n` states, with 256-bit lanes where the CPU has them.
@@ -1165,10 +1250,8 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             acc.iter().sum::<f64>() + blocks.remainder().iter().map(|v| v * 0.0).sum::<f64>()
         };
         if !(probe(&self.x) + probe(&self.s)).is_finite() {
-            return Err(CableError::Diverged {
-                step: 0,
-                time_s: f64::NAN,
-            });
+            // renumbered and undone by `settle`
+            return Err(CableError::FilterDiverged { step: 0 });
         }
         Ok(())
     }
@@ -1334,9 +1417,15 @@ mod tests {
                     .all(|v| v.is_finite()));
             }
             assert!(
-                matches!(outcome, Err(CableError::Diverged { .. })),
+                matches!(outcome, Err(CableError::FilterDiverged { .. })),
                 "{outcome:?}"
             );
+            // the failed step is undone: the filter holds the last finite state
+            assert!(f
+                .x()
+                .iter()
+                .chain(f.sqrt_covariance())
+                .all(|v| v.is_finite()));
         }
     }
 

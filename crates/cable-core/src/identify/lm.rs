@@ -15,7 +15,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::error::{CableError, Result};
+use crate::error::{check, CableError, Result};
 
 /// Options of [`least_squares`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,6 +30,29 @@ pub struct LmOptions {
     pub fd_step: f64,
     /// Threads for the Jacobian columns (1 = serial).
     pub threads: usize,
+}
+
+impl LmOptions {
+    /// Checked options: tolerances finite and ≥ 0, the finite-difference step finite and > 0,
+    /// at most 100000 iterations (every loop is bounded) and at least one thread.
+    pub fn validate(&self) -> Result<()> {
+        check::non_negative("ftol", self.ftol)?;
+        check::non_negative("xtol", self.xtol)?;
+        check::positive("fd_step", self.fd_step)?;
+        let count = |name: &str, v: usize, range: std::ops::RangeInclusive<usize>, words| {
+            if range.contains(&v) {
+                Ok(())
+            } else {
+                Err(CableError::InvalidParameter {
+                    name: name.into(),
+                    value: v as f64,
+                    requirement: words,
+                })
+            }
+        };
+        count("max_iter", self.max_iter, 0..=100_000, "in 0 ..= 100000")?;
+        count("threads", self.threads, 1..=1024, "in 1 ..= 1024")
+    }
 }
 
 impl Default for LmOptions {
@@ -83,6 +106,7 @@ pub fn least_squares<F>(
 where
     F: Fn(&[f64], &mut [f64]) -> Result<()> + Sync,
 {
+    opts.validate()?;
     let p = x0.len();
     for (what, v) in [("lower", lower), ("upper", upper), ("scale", scale)] {
         if v.len() != p {

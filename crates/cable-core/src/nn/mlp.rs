@@ -227,8 +227,15 @@ fn eval_rows_avx2(
 pub struct Mlp {
     net: Net,
     info: MlpInfo,
-    scratch_a: Vec<Block>,
-    scratch_b: Vec<Block>,
+    scratch: Scratch,
+}
+
+/// Work buffers of one single-sample evaluation ([`Mlp::forward_with`]): a caller that shares
+/// one network between threads keeps one per thread.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scratch {
+    a: Vec<Block>,
+    b: Vec<Block>,
 }
 
 fn weights_err(kind: WeightsErrorKind, item: impl Into<String>, reason: String) -> CableError {
@@ -376,8 +383,10 @@ impl Mlp {
                 avx2: cpu_has_avx2(),
             },
             info,
-            scratch_a: vec![[0.0; LANES]; width],
-            scratch_b: vec![[0.0; LANES]; width],
+            scratch: Scratch {
+                a: vec![[0.0; LANES]; width],
+                b: vec![[0.0; LANES]; width],
+            },
         })
     }
 
@@ -423,19 +432,25 @@ impl Mlp {
     /// far outside the training range that an output overflows is
     /// [`CableError::NonFiniteResult`] (`out` then holds the overflowed values).
     pub fn forward(&mut self, x: &[f64], out: &mut [f64]) -> Result<()> {
-        check::len("x", x, self.n_inputs())?;
-        check::len("out", out, self.n_outputs())?;
-        check::all_finite("x", x, 1)?;
-        self.net
-            .eval_rows(x, out, 1, &mut self.scratch_a, &mut self.scratch_b);
-        check::result_finite("prediction", out, 1, OVERFLOW_HINT)
+        let Self { net, scratch, .. } = self;
+        forward_one(net, x, out, scratch)
+    }
+
+    /// [`Mlp::forward`] on a shared network with the caller's work buffers ([`Mlp::scratch`]).
+    pub fn forward_with(&self, x: &[f64], out: &mut [f64], scratch: &mut Scratch) -> Result<()> {
+        forward_one(&self.net, x, out, scratch)
+    }
+
+    /// Fresh work buffers for [`Mlp::forward_with`].
+    pub fn scratch(&self) -> Scratch {
+        self.scratch.clone()
     }
 
     /// [`Mlp::forward`] forced onto the portable (non-AVX2) path, to test that both agree.
     #[cfg(test)]
     pub(super) fn forward_portable(&mut self, x: &[f64], out: &mut [f64]) {
         self.net
-            .eval_rows_portable(x, out, 1, &mut self.scratch_a, &mut self.scratch_b);
+            .eval_rows_portable(x, out, 1, &mut self.scratch.a, &mut self.scratch.b);
     }
 
     /// Rows of `x` `(N, n⁰)` row-major → rows of `out` `(N, nᴸ)`. Parallel (rayon) for
@@ -488,6 +503,25 @@ impl Mlp {
         }
         check::result_finite("prediction", out, nl, OVERFLOW_HINT)
     }
+}
+
+/// One sample through `net` (see [`Mlp::forward`]).
+fn forward_one(net: &Net, x: &[f64], out: &mut [f64], scratch: &mut Scratch) -> Result<()> {
+    check::len("x", x, net.input.len())?;
+    check::len("out", out, net.layers[net.layers.len() - 1].n_out)?;
+    check::all_finite("x", x, 1)?;
+    if scratch.a.len() != net.width || scratch.b.len() != net.width {
+        return Err(CableError::Shape {
+            what: "scratch".into(),
+            expected: format!(
+                "buffers of {} blocks (Mlp::scratch of this network)",
+                net.width
+            ),
+            got: format!("{} and {}", scratch.a.len(), scratch.b.len()),
+        });
+    }
+    net.eval_rows(x, out, 1, &mut scratch.a, &mut scratch.b);
+    check::result_finite("prediction", out, 1, OVERFLOW_HINT)
 }
 
 /// What to do about a prediction that overflowed.

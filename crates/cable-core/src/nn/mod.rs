@@ -29,7 +29,7 @@ mod mlp;
 mod normalize;
 
 pub use activation::Activation;
-pub use mlp::{Layer, Mlp, MlpInfo, PARALLEL_MIN_ROWS};
+pub use mlp::{Layer, Mlp, MlpInfo, Scratch, PARALLEL_MIN_ROWS};
 pub use normalize::MapMinMax;
 
 #[cfg(test)]
