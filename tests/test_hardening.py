@@ -7,6 +7,7 @@ of freezing the suite; the rest run in process.
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 import textwrap
@@ -371,3 +372,139 @@ def test_filters_are_refused_concurrently_and_networks_shared(tmp_path):
     for t in threads:
         t.join(timeout=120)
     assert got == []
+
+
+# ---- loaders: every defect of a file is a DataError --------------------------------------------
+
+
+def _csv_rows(n=30, dt=1e-3):
+    t = np.arange(n) * dt
+    return "t,a\n" + "".join(f"{ti:.6f},{np.sin(ti):.6f}\n" for ti in t)
+
+
+def test_run_files_with_encoding_container_and_size_defects_are_data_errors(tmp_path):
+    import gzip
+
+    from cablekit.diagnose.data import load_run
+
+    cases = {
+        "latin1.csv": b"t,a\n0,\xe9\n",
+        "huge_field.csv": ("t,a\n" + "0," + "9" * 140_000 + "\n").encode(),
+        "corrupt.csv.gz": gzip.compress(_csv_rows().encode())[:40],
+        "identical.csv": ("t,a\n" + "0.0,1.0\n" * 20).encode(),
+        "ten_dupes_plus_one.csv": ("t,a\n" + "0.0,1.0\n" * 10 + "0.001,1.0\n").encode(),
+        "unterminated_quote.csv": b't,a\n0,"1\n',
+    }
+    for name, blob in cases.items():
+        (tmp_path / name).write_bytes(blob)
+        with pytest.raises(ck.DataError):
+            load_run(tmp_path / name)
+    with pytest.raises(ck.DataError, match="folder"):
+        load_run(tmp_path)
+    # a byte-order mark is not part of the first column's name
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbf" + _csv_rows().encode())
+    run = load_run(tmp_path / "bom.csv")
+    assert len(run) == 30 and "a" in run.columns
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    blob=st.binary(max_size=400) | st.text(alphabet='t,a0123456789.e-+\n #"nan', max_size=300).map(str.encode)
+)
+def test_any_bytes_as_a_run_file_load_or_raise_data_error(tmp_path_factory, blob):
+    from cablekit.diagnose.data import load_run
+
+    p = tmp_path_factory.mktemp("fuzz") / "run.csv"
+    p.write_bytes(blob)
+    try:
+        run = load_run(p)
+    except ck.DataError:
+        return
+    assert len(run) >= 10 and np.isfinite(run.t).all()
+    assert all(np.isfinite(v).all() for v in run.columns.values())
+
+
+_JOINT = {
+    "model": "antagonistic_joint",
+    "parameters": {"radius": 0.0025, "stiffness": 31800.0, "inertia": 2e-6, "pretension": 10.0},
+    "inputs": {"x_m": "x_m"},
+    "outputs": {"tension_motor_drive": "T1"},
+}
+
+
+@pytest.mark.parametrize(
+    ("change", "where"),
+    [
+        ({"colour": "red"}, "unknown keys"),
+        ({"extra_table": {"a": 1}}, "unknown keys"),
+        ({"diagnosis": {"warmpu": 0.1}}, "unknown keys"),
+        ({"diagnosis": {"warmup": float("nan")}}, "warmup"),
+        ({"diagnosis": {"warmup": "0.2"}}, "warmup"),
+        ({"diagnosis": {"substeps": 1.5}}, "substeps"),
+        ({"diagnosis": {"substeps": True}}, "substeps"),
+        ({"diagnosis": {"substeps": 10**12}}, "substeps"),
+        ({"diagnosis": {"effects": "coulomb_friction"}}, "effects"),
+        ({"diagnosis": "fast"}, "diagnosis"),
+        ({"inputs": {"x_m": "x_m", "external": ["f", "1"]}}, "external"),
+        ({"inputs": {"x_m": 3}}, "x_m"),
+        ({"parameters": {**_JOINT["parameters"], "radius": [[[1.0]]]}}, "radius"),
+        ({"parameters": {**_JOINT["parameters"], "radius": {"a": 1}}}, "radius"),
+        ({"parameters": {**_JOINT["parameters"], "radius": True}}, "radius"),
+    ],
+)
+def test_model_file_defects_are_data_errors_naming_the_key(change, where):
+    from cablekit.diagnose.spec import model_spec_from_dict
+
+    with pytest.raises(ck.DataError, match=where):
+        model_spec_from_dict({**_JOINT, **change})
+
+
+def test_servo_gains_must_be_finite():
+    from cablekit.diagnose.spec import model_spec_from_dict
+
+    doc = {
+        "model": "cable_transmission",
+        "parameters": {"preset": "raven2"},
+        "inputs": {"q_m_ref": ["r1"]},
+        "outputs": {"q_m1": "q1"},
+        "servo": {"kp": [float("nan")], "kd": [1.0], "torque_limit": [0.5]},
+    }
+    with pytest.raises(ck.DataError, match=r"kp\[0\]"):
+        model_spec_from_dict(doc)
+    with pytest.raises(ck.DataError, match="unknown keys"):
+        model_spec_from_dict({**doc, "servo": {"preset": "raven2", "ki": [1.0]}})
+
+
+_toml_values = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**70), 2**70)
+    | st.floats(allow_nan=True, allow_infinity=True)
+    | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=6), inner, max_size=4),
+    max_leaves=12,
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    table=st.sampled_from(["parameters", "inputs", "outputs", "diagnosis", "servo", "model", "new"]),
+    key=st.sampled_from(["radius", "x_m", "external", "warmup", "substeps", "effects", "kp", "preset", "zz"]),
+    value=_toml_values,
+)
+def test_any_value_anywhere_in_a_model_file_loads_or_raises_a_cablekit_error(table, key, value):
+    from cablekit.diagnose.spec import model_spec_from_dict
+
+    doc = {k: (dict(v) if isinstance(v, dict) else v) for k, v in _JOINT.items()}
+    if table == "model":
+        doc["model"] = value
+    else:
+        doc.setdefault(table, {})
+        if isinstance(doc[table], dict):
+            doc[table][key] = value
+    try:
+        spec = model_spec_from_dict(doc)
+    except ck.CablekitError:
+        return
+    assert math.isfinite(spec.warmup) and 0 <= spec.substeps <= 100_000
+    assert all(isinstance(c, str) for c in [*spec.inputs, *spec.external, *(c for _, c in spec.outputs)])

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import csv
 import math
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -98,7 +99,8 @@ def _read_table(path: Path) -> tuple[list[str], NDArray[np.float64]]:
         import gzip
 
         opener = gzip.open  # type: ignore[assignment]
-    with opener(path, "rt", newline="") as fh:  # type: ignore[operator]
+    # utf-8-sig: a byte-order mark (as spreadsheet programs write) is not part of the first name
+    with opener(path, "rt", newline="", encoding="utf-8-sig") as fh:  # type: ignore[operator]
         reader = csv.reader(fh)
         header = None
         rows: list[list[str]] = []
@@ -130,11 +132,28 @@ def _read_table(path: Path) -> tuple[list[str], NDArray[np.float64]]:
 
 
 def load_run(path: str | Path, name: str | None = None) -> Run:
-    """Load a CSV (optionally ``.csv.gz``) or Parquet run with a ``t`` column; see the module."""
+    """Load a CSV (optionally ``.csv.gz``) or Parquet run with a ``t`` column; see the module.
+
+    Every defect of the file is a :class:`DataError` naming it: a missing path or a folder, a
+    file that is not UTF-8 text (a UTF-8 byte-order mark is skipped), a corrupt gzip or Parquet
+    file, a malformed CSV (an unterminated quote, a field over the CSV module's size limit)."""
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: no such file")
-    header, data = _read_table(path)
+    if path.is_dir():
+        raise DataError(f"{path}: is a folder, not a run file (CSV, .csv.gz or Parquet)")
+    try:
+        header, data = _read_table(path)
+    except DataError:
+        raise
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except (csv.Error, EOFError, OSError, zlib.error) as exc:
+        raise DataError(f"{path}: unreadable or corrupt ({type(exc).__name__}: {exc})") from None
+    except Exception as exc:  # pyarrow's own errors on a corrupt Parquet file
+        if type(exc).__module__.startswith("pyarrow"):
+            raise DataError(f"{path}: unreadable Parquet file ({exc})") from None
+        raise
     return from_arrays(name or path.stem, header, data, source=str(path))
 
 
@@ -167,6 +186,11 @@ def from_arrays(name: str, header: list[str], data: NDArray[np.float64], source:
         data = np.delete(data, dup_rows + 1, axis=0)
         t = data[:, ti]
         notes.append(f"removed {dup_rows.size} exactly duplicated rows")
+        if data.shape[0] < 10:  # the minimum counts distinct samples
+            raise DataError(
+                f"{where}: needs at least 10 samples, got {data.shape[0]} once {dup_rows.size} exactly "
+                "duplicated rows are removed"
+            )
     dt = np.diff(t)
     if (dt <= 0).any():
         k = int(np.flatnonzero(dt <= 0)[0])

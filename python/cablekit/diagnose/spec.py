@@ -37,6 +37,7 @@ sampling, gain/bias) act on force sensors only.
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -177,21 +178,58 @@ class ModelSpec:
         }
 
 
+#: the tables and keys a model file may hold (anything else is a DataError: a misspelt key
+#: must not be silently ignored)
+TOP_LEVEL = {"model", "parameters", "inputs", "outputs", "diagnosis", "servo"}
+DIAGNOSIS_KEYS = {"warmup", "substeps", "effects"}
+SERVO_KEYS = {"preset", "kp", "kd", "torque_limit"}
+#: the most RK4 substeps per sample the core accepts (cable_core::integrate::MAX_SUBSTEPS)
+MAX_SUBSTEPS = 100_000
+
+
+def _unknown(table: dict[str, Any], allowed: set[str], where: str, source: str) -> None:
+    unknown = set(table) - allowed
+    if unknown:
+        raise DataError(f"{source}: {where} has unknown keys {sorted(unknown)}; allowed: {sorted(allowed)}")
+
+
+def _number(value: Any, what: str, source: str) -> float:
+    """A finite real number (an int or float; not a bool or a string)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise DataError(f"{source}: {what} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _column(value: Any, what: str, source: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise DataError(f"{source}: {what} must name a run column (a non-empty string), got {value!r}")
+    return value
+
+
+def _columns(value: Any, what: str, source: str) -> list[str]:
+    if not isinstance(value, list):
+        raise DataError(f"{source}: {what} must be a list of run columns, got {value!r}")
+    return [_column(v, f"{what}[{i}]", source) for i, v in enumerate(value)]
+
+
 def _servo_gains(
     table: dict[str, Any], links: int, source: str
 ) -> tuple[list[float], list[float], list[float]]:
     """``(kp, kd, torque_limit)`` of a ``[servo]`` table: ``preset = "raven2"`` or the three lists."""
     from cablekit.simulation import MotorPD
 
+    _unknown(table, SERVO_KEYS, "[servo]", source)
     if table.get("preset") == "raven2":
         pd = MotorPD.raven2(links)
         return list(pd.kp), list(pd.kd), list(pd.torque_limit)
-    try:
-        kp, kd, lim = ([float(v) for v in table[k]] for k in ("kp", "kd", "torque_limit"))
-    except (KeyError, TypeError, ValueError):
+    if not all(isinstance(table.get(k), list) for k in ("kp", "kd", "torque_limit")):
         raise DataError(
             f'{source}: [servo] needs preset = "raven2" or kp, kd, torque_limit lists (one value per link)'
-        ) from None
+        )
+    kp, kd, lim = (
+        [_number(v, f"[servo] {k}[{i}]", source) for i, v in enumerate(table[k])]
+        for k in ("kp", "kd", "torque_limit")
+    )
     if not len(kp) == len(kd) == len(lim) == links:
         raise DataError(f"{source}: [servo] gains need one value per link ({links})")
     return kp, kd, lim
@@ -216,30 +254,44 @@ def load_model_spec(path: str | Path) -> ModelSpec:
     """Parse and validate a model file; errors are :class:`DataError` naming the key."""
     path = Path(path)
     try:
-        doc = tomllib.loads(path.read_text())
+        doc = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except FileNotFoundError:
         raise DataError(f"{path}: no such model file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise DataError(f"{path}: not valid TOML: {exc}") from None
+    except IsADirectoryError:
+        raise DataError(f"{path}: is a folder, not a model file") from None
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except (tomllib.TOMLDecodeError, RecursionError) as exc:
+        raise DataError(f"{path}: not valid TOML: {type(exc).__name__}: {exc}") from None
+    except OSError as exc:
+        raise DataError(f"{path}: unreadable ({exc})") from None
     return model_spec_from_dict(doc, source=str(path))
 
 
 def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelSpec:
     """Validate a parsed model document; see the module for the schema."""
+    if not isinstance(doc, dict):
+        raise DataError(f"{source}: a model document is a table, got {type(doc).__name__}")
     kind = doc.get("model")
-    if kind not in MODELS:
+    if not isinstance(kind, str) or kind not in MODELS:
         raise DataError(f"{source}: 'model' must be one of {list(MODELS)}, got {kind!r}")
+    _unknown(doc, TOP_LEVEL, "the file", source)
     for key in ("parameters", "inputs", "outputs"):
         if not isinstance(doc.get(key), dict):
             raise DataError(f"{source}: missing table [{key}]")
+    for key in ("diagnosis", "servo"):
+        if key in doc and not isinstance(doc[key], dict):
+            raise DataError(f"{source}: {key} must be a table [{key}]")
     inputs = doc["inputs"]
     extra: dict[str, Any] = {}
     if kind == "antagonistic_joint":
         if "x_m" not in inputs:
             raise DataError(f"{source}: [inputs] needs x_m = <column of the motor displacement, m>")
         allowed = {"x_m", "coupled", "external"}
-        in_cols = [inputs["x_m"]]
-        external = [inputs["external"]] if inputs.get("external") else []
+        in_cols = [_column(inputs["x_m"], "[inputs] x_m", source)]
+        if "coupled" in inputs:
+            _column(inputs["coupled"], "[inputs] coupled", source)
+        external = [_column(inputs["external"], "[inputs] external", source)] if "external" in inputs else []
     else:
         servo = "q_m_ref" in inputs
         tau = inputs.get("q_m_ref" if servo else "tau_m")
@@ -254,11 +306,13 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
             dref = inputs.get("dq_m_ref")
             if dref is not None and (not isinstance(dref, list) or len(dref) != len(tau)):
                 raise DataError(f"{source}: [inputs] dq_m_ref must name one column per link ({len(tau)})")
+            if dref is not None:
+                _columns(dref, "[inputs] dq_m_ref", source)
             if not isinstance(doc.get("servo"), dict):
                 raise DataError(f"{source}: a servo replay (q_m_ref) needs a [servo] table")
             extra["servo"] = _servo_gains(doc["servo"], len(tau), source)
             extra["dq_m_ref"] = list(dref) if dref else None
-        external = list(inputs.get("external") or [])
+        external = _columns(inputs["external"], "[inputs] external", source) if "external" in inputs else []
         if external and len(external) != len(tau):
             raise DataError(f"{source}: [inputs] external must name one column per link ({len(tau)})")
     unknown = set(inputs) - allowed
@@ -283,9 +337,12 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
     if not outputs:
         raise DataError(f"{source}: [outputs] maps no measured column")
     diag = doc.get("diagnosis", {})
+    _unknown(diag, DIAGNOSIS_KEYS, "[diagnosis]", source)
     known = {e["name"] for e in effect_catalogue()}
     effects = diag.get("effects")
     if effects is not None:
+        if not isinstance(effects, list):
+            raise DataError(f"{source}: [diagnosis] effects must be a list of effect names")
         bad = [e for e in effects if not isinstance(e, str) or e.split("@")[0] not in known]
         if bad:
             raise DataError(
@@ -299,19 +356,50 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
         coupled=inputs.get("coupled") if kind == "antagonistic_joint" else None,
         external=external,
         outputs=outputs,
-        warmup=float(diag.get("warmup", 0.2)),
-        substeps=int(diag.get("substeps", 0)),
+        warmup=_number(diag.get("warmup", 0.2), "[diagnosis] warmup", source),
+        substeps=_substeps(diag.get("substeps", 0), source),
         effects=list(effects) if effects is not None else None,
         source=source,
         extra=extra,
     )
     if spec.warmup < 0 or spec.substeps < 0:
         raise DataError(f"{source}: [diagnosis] warmup and substeps must be >= 0")
+    for key, value in spec.parameters.items():
+        _parameter(value, f"[parameters] {key}", source)
     try:
         spec.model()
     except CablekitError as exc:  # keep the specific class (ParameterError, ...), add the file
         raise type(exc)(f"{source}: [parameters]: {exc}") from exc
+    except (TypeError, ValueError, OverflowError) as exc:  # a value of the wrong kind
+        raise DataError(f"{source}: [parameters]: {exc}") from None
     return spec
+
+
+def _substeps(value: Any, source: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_SUBSTEPS:
+        raise DataError(
+            f"{source}: [diagnosis] substeps must be a whole number in 0 ..= {MAX_SUBSTEPS} "
+            f"(0: from the stiffest mode), got {value!r}"
+        )
+    return value
+
+
+def _parameter(value: Any, what: str, source: str) -> None:
+    """A parameter: a finite number, a string (a preset or a law's name), or a list of finite
+    numbers or names (per link), or a list of lists of numbers (a coupling matrix)."""
+    if isinstance(value, str):
+        return
+    if isinstance(value, list):
+        if len(value) > 64:
+            raise DataError(f"{source}: {what} has {len(value)} entries; at most 64 are meaningful")
+        for i, v in enumerate(value):
+            if isinstance(v, list):
+                for j, w in enumerate(v):
+                    _number(w, f"{what}[{i}][{j}]", source)
+            elif not isinstance(v, str):  # per-link names, e.g. joint_kind = ["revolute", ...]
+                _number(v, f"{what}[{i}]", source)
+        return
+    _number(value, what, source)
 
 
 def write_model_toml(spec: ModelSpec, path: str | Path, comment: str = "") -> Path:
