@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cablekit._arrays import float_array
 from cablekit._cablekit import DualSrUkf, SrUkf
 from cablekit.errors import ParameterError, ShapeError
 from cablekit.simulation import propose_step
@@ -100,7 +101,7 @@ def _observations(
     r = [encoder_noise**2] * n_links
     if q_l is None:
         return _Observations(states, q_m, None, np.diag(r))
-    q_l = np.ascontiguousarray(q_l, dtype=np.float64)
+    q_l = float_array(q_l, "q_l")
     if q_l.shape != q_m.shape:
         raise ShapeError(f"{name} must have the shape of q_m {q_m.shape}, got {q_l.shape}")
     if np.isinf(q_l).any():
@@ -153,8 +154,8 @@ def _setup(
     variance a²·dt; the angles follow through the dynamics). ``extra`` zero rows and columns
     are appended for augmented states, for the caller to fill."""
     n_links = model.n_links
-    q_m = np.ascontiguousarray(q_m, dtype=np.float64)
-    tau_m = np.ascontiguousarray(tau_m, dtype=np.float64)
+    q_m = float_array(q_m, "q_m")
+    tau_m = float_array(tau_m, "tau_m")
     if q_m.ndim != 2 or q_m.shape[1] != n_links:
         raise ShapeError(f"q_m must have shape (T, {n_links}), got {q_m.shape}")
     if tau_m.shape != q_m.shape:
@@ -167,7 +168,7 @@ def _setup(
     ):
         if not (np.isfinite(v) and v > 0):
             raise ParameterError(f"{name} must be finite and > 0, got {v}")
-    ext = np.zeros_like(tau_m) if external is None else np.ascontiguousarray(external, dtype=np.float64)
+    ext = np.zeros_like(tau_m) if external is None else float_array(external, "external")
     if ext.shape != q_m.shape:
         raise ShapeError(f"external must have the shape of q_m {q_m.shape}, got {ext.shape}")
     if substeps is None:
@@ -189,7 +190,7 @@ def kinematic_joint_angles(model: CableTransmission, q_m: NDArray[np.float64]) -
     """Joint angles from motor angles through the rigid transmission, ``q_l = T⁻¹·q_m``, for
     ``(n,)`` or ``(T, n)`` motor angles (the core's forward substitution; non-finite angles are
     a :class:`~cablekit.NotFiniteError` naming the row)."""
-    return model.motor_to_joint(np.ascontiguousarray(q_m, dtype=np.float64))
+    return model.motor_to_joint(float_array(q_m, "q_m", (1, 2)))
 
 
 def estimate_joint_states(

@@ -157,6 +157,7 @@ pub fn simulate_closed_loop_into(
     out: ClosedLoopMut<'_>,
 ) -> Result<usize> {
     let t_len = validate_servo(model, controller, references, external, x0)?;
+    crate::integrate::check_time_base(opts.dt, t_len)?;
     let ClosedLoopMut {
         mut trajectory,
         inputs,

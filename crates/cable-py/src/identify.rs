@@ -53,6 +53,12 @@ fn plant_of(model: &Bound<'_, Model>, servo: Option<Gains>) -> PyResult<core::Pl
     }
 }
 
+/// An ndarray of any rank as its row-major float64 values (`DTypeError` for anything else).
+fn flat(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
+    crate::convert::ndim_of(obj, name)?;
+    any_vector(&obj.call_method0("ravel")?, name)
+}
+
 fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize, width: usize) -> PyResult<core::JointRun> {
     let d = obj.cast::<PyDict>().map_err(|_| {
         raise(
@@ -72,15 +78,9 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize, width: usize) -> PyResul
         Some(v) => v,
         None => get("x_m")?,
     };
-    let input = any_vector(
-        &input_obj.call_method0("ravel")?,
-        &format!("runs[{i}].input"),
-    )?;
+    let input = flat(&input_obj, &format!("runs[{i}].input"))?;
     let t = input.len() / width.max(1);
-    let measured = any_vector(
-        &get("measured")?.call_method0("ravel")?,
-        &format!("runs[{i}].measured"),
-    )?;
+    let measured = flat(&get("measured")?, &format!("runs[{i}].measured"))?;
     if measured.len() != t * q || input.len() != t * width {
         return Err(raise(
             "ShapeError",
@@ -94,9 +94,7 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize, width: usize) -> PyResul
     }
     let optional = |k: &str| -> PyResult<Vec<f64>> {
         match d.get_item(k)? {
-            Some(c) if !c.is_none() => {
-                any_vector(&c.call_method0("ravel")?, &format!("runs[{i}].{k}"))
-            }
+            Some(c) if !c.is_none() => flat(&c, &format!("runs[{i}].{k}")),
             _ => Ok(vec![]),
         }
     };

@@ -1,0 +1,267 @@
+"""Property tests over every public binding (issue #20): a valid call with one argument replaced
+by a drawn bad value — NaN, ±inf, ±1e308, an empty or huge array, another dtype, rank or
+layout, another Python type, an out-of-range count.
+
+The contract asserted for every draw:
+
+* the call raises a :class:`cablekit.CablekitError` subclass, **or** (documented, before
+  cablekit runs) PyO3's argument conversion raises ``TypeError`` for a scalar argument of another
+  Python type or ``OverflowError`` for an integer outside the argument's range;
+* or it returns, and then every number it returns is finite whenever every number it was given
+  is finite (no NaN/inf out of finite input without an error);
+* each call is bounded in time (the suite's per-test timeout; a hang holding the GIL cannot be
+  interrupted in process, so the former hangs are also run in subprocesses in
+  ``test_hardening.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import cablekit as ck
+from cablekit._cablekit import JointProblem
+
+R1 = ck.CableTransmission.raven2(1)
+R3 = ck.CableTransmission.raven2(3)
+AJ = ck.AntagonisticJoint.forceps_example()
+DAHL = ck.DahlElement(sigma0=1e3, coulomb=0.5)
+
+
+def _arr(*shape: int, value: float = 0.1) -> np.ndarray:
+    return np.full(shape, value)
+
+
+@dataclass
+class Call:
+    """A valid call: ``fn(*args, **kwargs)``; the fuzzer replaces one argument at a time."""
+
+    fn: Callable[..., Any]
+    args: tuple[Any, ...] = ()
+    kwargs: dict[str, Any] | None = None
+
+
+def _srukf() -> ck.SrUkf:
+    return ck.SrUkf(R1, np.zeros(4), np.eye(4), 1e-6 * np.eye(4), np.eye(2), dt=1e-3, states=[0, 2])
+
+
+def _mlp() -> ck.Mlp:
+    from cablekit.nn import MapMinMax
+    from cablekit.nn.export import FORMAT, FORMAT_VERSION, network_arrays, safetensors_bytes
+
+    rng = np.random.default_rng(0)
+    arrays = network_arrays(
+        [rng.normal(size=(4, 2)), rng.normal(size=(1, 4))],
+        [np.zeros(4), np.zeros(1)],
+        MapMinMax(-np.ones(2), np.ones(2)),
+        MapMinMax(np.zeros(1), np.ones(1)),
+    )
+    md = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "architecture": '{"sizes": [2, 4, 1], "activations": ["tansig", "purelin"]}',
+        "normalization": "mapminmax",
+    }
+    return ck.Mlp.from_bytes(safetensors_bytes(arrays, md))
+
+
+def _problem() -> JointProblem:
+    t = np.arange(200) * 1e-3
+    run = dict(dt=1e-3, input=1e-3 * np.sin(6 * t), measured=np.zeros((200, 1)))
+    return JointProblem(AJ, [(0, 1.0, True)], [run], ["coulomb_friction"], substeps=8)
+
+
+def _calls() -> dict[str, Call]:
+    v = np.linspace(-1.0, 1.0, 7)
+    out: dict[str, Call] = {
+        "coulomb_friction": Call(ck.coulomb_friction, (v,), dict(coulomb=1.0, smoothing=0.1)),
+        "stribeck_friction": Call(
+            ck.stribeck_friction,
+            (v,),
+            dict(coulomb=1.0, static_level=1.5, stribeck_velocity=0.1, smoothing=0.01),
+        ),
+        "capstan_ratio": Call(ck.capstan_ratio, (v,), dict(mu=0.2, wrap=1.0, smoothing=0.1)),
+        "dahl_rate": Call(ck.dahl_rate, (v, v), dict(sigma0=1.0, coulomb=1.0)),
+        "cable_tension": Call(ck.cable_tension, (v, v), dict(stiffness=1e3, pretension=10.0)),
+        "CableTransmission.raven2": Call(ck.CableTransmission.raven2, (2,)),
+        "AntagonisticJoint": Call(
+            ck.AntagonisticJoint, (), dict(radius=0.003, stiffness=3e4, inertia=2e-6, pretension=10.0)
+        ),
+        "DahlElement": Call(ck.DahlElement, (), dict(sigma0=1e3, coulomb=0.5)),
+        "R3.energy": Call(R3.energy, (_arr(12),)),
+        "R3.motor_to_joint": Call(R3.motor_to_joint, (_arr(3),)),
+        "R3.joint_to_motor": Call(R3.joint_to_motor, (_arr(3),)),
+        "kinematic_joint_angles": Call(ck.kinematic_joint_angles, (R3, _arr(5, 3))),
+        "propose_step": Call(ck.propose_step, (R3, 1e-3)),
+        "simulate": Call(ck.simulate, (R1, _arr(20, 2, value=0.0), 1e-3), dict(substeps=2)),
+        "simulate_servo": Call(
+            ck.simulate_servo, (R1, _arr(20, 2, value=0.0), 1e-3, ck.MotorPD.raven2(1)), dict(substeps=2)
+        ),
+        "estimate_joint_states": Call(ck.estimate_joint_states, (R1, _arr(30, 1), _arr(30, 1), 1e-3)),
+        "Mlp.predict": Call(lambda x: _mlp().predict(x), (_arr(2),)),
+        "Mlp.predict_into": Call(lambda x, o: _mlp().predict_into(x, o), (_arr(3, 2), np.zeros((3, 1)))),
+        "Mlp.from_bytes": Call(ck.Mlp.from_bytes, (_mlp().to_bytes(),)),
+        "SrUkf.step": Call(lambda u, y: _srukf().step(u, y), (_arr(2), _arr(2))),
+        "SrUkf.run": Call(lambda u, y: _srukf().run(u, y), (_arr(10, 2), _arr(10, 2))),
+        "SrUkf.reset": Call(lambda x, p: _srukf().reset(x, p), (_arr(4), np.eye(4))),
+        "SrUkf.linear": Call(
+            ck.SrUkf.linear, (np.eye(2), np.eye(1, 2), _arr(2), np.eye(2), np.eye(2), np.eye(1))
+        ),
+        "JointProblem.residuals": Call(lambda th: _problem().residuals(th), (_problem().reference(),)),
+        "JointProblem.predict": Call(lambda th, r: _problem().predict(th, r), (_problem().reference(), 0)),
+    }
+    r1 = R1.params()
+    r1.pop("n_links", None)
+    out["CableTransmission"] = Call(ck.CableTransmission, (), r1)
+    out["propose_step(x, u)"] = Call(ck.propose_step, (R1, 1e-3, _arr(4, value=0.0), _arr(2, value=0.0)))
+    out["simulate(x0)"] = Call(ck.simulate, (AJ, _arr(20, 2, value=0.0), 1e-4, _arr(2, value=0.0)))
+    out["SrUkf.with_parameters"] = Call(
+        ck.SrUkf.with_parameters,
+        (R1, ["cable_stiffness[0]"], _arr(5), np.eye(5), 1e-6 * np.eye(5), np.eye(1)),
+        dict(dt=1e-3, states=[0], bounds=[(1.0, 1e6)]),
+    )
+    k = r1["cable_stiffness"][0]
+    out["DualSrUkf"] = Call(
+        ck.DualSrUkf,
+        (R1, ["cable_stiffness[0]"], _arr(4, value=0.0), 1e-6 * np.eye(4), 1e-9 * np.eye(4),
+         np.array([[(0.1 * k) ** 2]]), np.array([[1.0]]), 1e-8 * np.eye(2)),
+        dict(dt=1e-3, states=[0, 2]),
+    )  # fmt: skip
+    t = np.arange(200) * 1e-3
+    out["JointProblem"] = Call(
+        lambda inp, meas, dt: JointProblem(
+            AJ, [(0, 1.0, True)], [dict(dt=dt, input=inp, measured=meas)], ["coulomb_friction"], substeps=8
+        ),
+        (1e-3 * np.sin(6 * t), np.zeros((200, 1)), 1e-3),
+    )
+    out["JointProblem.fit"] = Call(
+        lambda th, ftol, max_iter: _problem().fit(th, ftol=ftol, max_iter=max_iter),
+        (_problem().reference(), 1e-8, 3),
+    )
+    for name, model in (("R3", R3), ("AJ", AJ), ("Dahl", DAHL)):
+        x, u = _arr(model.n_states, value=0.0), _arr(model.n_inputs, value=0.0)
+        out[f"{name}.derivative"] = Call(model.derivative, (x, u))
+        out[f"{name}.output"] = Call(model.output, (x, u))
+        out[f"{name}.jacobian"] = Call(model.jacobian, (x, u))
+        out[f"{name}.rk4_step"] = Call(model.rk4_step, (x, u, 1e-4), dict(substeps=2))
+    return out
+
+
+CALLS = _calls()
+
+
+def _finite_numbers(obj: Any) -> bool:
+    """Whether every number in ``obj`` (arrays, scalars, containers, result objects) is finite."""
+    if isinstance(obj, np.ndarray):
+        return obj.dtype.kind not in "fc" or bool(np.isfinite(obj).all())
+    if isinstance(obj, bool | str | bytes) or obj is None:
+        return True
+    if isinstance(obj, int | float):
+        return math.isfinite(obj)
+    if isinstance(obj, dict):
+        return all(_finite_numbers(v) for v in obj.values())
+    if isinstance(obj, list | tuple):
+        return all(_finite_numbers(v) for v in obj)
+    if isinstance(obj, ck.StepAdvice):  # documented: h_max is +inf when no mode limits the step
+        return obj.max_stable_step > 0 and 1 <= obj.substeps <= 100_000
+    if hasattr(obj, "__dataclass_fields__"):
+        return all(_finite_numbers(getattr(obj, f)) for f in obj.__dataclass_fields__)
+    return True
+
+
+def _is_finite_input(obj: Any) -> bool:
+    if isinstance(obj, np.ndarray) and obj.dtype.kind in "fc":
+        return bool(np.isfinite(obj).all())
+    if isinstance(obj, float):
+        return math.isfinite(obj)
+    return True
+
+
+def _bad_arrays(a: np.ndarray) -> st.SearchStrategy[Any]:
+    shape = a.shape
+    specials = st.sampled_from([np.nan, np.inf, -np.inf, 1e308, -1e308, 1e154, 5e-324, 0.0])
+
+    def poke(v: float, at: int) -> np.ndarray:
+        b = a.astype(np.float64).copy()
+        if b.size:
+            b.flat[at % b.size] = v
+        return b
+
+    return st.one_of(
+        st.builds(poke, specials, st.integers(0, 10**6)),
+        st.builds(lambda v: np.full(shape, v), specials),
+        st.just(np.zeros((0, *shape[1:]))),
+        st.just(np.zeros((*shape, 1))),
+        st.just(a.reshape(-1)[:1].copy() if a.size else a),
+        st.just(np.zeros((10**6, shape[-1])) if len(shape) == 2 else np.zeros(10**6)),
+        st.sampled_from(["float32", "int64", "complex128", "object", "bool"]).map(lambda d: a.astype(d)),
+        st.just(np.asfortranarray(np.repeat(a[..., None], 2, axis=-1))[..., 0] if a.ndim else a),
+        st.just(a.tolist()),
+        st.sampled_from([None, "x", 1, {"a": 1}]),
+    )
+
+
+def _bad_scalars(v: Any) -> st.SearchStrategy[Any]:
+    if isinstance(v, bool):
+        return st.sampled_from([None, "yes", 2])
+    if isinstance(v, int):
+        return st.sampled_from([0, -1, 2**31, 2**64, 10**30, 1.5, "1", None])
+    if isinstance(v, float):
+        return st.sampled_from([0.0, -1.0, math.nan, math.inf, -math.inf, 1e308, -1e308, 5e-324, "1", None])
+    if isinstance(v, bytes):
+        return st.one_of(
+            st.binary(max_size=300),
+            st.integers(0, len(v)).map(lambda k: v[:k]),
+            st.integers(0, max(len(v) - 1, 0)).map(lambda k: v[:k] + bytes([v[k] ^ 0xFF]) + v[k + 1 :]),
+        )
+    return st.sampled_from([None, "x", 1.0])
+
+
+@st.composite
+def mutated(draw: st.DrawFn, call: Call) -> tuple[tuple[Any, ...], dict[str, Any], bool, bool]:
+    args, kwargs = list(call.args), dict(call.kwargs or {})
+    slots = [("a", i) for i, a in enumerate(args) if not isinstance(a, ck.Model | ck.MotorPD)]
+    slots += [("k", k) for k in kwargs]
+    kind, key = draw(st.sampled_from(slots))
+    old = args[key] if kind == "a" else kwargs[key]  # type: ignore[index]
+    new = draw(_bad_arrays(old) if isinstance(old, np.ndarray) else _bad_scalars(old))
+    if kind == "a":
+        args[key] = new  # type: ignore[index]
+    else:
+        kwargs[key] = new  # type: ignore[index]
+    finite = all(_is_finite_input(a) for a in [*args, *kwargs.values()])
+    return tuple(args), kwargs, finite, isinstance(old, np.ndarray | bytes)
+
+
+@pytest.mark.parametrize("name", sorted(CALLS))
+def test_the_valid_call_works_and_is_finite(name):
+    call = CALLS[name]
+    assert _finite_numbers(call.fn(*call.args, **(call.kwargs or {})))
+
+
+@pytest.mark.parametrize("name", sorted(CALLS))
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large]
+)
+@given(data=st.data())
+def test_a_bad_argument_is_a_typed_error_or_a_finite_result(name, data):
+    call = CALLS[name]
+    args, kwargs, finite, was_array = data.draw(mutated(call))
+    try:
+        result = call.fn(*args, **kwargs)
+    except ck.CablekitError:
+        return
+    except (TypeError, OverflowError):
+        # PyO3's conversion of a scalar of another Python type or an out-of-range integer
+        # (documented); an array argument of the wrong kind must be cablekit's own error
+        assert not was_array, f"{name}: a bad array argument raised a non-cablekit error"
+        return
+    if finite:
+        assert _finite_numbers(result), f"{name}{args, kwargs} returned non-finite numbers"
