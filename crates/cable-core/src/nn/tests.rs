@@ -344,3 +344,58 @@ fn every_defect_has_its_own_kind_and_names_the_item() {
         assert_eq!((k, i.as_str()), (kind, item), "{what}");
     }
 }
+
+/// A stable-toolchain stand-in for a coverage-guided fuzzer on the Rust weight parser (the
+/// atheris target in `fuzz/` cannot see inside the compiled core): 20 000 files made from a
+/// valid one by random byte flips, insertions, deletions and truncations must each load or give
+/// a typed error — never a panic — and a file that loads must predict finite numbers inside its
+/// training range.
+#[test]
+fn mutated_weight_files_load_or_fail_typed_never_panic() {
+    let good = net(&[3, 5, 2], &[Activation::Logsig, Activation::Purelin], 5)
+        .to_safetensors()
+        .unwrap();
+    let mut s: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut next = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        s
+    };
+    let (mut loaded, mut refused) = (0, 0);
+    for _ in 0..20_000 {
+        let mut b = good.clone();
+        for _ in 0..1 + next() % 4 {
+            let at = (next() as usize) % b.len().max(1);
+            match next() % 4 {
+                0 => b[at] ^= 1 << (next() % 8),
+                1 => b[at] = next() as u8,
+                2 => b.insert(at, next() as u8),
+                _ => b.truncate(at),
+            }
+            if b.is_empty() {
+                break;
+            }
+        }
+        match std::panic::catch_unwind(|| Mlp::from_safetensors(&b)) {
+            Err(_) => panic!("the parser panicked on a mutated file"),
+            Ok(Err(CableError::Weights { .. })) => refused += 1,
+            Ok(Err(e)) => panic!("not a weights error: {e}"),
+            Ok(Ok(mut m)) => {
+                loaded += 1;
+                let x = vec![0.0; m.n_inputs()];
+                let mut y = vec![0.0; m.n_outputs()];
+                if m.input_map().min.iter().all(|v| *v <= 0.0)
+                    && m.input_map().max.iter().all(|v| *v >= 0.0)
+                {
+                    m.forward(&x, &mut y).unwrap();
+                    assert!(y.iter().all(|v| v.is_finite()));
+                }
+            }
+        }
+    }
+    assert!(
+        loaded > 0 && refused > 0,
+        "{loaded} loaded, {refused} refused"
+    );
+}

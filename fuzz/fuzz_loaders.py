@@ -1,0 +1,122 @@
+"""Coverage-guided fuzzing of cablekit's loaders with atheris (libFuzzer for Python and its
+native extensions): weight files (``Mlp.from_bytes``, the Rust safetensors parser), model files
+(``load_model_spec``, TOML) and run files (``load_run``, CSV).
+
+Every input must load or raise a ``cablekit.CablekitError`` subclass; any other exception, a
+crash or a hang (``-timeout``) is a finding, written by libFuzzer as ``crash-*``/``timeout-*``
+in the working folder. Turn each into a regression test.
+
+Bounded runs (``pip install '.[fuzz]'``), e.g. 20 000 inputs per target::
+
+    python fuzz/fuzz_loaders.py weights -runs=20000 -timeout=10
+    python fuzz/fuzz_loaders.py model -runs=20000 -timeout=10
+    python fuzz/fuzz_loaders.py run -runs=20000 -timeout=10
+
+or by time: ``-max_total_time=60``. Seeds are valid files built at start-up, so the fuzzer
+mutates real structure from the first input.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+from pathlib import Path
+
+import atheris
+
+with atheris.instrument_imports():
+    import numpy as np
+
+    import cablekit as ck
+    from cablekit.diagnose.data import load_run
+    from cablekit.diagnose.spec import load_model_spec
+    from cablekit.nn import MapMinMax
+    from cablekit.nn.export import write_weights
+
+TMP = Path(tempfile.mkdtemp(prefix="cablekit-fuzz-"))
+
+
+def _seed_weights() -> bytes:
+    rng = np.random.default_rng(0)
+    path = write_weights(
+        TMP / "seed.safetensors",
+        [rng.normal(size=(4, 2)), rng.normal(size=(1, 4))],
+        [np.zeros(4), np.zeros(1)],
+        ["tansig", "purelin"],
+        MapMinMax(-np.ones(2), np.ones(2)),
+        MapMinMax(np.zeros(1), np.ones(1)),
+        input_names=["x", "v"],
+        output_names=["T"],
+    )
+    return path.read_bytes()
+
+
+SEED_MODEL = b"""model = "antagonistic_joint"
+[parameters]
+radius = 0.0025
+stiffness = 31800.0
+inertia = 2e-6
+pretension = 10.0
+[inputs]
+x_m = "x_m"
+external = "tau"
+[outputs]
+tension_motor_drive = "T1"
+theta = "theta"
+[diagnosis]
+warmup = 0.2
+substeps = 0
+effects = ["coulomb_friction", "sensor_lag@sensors.force"]
+"""
+
+SEED_RUN = "t,x_m,T1\n" + "".join(
+    f"{k * 1e-3:.6f},{1e-3 * np.sin(k / 50):.6e},{10 + k % 7:.3f}\n" for k in range(40)
+)
+
+
+def _weights(data: bytes) -> None:
+    try:
+        net = ck.Mlp.from_bytes(data)
+    except ck.CablekitError:
+        return
+    y = net.predict(np.zeros(net.n_inputs))
+    assert np.isfinite(y).all(), "a loaded network predicts non-finite numbers at zero input"
+
+
+def _model(data: bytes) -> None:
+    path = TMP / "model.toml"
+    path.write_bytes(data)
+    try:
+        load_model_spec(path)
+    except ck.CablekitError:
+        return
+
+
+def _run(data: bytes) -> None:
+    path = TMP / "run.csv"
+    path.write_bytes(data)
+    try:
+        run = load_run(path)
+    except ck.CablekitError:
+        return
+    assert len(run) >= 10 and np.isfinite(run.t).all()
+
+
+TARGETS = {"weights": (_weights, _seed_weights), "model": (_model, lambda: SEED_MODEL),
+           "run": (_run, lambda: SEED_RUN.encode())}  # fmt: skip
+
+
+def main() -> None:
+    if len(sys.argv) < 2 or sys.argv[1] not in TARGETS:
+        sys.exit(f"usage: {sys.argv[0]} {{{'|'.join(TARGETS)}}} [libFuzzer flags, e.g. -runs=20000]")
+    name = sys.argv.pop(1)
+    target, seed = TARGETS[name]
+    corpus = TMP / f"corpus-{name}"
+    corpus.mkdir()
+    (corpus / "seed").write_bytes(seed())
+    atheris.Setup([sys.argv[0], *sys.argv[1:], str(corpus)], target)
+    atheris.Fuzz()
+
+
+if __name__ == "__main__":
+    main()
