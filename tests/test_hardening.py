@@ -508,3 +508,25 @@ def test_any_value_anywhere_in_a_model_file_loads_or_raises_a_cablekit_error(tab
         return
     assert math.isfinite(spec.warmup) and 0 <= spec.substeps <= 100_000
     assert all(isinstance(c, str) for c in [*spec.inputs, *spec.external, *(c for _, c in spec.outputs)])
+
+
+# ---- thread counts on a shared machine ----------------------------------------------------------
+
+
+def test_thread_counts_follow_the_problem_the_option_and_the_environment(monkeypatch):
+    from cablekit._threads import PARALLEL_WORK, available_cores, choose_threads
+
+    monkeypatch.delenv("CABLEKIT_THREADS", raising=False)
+    assert choose_threads(PARALLEL_WORK / 10) == 1  # small problems: one thread
+    assert choose_threads(PARALLEL_WORK * 10) == available_cores() >= 1
+    assert choose_threads(1e3, threads=3) == 3  # the option wins
+    monkeypatch.setenv("CABLEKIT_THREADS", "2")
+    assert choose_threads(1e3) == 2  # then the environment
+    assert choose_threads(1e3, threads=1) == 1
+    for bad in ("0", "two", "-1"):
+        monkeypatch.setenv("CABLEKIT_THREADS", bad)
+        with pytest.raises(ck.ParameterError, match="CABLEKIT_THREADS"):
+            choose_threads(1e3)
+    for bad in (0, -2, 1.5, True):
+        with pytest.raises(ck.ParameterError):
+            choose_threads(1e3, threads=bad)

@@ -21,6 +21,7 @@ from cablekit._cablekit import (
     dahl_rate,
     stribeck_friction,
 )
+from cablekit._threads import export_to_rayon
 from cablekit.errors import (
     CablekitError,
     ConcurrentUseError,
@@ -46,6 +47,8 @@ from cablekit.simulation import (
     simulate,
     simulate_servo,
 )
+
+export_to_rayon()  # CABLEKIT_THREADS reaches the core's rayon pool (started lazily, on first use)
 
 __all__ = [
     "AntagonisticJoint",

@@ -79,6 +79,9 @@ class TrainConfig:
     min_grad: float = 1e-7
     pso: PsoConfig = field(default_factory=PsoConfig)
     progress: bool = True
+    #: torch threads; None: CABLEKIT_THREADS, else chosen from the problem's size and the free
+    #: cores (one thread for Table-1 sizes; see cablekit._threads)
+    threads: int | None = None
 
     def check(self) -> None:
         if self.method not in METHODS:
@@ -98,6 +101,10 @@ class TrainConfig:
             if not np.isfinite(v) or v <= 0:
                 raise ParameterError(f"{name} must be finite and > 0, got {v}")
         self.pso.check()
+        if self.threads is not None and (
+            isinstance(self.threads, bool) or not isinstance(self.threads, int) or self.threads < 1
+        ):
+            raise ParameterError(f"threads must be a whole number >= 1 or None, got {self.threads!r}")
 
 
 @dataclass
@@ -124,6 +131,8 @@ class TrainResult:
     pso_history: list[float] = field(default_factory=list)
     stop_reason: str = ""
     data_sha256: str = ""
+    #: torch threads the training ran on (``config.threads``, or cablekit's choice)
+    threads: int = 1
 
     @property
     def sizes(self) -> list[int]:

@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 import torch
 
+from cablekit._threads import choose_threads, torch_threads
 from cablekit.diagnose.progress import Progress
 from cablekit.errors import NotFiniteError, ParameterError, ShapeError
 from cablekit.nn import flat
@@ -145,6 +146,17 @@ def train_mlp(x: F64, y: F64, config: TrainConfig | None = None, **overrides: ob
 
     tr, val = part("train"), part("val")
     assert tr is not None
+    # LM's J^T J dominates a step: N * P^2 multiply-adds (PSO's swarm x N x P is smaller)
+    n_params = flat.n_params(sizes)
+    threads = choose_threads(2.0 * tr[0].shape[0] * n_params**2, cfg.threads)
+    with torch_threads(threads):
+        result = _train(x, y, cfg, split, imap, omap, sizes, acts, tr, val)
+    result.threads = threads
+    return result
+
+
+def _train(x, y, cfg, split, imap, omap, sizes, acts, tr, val):  # type: ignore[no-untyped-def]
+    """The training of :func:`train_mlp` once the data are split and normalised."""
     gen = torch.Generator().manual_seed(cfg.seed)
     t0 = time.perf_counter()
     pso_history: list[float] = []
