@@ -1,7 +1,7 @@
 //! Model classes: `Model` (base, shared evaluation methods) and one subclass per core model.
 
-use cable_core::cable::{CableLaw, CableLoop, CableRun, Creep};
-use cable_core::dynamics::{self as core, Gravity, JointKind, Model as _, TransmissionLink};
+use cable_core::cable::{CableLaw, CableRun, Creep};
+use cable_core::dynamics::{self as core, Model as _};
 use cable_core::friction::{Dahl, StaticFriction};
 use cable_core::integrate::jacobian_rows;
 use cable_core::{check, CableError};
@@ -172,34 +172,18 @@ fn wrap<S: pyo3::PyClass<BaseType = Model>>(inner: AnyModel, sub: S) -> PyClassI
     PyClassInitializer::from(Model { inner }).add_subclass(sub)
 }
 
-/// A float, or a sequence of `n` floats, broadcast to `n` values.
-fn per_link(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec<f64>> {
+/// A float (one value for every link) or a sequence of floats (one per link).
+fn per_link(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
     if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
-        return Ok(vec![obj.extract::<f64>()?; n]);
+        return Ok(vec![obj.extract::<f64>()?]);
     }
-    let v: Vec<f64> = obj.extract().map_err(|_| {
+    obj.extract().map_err(|_| {
         crate::errors::raise(
             "ParameterError",
-            format!("{name} must be a float or a sequence of {n} floats"),
+            format!("{name} must be a float or a sequence of floats (one per link)"),
             &[],
         )
-    })?;
-    if v.len() != n {
-        return Err(crate::errors::raise(
-            "ShapeError",
-            format!("{name} has {} values but the model has {n} links", v.len()),
-            &[],
-        ));
-    }
-    Ok(v)
-}
-
-fn seq_len(obj: &Bound<'_, PyAny>) -> Option<usize> {
-    if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
-        None
-    } else {
-        obj.len().ok()
-    }
+    })
 }
 
 /// Cable-driven transmission with 1–3 coupled links (seed 001 eqs 2.3–2.8).
@@ -245,115 +229,37 @@ impl CableTransmission {
         gravity_offset: Option<&Bound<'_, PyAny>>,
         coupling: Option<Vec<Vec<f64>>>,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let required = [
-            motor_inertia,
-            gear_ratio,
-            capstan_radius,
-            joint_radius,
-            link_inertia,
-            cable_stiffness,
+        let named = [
+            ("motor_inertia", Some(motor_inertia)),
+            ("gear_ratio", Some(gear_ratio)),
+            ("capstan_radius", Some(capstan_radius)),
+            ("joint_radius", Some(joint_radius)),
+            ("link_inertia", Some(link_inertia)),
+            ("cable_stiffness", Some(cable_stiffness)),
+            ("cable_damping", cable_damping),
+            ("pretension", pretension),
+            ("motor_coulomb", motor_coulomb),
+            ("motor_viscous", motor_viscous),
+            ("motor_smoothing", motor_smoothing),
+            ("link_coulomb", link_coulomb),
+            ("link_viscous", link_viscous),
+            ("link_smoothing", link_smoothing),
+            ("gravity_amplitude", gravity_amplitude),
+            ("gravity_offset", gravity_offset),
         ];
-        let optional = [
-            cable_damping,
-            pretension,
-            motor_coulomb,
-            motor_viscous,
-            motor_smoothing,
-            link_coulomb,
-            link_viscous,
-            link_smoothing,
-            gravity_amplitude,
-            gravity_offset,
-        ];
-        let n = required
-            .iter()
-            .copied()
-            .chain(optional.iter().flatten().copied())
-            .filter_map(seq_len)
-            .max()
-            .unwrap_or(1);
-        let get = |o: Option<&Bound<'_, PyAny>>, name: &str, default: f64| -> PyResult<Vec<f64>> {
-            match o {
-                Some(o) => per_link(o, name, n),
-                None => Ok(vec![default; n]),
-            }
+        let mut spec = core::TransmissionSpec {
+            cable_law: cable_law.to_owned(),
+            length_scale,
+            joint_kind: joint_kind.unwrap_or_default(),
+            coupling: coupling.unwrap_or_default(),
+            ..Default::default()
         };
-        let mi = per_link(motor_inertia, "motor_inertia", n)?;
-        let gr = per_link(gear_ratio, "gear_ratio", n)?;
-        let cr = per_link(capstan_radius, "capstan_radius", n)?;
-        let jr = per_link(joint_radius, "joint_radius", n)?;
-        let li = per_link(link_inertia, "link_inertia", n)?;
-        let ks = per_link(cable_stiffness, "cable_stiffness", n)?;
-        let cd = get(cable_damping, "cable_damping", 0.0)?;
-        let pt = get(pretension, "pretension", 0.0)?;
-        let mc = get(motor_coulomb, "motor_coulomb", 0.0)?;
-        let mv = get(motor_viscous, "motor_viscous", 0.0)?;
-        let ms = get(motor_smoothing, "motor_smoothing", 0.1)?;
-        let lc = get(link_coulomb, "link_coulomb", 0.0)?;
-        let lv = get(link_viscous, "link_viscous", 0.0)?;
-        let ls = get(link_smoothing, "link_smoothing", 1e-3)?;
-        let ga = get(gravity_amplitude, "gravity_amplitude", 0.0)?;
-        let go = get(gravity_offset, "gravity_offset", 0.0)?;
-        let kinds = joint_kind.unwrap_or_else(|| vec!["revolute".into(); n]);
-        if kinds.len() != n {
-            return Err(crate::errors::raise(
-                "ShapeError",
-                format!(
-                    "joint_kind has {} entries but the model has {n} links",
-                    kinds.len()
-                ),
-                &[],
-            ));
+        for (name, obj) in named {
+            if let Some(obj) = obj {
+                spec.values.insert(name.to_owned(), per_link(obj, name)?);
+            }
         }
-        let coupling_flat: Vec<f64> = match coupling {
-            None => Vec::new(),
-            Some(rows) => {
-                if rows.len() != n || rows.iter().any(|r| r.len() != n) {
-                    return Err(crate::errors::raise(
-                        "ShapeError",
-                        format!("coupling must be {n}x{n}"),
-                        &[],
-                    ));
-                }
-                rows.concat()
-            }
-        };
-        let model = guarded(|| {
-            let mut links = Vec::with_capacity(n);
-            for i in 0..n {
-                let p = format!("links[{i}]");
-                let law = CableLaw::from_name(cable_law, ks[i], length_scale, &p)?;
-                let kind = JointKind::from_name(&kinds[i], &format!("{p}.joint_kind"))?;
-                links.push(TransmissionLink {
-                    motor_inertia: mi[i],
-                    gear_ratio: gr[i],
-                    capstan_radius: cr[i],
-                    motor_friction: StaticFriction::coulomb_viscous(
-                        &format!("{p}.motor"),
-                        mc[i],
-                        mv[i],
-                        ms[i],
-                    )?,
-                    cable: CableLoop {
-                        run: CableRun::new(law, cd[i], pt[i], &p)?,
-                    },
-                    kind,
-                    joint_radius: jr[i],
-                    link_inertia: li[i],
-                    link_friction: StaticFriction::coulomb_viscous(
-                        &format!("{p}.link"),
-                        lc[i],
-                        lv[i],
-                        ls[i],
-                    )?,
-                    gravity: Gravity {
-                        amplitude: ga[i],
-                        offset: go[i],
-                    },
-                });
-            }
-            core::CableTransmission::new(links, &coupling_flat)
-        })?;
+        let model = guarded(|| spec.build())?;
         Ok(wrap(AnyModel::Transmission(model), CableTransmission))
     }
 
@@ -380,47 +286,15 @@ impl CableTransmission {
 
     /// All parameters as a dict of per-link lists (the constructor's keywords).
     fn params<'py>(slf: PyRef<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        let t = transmission(&slf);
+        let spec = core::TransmissionSpec::of(&transmission(&slf));
         let d = PyDict::new(slf.py());
-        let col =
-            |f: &dyn Fn(&TransmissionLink) -> f64| t.links().iter().map(f).collect::<Vec<f64>>();
-        d.set_item("motor_inertia", col(&|l| l.motor_inertia))?;
-        d.set_item("gear_ratio", col(&|l| l.gear_ratio))?;
-        d.set_item("capstan_radius", col(&|l| l.capstan_radius))?;
-        d.set_item("joint_radius", col(&|l| l.joint_radius))?;
-        d.set_item("link_inertia", col(&|l| l.link_inertia))?;
-        d.set_item("cable_stiffness", col(&|l| l.cable.run.law.stiffness()))?;
-        d.set_item("cable_damping", col(&|l| l.cable.run.damping))?;
-        d.set_item("pretension", col(&|l| l.cable.run.pretension))?;
-        let first = t.links()[0].cable.run.law;
-        d.set_item("cable_law", first.name())?;
-        d.set_item(
-            "length_scale",
-            match first {
-                CableLaw::Exponential { length_scale, .. } => length_scale,
-                CableLaw::Linear { .. } => 1.0,
-            },
-        )?;
-        d.set_item(
-            "joint_kind",
-            t.links().iter().map(|l| l.kind.name()).collect::<Vec<_>>(),
-        )?;
-        d.set_item("motor_coulomb", col(&|l| l.motor_friction.coulomb))?;
-        d.set_item("motor_viscous", col(&|l| l.motor_friction.viscous))?;
-        d.set_item("motor_smoothing", col(&|l| l.motor_friction.smoothing))?;
-        d.set_item("link_coulomb", col(&|l| l.link_friction.coulomb))?;
-        d.set_item("link_viscous", col(&|l| l.link_friction.viscous))?;
-        d.set_item("link_smoothing", col(&|l| l.link_friction.smoothing))?;
-        d.set_item("gravity_amplitude", col(&|l| l.gravity.amplitude))?;
-        d.set_item("gravity_offset", col(&|l| l.gravity.offset))?;
-        let n = t.n_links();
-        let c = t.coupling();
-        d.set_item(
-            "coupling",
-            (0..n)
-                .map(|i| c[i * n..(i + 1) * n].to_vec())
-                .collect::<Vec<_>>(),
-        )?;
+        for (name, values) in &spec.values {
+            d.set_item(name, values)?;
+        }
+        d.set_item("cable_law", spec.cable_law)?;
+        d.set_item("length_scale", spec.length_scale)?;
+        d.set_item("joint_kind", spec.joint_kind)?;
+        d.set_item("coupling", spec.coupling)?;
         Ok(d)
     }
 
