@@ -1,10 +1,9 @@
 //! Model classes: `Model` (base, shared evaluation methods) and one subclass per core model.
 
-use cable_core::cable::{CableLaw, CableRun, Creep};
+use cable_core::check;
 use cable_core::dynamics::{self as core, Model as _};
-use cable_core::friction::{Dahl, StaticFriction};
+use cable_core::friction::Dahl;
 use cable_core::integrate::jacobian_rows;
-use cable_core::{check, CableError};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat, PyInt};
@@ -393,66 +392,43 @@ impl AntagonisticJoint {
         creep_fraction: Option<f64>,
         creep_time_constant: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let joint = guarded(|| {
-            let drive = CableRun::new(
-                CableLaw::from_name(cable_law, stiffness, length_scale, "drive")?,
-                damping,
-                pretension,
-                "drive",
-            )?;
-            let ret = CableRun::new(
-                CableLaw::from_name(
-                    cable_law,
-                    stiffness_return.unwrap_or(stiffness),
-                    length_scale,
-                    "return",
-                )?,
-                damping_return.unwrap_or(damping),
-                pretension_return.unwrap_or(pretension),
-                "return",
-            )?;
-            let contact = match (contact_angle, contact_stiffness, contact_lever_arm) {
-                (None, None, None) => None,
-                (Some(a), Some(k), Some(l)) => Some(core::Contact::new(a, k, contact_damping, l)?),
-                _ => {
-                    return Err(CableError::InvalidOption {
-                        name: "contact".into(),
-                        value: "partially specified".into(),
-                        allowed:
-                            "all of contact_angle, contact_stiffness, contact_lever_arm, or none"
-                                .into(),
-                    })
-                }
-            };
-            let friction = StaticFriction::stribeck(
-                "friction",
-                coulomb,
-                static_friction.unwrap_or(coulomb),
-                stribeck_velocity,
-                stribeck_exponent,
-                viscous,
-                smoothing,
-            )?;
-            let dahl = both("dahl", dahl_coulomb, dahl_sigma0)?
-                .map(|(c, s)| Dahl::new(s, c, dahl_exponent))
-                .transpose()?;
-            let creep = both("creep", creep_fraction, creep_time_constant)?
-                .map(|(k, t)| Creep::new(k, t))
-                .transpose()?;
-            core::AntagonisticJoint::new(
-                radius,
-                drive,
-                ret,
-                inertia,
-                friction,
-                capstan_mu,
-                capstan_wrap,
-                capstan_smoothing,
-                contact,
-            )?
-            .with_dahl(dahl)?
-            .with_creep(creep)
-        })?;
+        let given = [
+            ("radius", Some(radius)),
+            ("stiffness", Some(stiffness)),
+            ("inertia", Some(inertia)),
+            ("damping", Some(damping)),
+            ("pretension", Some(pretension)),
+            ("stiffness_return", stiffness_return),
+            ("damping_return", damping_return),
+            ("pretension_return", pretension_return),
+            ("length_scale", Some(length_scale)),
+            ("viscous", Some(viscous)),
+            ("coulomb", Some(coulomb)),
+            ("smoothing", Some(smoothing)),
+            ("static_friction", static_friction),
+            ("stribeck_velocity", Some(stribeck_velocity)),
+            ("stribeck_exponent", Some(stribeck_exponent)),
+            ("capstan_mu", Some(capstan_mu)),
+            ("capstan_wrap", Some(capstan_wrap)),
+            ("capstan_smoothing", Some(capstan_smoothing)),
+            ("contact_angle", contact_angle),
+            ("contact_stiffness", contact_stiffness),
+            ("contact_damping", Some(contact_damping)),
+            ("contact_lever_arm", contact_lever_arm),
+            ("dahl_coulomb", dahl_coulomb),
+            ("dahl_sigma0", dahl_sigma0),
+            ("dahl_exponent", Some(dahl_exponent)),
+            ("creep_fraction", creep_fraction),
+            ("creep_time_constant", creep_time_constant),
+        ];
+        let spec = core::JointSpec {
+            values: given
+                .into_iter()
+                .filter_map(|(k, v)| v.map(|v| (k.to_owned(), v)))
+                .collect(),
+            cable_law: cable_law.to_owned(),
+        };
+        let joint = guarded(|| spec.build())?;
         Ok(wrap(AnyModel::Antagonistic(joint), AntagonisticJoint))
     }
 
@@ -470,62 +446,13 @@ impl AntagonisticJoint {
 
     /// All parameters as a dict (the constructor's keywords).
     fn params<'py>(slf: PyRef<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        let j = antagonistic(&slf);
+        let spec = core::JointSpec::of(&antagonistic(&slf));
         let d = PyDict::new(slf.py());
-        d.set_item("radius", j.radius)?;
-        d.set_item("stiffness", j.drive.law.stiffness())?;
-        d.set_item("damping", j.drive.damping)?;
-        d.set_item("pretension", j.drive.pretension)?;
-        d.set_item("stiffness_return", j.ret.law.stiffness())?;
-        d.set_item("damping_return", j.ret.damping)?;
-        d.set_item("pretension_return", j.ret.pretension)?;
-        d.set_item("cable_law", j.drive.law.name())?;
-        d.set_item(
-            "length_scale",
-            match j.drive.law {
-                CableLaw::Exponential { length_scale, .. } => length_scale,
-                CableLaw::Linear { .. } => 1.0,
-            },
-        )?;
-        d.set_item("inertia", j.inertia)?;
-        d.set_item("viscous", j.friction.viscous)?;
-        d.set_item("coulomb", j.friction.coulomb)?;
-        d.set_item("smoothing", j.friction.smoothing)?;
-        d.set_item("static_friction", j.friction.static_level)?;
-        d.set_item("stribeck_velocity", j.friction.stribeck_velocity)?;
-        d.set_item("stribeck_exponent", j.friction.stribeck_exponent)?;
-        d.set_item("capstan_mu", j.capstan_mu)?;
-        d.set_item("capstan_wrap", j.capstan_wrap)?;
-        d.set_item("capstan_smoothing", j.capstan_smoothing)?;
-        if let Some(c) = j.contact {
-            d.set_item("contact_angle", c.angle)?;
-            d.set_item("contact_stiffness", c.stiffness)?;
-            d.set_item("contact_damping", c.damping)?;
-            d.set_item("contact_lever_arm", c.lever_arm)?;
+        for (name, value) in &spec.values {
+            d.set_item(name, value)?;
         }
-        if let Some(dahl) = j.dahl {
-            d.set_item("dahl_coulomb", dahl.coulomb)?;
-            d.set_item("dahl_sigma0", dahl.sigma0)?;
-            d.set_item("dahl_exponent", dahl.exponent)?;
-        }
-        if let Some(c) = j.creep {
-            d.set_item("creep_fraction", c.fraction)?;
-            d.set_item("creep_time_constant", c.time_constant)?;
-        }
+        d.set_item("cable_law", spec.cable_law)?;
         Ok(d)
-    }
-}
-
-/// Both or neither of two optional keyword arguments.
-fn both(what: &str, a: Option<f64>, b: Option<f64>) -> Result<Option<(f64, f64)>, CableError> {
-    match (a, b) {
-        (None, None) => Ok(None),
-        (Some(a), Some(b)) => Ok(Some((a, b))),
-        _ => Err(CableError::InvalidOption {
-            name: what.into(),
-            value: "partially specified".into(),
-            allowed: format!("both {what} parameters or neither"),
-        }),
     }
 }
 

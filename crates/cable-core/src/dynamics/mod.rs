@@ -13,7 +13,7 @@ mod transmission;
 pub use antagonistic::{AntagonisticJoint, Contact};
 pub use dahl::DahlElement;
 pub use raven2::raven2;
-pub use spec::{TransmissionSpec, TRANSMISSION_FIELDS};
+pub use spec::{FieldDefault, JointSpec, TransmissionSpec, JOINT_FIELDS, TRANSMISSION_FIELDS};
 pub use transmission::{CableTransmission, Gravity, JointKind, TransmissionLink, MAX_LINKS};
 
 /// A continuous-time state-space model `ẋ = f(x, u)`, `y = h(x, u)`.

@@ -1,12 +1,10 @@
-//! A cable transmission stated the way a user or a file states it — per-link parameter lists by
-//! name, a scalar meaning "the same on every link", defaults for what is left out — and the
-//! reverse, for reporting a model's parameters. Defaults, broadcasting and validation live here
-//! once, for every front end (the Python constructor, model files, robot descriptions).
+//! [`TransmissionSpec`]: a cable transmission as named per-link parameter lists (a scalar means
+//! "the same on every link").
 
 use std::collections::BTreeMap;
 
-use super::transmission::{CableTransmission, Gravity, JointKind, TransmissionLink};
 use crate::cable::{CableLaw, CableLoop, CableRun};
+use crate::dynamics::{CableTransmission, Gravity, JointKind, TransmissionLink};
 use crate::error::{CableError, Result};
 use crate::friction::StaticFriction;
 
@@ -95,17 +93,11 @@ impl TransmissionSpec {
 
     /// The validated model.
     pub fn build(&self) -> Result<CableTransmission> {
-        if let Some(name) = self
-            .values
-            .keys()
-            .find(|k| !TRANSMISSION_FIELDS.iter().any(|(f, _)| f == k))
-        {
-            return Err(CableError::InvalidOption {
-                name: "transmission parameter".into(),
-                value: name.clone(),
-                allowed: TRANSMISSION_FIELDS.map(|(f, _)| f).join(", "),
-            });
-        }
+        super::known_names(
+            "transmission parameter",
+            self.values.keys(),
+            &TRANSMISSION_FIELDS.map(|f| f.0),
+        )?;
         let n = self.links();
         let mut v = BTreeMap::new();
         for (name, default) in TRANSMISSION_FIELDS {
