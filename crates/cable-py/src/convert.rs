@@ -13,7 +13,7 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
-use crate::errors::raise;
+use crate::errors::{raise, Class};
 
 fn shape_str(shape: &[usize]) -> String {
     match shape {
@@ -33,7 +33,7 @@ fn shape_str(shape: &[usize]) -> String {
 fn checked<'py>(obj: &Bound<'py, PyAny>, name: &str, ndim: usize) -> PyResult<Vec<usize>> {
     let arr = obj.cast::<PyUntypedArray>().map_err(|_| {
         raise(
-            "DTypeError",
+            Class::DType,
             format!(
                 "{name} must be a numpy.ndarray of float64, got {}; pass np.asarray({name}, dtype=np.float64)",
                 obj.get_type().name().map(|n| n.to_string()).unwrap_or_default()
@@ -44,7 +44,7 @@ fn checked<'py>(obj: &Bound<'py, PyAny>, name: &str, ndim: usize) -> PyResult<Ve
     let py = obj.py();
     if !arr.dtype().is_equiv_to(&numpy::dtype::<f64>(py)) {
         return Err(raise(
-            "DTypeError",
+            Class::DType,
             format!(
                 "{name} must have dtype float64, got {}; convert with {name}.astype(np.float64)",
                 arr.dtype()
@@ -54,7 +54,7 @@ fn checked<'py>(obj: &Bound<'py, PyAny>, name: &str, ndim: usize) -> PyResult<Ve
     }
     if arr.ndim() != ndim {
         return Err(raise(
-            "ShapeError",
+            Class::Shape,
             format!(
                 "{name} must be {ndim}-D, got shape {}",
                 shape_str(arr.shape())
@@ -64,7 +64,7 @@ fn checked<'py>(obj: &Bound<'py, PyAny>, name: &str, ndim: usize) -> PyResult<Ve
     }
     if !arr.is_c_contiguous() {
         return Err(raise(
-            "LayoutError",
+            Class::Layout,
             format!("{name} must be C-contiguous (no copy is made behind your back); pass np.ascontiguousarray({name})"),
             &[],
         ));
@@ -83,7 +83,7 @@ pub fn matrix<'py>(
     if let Some(c) = cols {
         if shape[1] != c {
             return Err(raise(
-                "ShapeError",
+                Class::Shape,
                 format!("{name} must have shape (T, {c}), got {}", shape_str(&shape)),
                 &[],
             ));
@@ -91,7 +91,7 @@ pub fn matrix<'py>(
     }
     if shape[0] == 0 {
         return Err(raise(
-            "ShapeError",
+            Class::Shape,
             format!("{name} must have at least one row"),
             &[],
         ));
@@ -105,7 +105,7 @@ pub fn vector(obj: &Bound<'_, PyAny>, name: &str, len: usize) -> PyResult<Vec<f6
     let shape = checked(obj, name, 1)?;
     if shape[0] != len {
         return Err(raise(
-            "ShapeError",
+            Class::Shape,
             format!("{name} must have shape ({len},), got {}", shape_str(&shape)),
             &[],
         ));
@@ -142,7 +142,7 @@ pub fn to_vector(py: Python<'_>, data: Vec<f64>) -> Bound<'_, PyArray1<f64>> {
 pub fn ndim_of(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<usize> {
     obj.cast::<PyUntypedArray>().map(|a| a.ndim()).map_err(|_| {
         raise(
-            "DTypeError",
+            Class::DType,
             format!("{name} must be a numpy.ndarray of float64; pass np.asarray({name}, dtype=np.float64)"),
             &[],
         )

@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat, PyInt};
 
 use crate::convert::{to_matrix, to_vector, vector};
-use crate::errors::guarded;
+use crate::errors::{guarded, Class};
 
 /// The core models behind the Python classes.
 #[derive(Debug, Clone)]
@@ -178,7 +178,7 @@ fn per_link(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
     }
     obj.extract().map_err(|_| {
         crate::errors::raise(
-            "ParameterError",
+            Class::Parameter,
             format!("{name} must be a float or a sequence of floats (one per link)"),
             &[],
         )

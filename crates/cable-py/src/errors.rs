@@ -1,20 +1,73 @@
 //! Maps core errors (and panics) to the `cablekit.errors` exception hierarchy.
 //!
 //! The classes are defined in Python (`python/cablekit/errors.py`) so they can also derive from
-//! the matching built-ins (`ValueError`, `TypeError`, `ArithmeticError`); this module looks them
-//! up by name when an error is raised, never on the hot path.
+//! the matching built-ins (`ValueError`, `TypeError`, `ArithmeticError`); each is imported once
+//! per interpreter ([`Class`]) when it is first raised, never on the hot path.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Mutex, MutexGuard, TryLockError};
 
 use cable_core::{CableError, WeightsErrorKind};
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
 
-/// Raise `cablekit.errors.<class>(message)` with extra attributes.
-pub fn raise(class: &str, message: String, attrs: &[(&str, Py<PyAny>)]) -> PyErr {
+/// `Class::X` for each exception class of `cablekit.errors`, with its Python name.
+macro_rules! classes {
+    ($($variant:ident => $name:literal),* $(,)?) => {
+        /// The exception classes of `cablekit.errors` (defined in Python so that they also
+        /// derive from the matching built-ins), each imported once per interpreter and kept.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        #[allow(missing_docs)]
+        pub enum Class { $($variant),* }
+
+        impl Class {
+            const ALL: &[Class] = &[$(Class::$variant),*];
+            fn name(self) -> &'static str {
+                match self { $(Class::$variant => $name),* }
+            }
+        }
+    };
+}
+
+classes! {
+    Cablekit => "CablekitError",
+    ConcurrentUse => "ConcurrentUseError",
+    Convergence => "ConvergenceError",
+    DType => "DTypeError",
+    Data => "DataError",
+    FilterDiverged => "FilterDivergedError",
+    Internal => "InternalError",
+    Layout => "LayoutError",
+    NonFiniteResult => "NonFiniteResultError",
+    NotFinite => "NotFiniteError",
+    Parameter => "ParameterError",
+    Shape => "ShapeError",
+    SimulationDiverged => "SimulationDivergedError",
+    WeightsCorrupt => "WeightsCorruptError",
+    WeightsFormat => "WeightsFormatError",
+    WeightsMetadata => "WeightsMetadataError",
+    WeightsShape => "WeightsShapeError",
+    WeightsValue => "WeightsValueError",
+}
+
+impl Class {
+    /// The class object, imported on first use and kept for the interpreter's life.
+    fn get(self, py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
+        static CLASSES: [PyOnceLock<Py<PyAny>>; Class::ALL.len()] =
+            [const { PyOnceLock::new() }; Class::ALL.len()];
+        let at = Class::ALL.iter().position(|c| *c == self).unwrap_or(0);
+        CLASSES[at]
+            .get_or_try_init(py, || {
+                Ok::<_, PyErr>(py.import("cablekit.errors")?.getattr(self.name())?.unbind())
+            })
+            .map(|c| c.bind(py))
+    }
+}
+
+/// Raise `class(message)` with extra attributes (`argument`, `index`, `step`, ...).
+pub fn raise(class: Class, message: String, attrs: &[(&str, Py<PyAny>)]) -> PyErr {
     Python::attach(|py| -> PyResult<PyErr> {
-        let cls = py.import("cablekit.errors")?.getattr(class)?;
-        let exc = cls.call1((message,))?;
+        let exc = class.get(py)?.call1((message,))?;
         for (k, v) in attrs {
             exc.setattr(*k, v.bind(py))?;
         }
@@ -42,51 +95,51 @@ impl From<PyCableError> for PyErr {
             let built: PyResult<PyErr> = (|| {
                 Ok(match &err.0 {
                     CableError::Shape { what, .. } => {
-                        raise("ShapeError", msg, &[("argument", s(what)?)])
+                        raise(Class::Shape, msg, &[("argument", s(what)?)])
                     }
                     CableError::NotFinite { what, index, .. } => raise(
-                        "NotFiniteError",
+                        Class::NotFinite,
                         msg,
                         &[("argument", s(what)?), ("index", int(*index)?)],
                     ),
                     CableError::InvalidParameter { name, value, .. } => raise(
-                        "ParameterError",
+                        Class::Parameter,
                         msg,
                         &[("parameter", s(name)?), ("value", float(*value)?)],
                     ),
                     CableError::InvalidOption { name, .. } => {
-                        raise("ParameterError", msg, &[("parameter", s(name)?)])
+                        raise(Class::Parameter, msg, &[("parameter", s(name)?)])
                     }
                     CableError::Diverged { step, time_s } => raise(
-                        "SimulationDivergedError",
+                        Class::SimulationDiverged,
                         msg,
                         &[("step", int(*step)?), ("time", float(*time_s)?)],
                     ),
                     CableError::FilterDiverged { step } => {
-                        raise("FilterDivergedError", msg, &[("step", int(*step)?)])
+                        raise(Class::FilterDiverged, msg, &[("step", int(*step)?)])
                     }
                     CableError::NonFiniteResult { what, index, .. } => raise(
-                        "NonFiniteResultError",
+                        Class::NonFiniteResult,
                         msg,
                         &[("argument", s(what)?), ("index", int(*index)?)],
                     ),
                     CableError::NotConverged { what, limit, .. } => raise(
-                        "ConvergenceError",
+                        Class::Convergence,
                         msg,
                         &[("argument", s(what)?), ("limit", int(*limit)?)],
                     ),
                     CableError::Weights { kind, item, .. } => raise(
                         match kind {
-                            WeightsErrorKind::Corrupt => "WeightsCorruptError",
-                            WeightsErrorKind::Metadata => "WeightsMetadataError",
-                            WeightsErrorKind::Shape => "WeightsShapeError",
-                            WeightsErrorKind::Value => "WeightsValueError",
-                            _ => "WeightsFormatError",
+                            WeightsErrorKind::Corrupt => Class::WeightsCorrupt,
+                            WeightsErrorKind::Metadata => Class::WeightsMetadata,
+                            WeightsErrorKind::Shape => Class::WeightsShape,
+                            WeightsErrorKind::Value => Class::WeightsValue,
+                            _ => Class::WeightsFormat,
                         },
                         msg,
                         &[("item", s(item)?)],
                     ),
-                    _ => raise("CablekitError", msg, &[]),
+                    _ => raise(Class::Cablekit, msg, &[]),
                 })
             })();
             built.unwrap_or_else(|e| e)
@@ -107,7 +160,7 @@ pub fn guarded<T>(work: impl FnOnce() -> Result<T, CableError>) -> PyResult<T> {
                 .or_else(|| payload.downcast_ref::<String>().cloned())
                 .unwrap_or_else(|| "unknown panic".into());
             Err(raise(
-                "InternalError",
+                Class::Internal,
                 format!("internal error in cable-core (please report): {what}"),
                 &[],
             ))
@@ -125,7 +178,7 @@ pub fn lock<'a, T>(m: &'a Mutex<T>, what: &str) -> PyResult<MutexGuard<'a, T>> {
         Ok(g) => Ok(g),
         Err(TryLockError::Poisoned(p)) => Ok(p.into_inner()),
         Err(TryLockError::WouldBlock) => Err(raise(
-            "ConcurrentUseError",
+            Class::ConcurrentUse,
             format!(
                 "this {what} is in use by another thread; use one {what} per thread \
                  (or serialise the calls with a lock)"

@@ -15,7 +15,7 @@ use pyo3::types::PyDict;
 
 use crate::convert::{matrix, to_matrix, to_vector, vector};
 use crate::dynamics::{with_model, AnyModel, Model};
-use crate::errors::{guarded, lock, raise};
+use crate::errors::{guarded, lock, raise, Class};
 
 type DynProcess = Box<dyn Process + Send + Sync>;
 type DynObserve = Box<dyn Observe + Send + Sync>;
@@ -38,7 +38,7 @@ fn square(obj: &Bound<'_, PyAny>, name: &str, k: usize) -> PyResult<Vec<f64>> {
     let (arr, rows) = matrix(obj, name, Some(k))?;
     if rows != k {
         return Err(raise(
-            "ShapeError",
+            Class::Shape,
             format!("{name} must have shape ({k}, {k}), got ({rows}, {k})"),
             &[],
         ));
@@ -80,7 +80,7 @@ fn linear_observe(
             Ok(Box::new(guarded(|| LinearObserve::new(rows, n, hv))?))
         }
         _ => Err(raise(
-            "ParameterError",
+            Class::Parameter,
             format!("give exactly one measurement: states=[...] or H=<(p, {n}) array>"),
             &[],
         )),
@@ -98,14 +98,14 @@ fn mask_vec(obj: Option<&Bound<'_, PyAny>>, p: usize) -> PyResult<Option<Vec<boo
     }
     let v: Vec<bool> = o.extract().map_err(|_| {
         raise(
-            "DTypeError",
+            Class::DType,
             "mask must be a sequence of booleans (True = measured)".into(),
             &[],
         )
     })?;
     if v.len() != p {
         return Err(raise(
-            "ShapeError",
+            Class::Shape,
             format!("mask must have length {p}, got {}", v.len()),
             &[],
         ));
@@ -197,7 +197,7 @@ impl SrUkf {
         let given = [states.is_some(), outputs.is_some(), H.is_some()];
         if given.iter().filter(|&&g| g).count() != 1 {
             return Err(raise(
-                "ParameterError",
+                Class::Parameter,
                 "give exactly one measurement: states=[...], outputs=[...] or H=<(p, n) array>"
                     .into(),
                 &[],
@@ -246,7 +246,7 @@ impl SrUkf {
     ) -> PyResult<Self> {
         let AnyModel::Transmission(base) = model.get().inner.clone() else {
             return Err(raise(
-                "ParameterError",
+                Class::Parameter,
                 "parameter estimation needs a CableTransmission".into(),
                 &[],
             ));
@@ -323,7 +323,7 @@ impl SrUkf {
         let fv = farr.as_slice()?.to_vec();
         if fv.len() != n * n {
             return Err(raise(
-                "ShapeError",
+                Class::Shape,
                 format!("F must be square, got ({n}, {})", fv.len() / n),
                 &[],
             ));
@@ -333,7 +333,7 @@ impl SrUkf {
                 let (barr, rows) = matrix(b, "B", None)?;
                 if rows != n {
                     return Err(raise(
-                        "ShapeError",
+                        Class::Shape,
                         format!("B must have {n} rows, got {rows}"),
                         &[],
                     ));
@@ -510,7 +510,7 @@ fn log_arrays(
         let (uarr, tu) = matrix(U, "U", Some(m))?;
         if tu != t {
             return Err(raise(
-                "ShapeError",
+                Class::Shape,
                 format!("U has {tu} rows but Y has {t}"),
                 &[],
             ));
@@ -552,7 +552,7 @@ impl DualSrUkf {
     ) -> PyResult<Self> {
         let AnyModel::Transmission(base) = model.get().inner.clone() else {
             return Err(raise(
-                "ParameterError",
+                Class::Parameter,
                 "dual estimation needs a CableTransmission".into(),
                 &[],
             ));
@@ -609,7 +609,7 @@ impl DualSrUkf {
         let (n, q, p) = (f.state.n_states(), f.state.n_outputs(), f.params.n_states());
         if self.m == 0 {
             return Err(raise(
-                "ShapeError",
+                Class::Shape,
                 "the transmission has no inputs".into(),
                 &[],
             ));
@@ -632,14 +632,14 @@ fn bool_matrix(mask: Option<&Bound<'_, PyAny>>, t: usize, q: usize) -> PyResult<
         Some(mk) if !mk.is_none() => {
             let arr = mk.cast::<numpy::PyArray2<bool>>().map_err(|_| {
                 raise(
-                    "DTypeError",
+                    Class::DType,
                     "mask must be a (T, p) numpy array of bool".into(),
                     &[],
                 )
             })?;
             if arr.shape() != [t, q] {
                 return Err(raise(
-                    "ShapeError",
+                    Class::Shape,
                     format!("mask must have shape ({t}, {q}), got {:?}", arr.shape()),
                     &[],
                 ));

@@ -8,7 +8,7 @@ use pyo3::types::{PyDict, PyList};
 
 use crate::convert::{any_vector, to_matrix, to_vector};
 use crate::dynamics::{AnyModel, Model};
-use crate::errors::{guarded, raise};
+use crate::errors::{guarded, raise, Class};
 
 /// The candidate effects: a list of dicts `name, stage, has_state, description`.
 #[pyfunction]
@@ -45,7 +45,7 @@ fn plant_of(model: &Bound<'_, Model>, servo: Option<Gains>) -> PyResult<core::Pl
             }
         },
         AnyModel::Dahl(_) => Err(raise(
-            "ParameterError",
+            Class::Parameter,
             "the diagnosis needs an AntagonisticJoint or a CableTransmission, not a DahlElement"
                 .into(),
             &[],
@@ -62,7 +62,7 @@ fn flat(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
 fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize, width: usize) -> PyResult<core::JointRun> {
     let d = obj.cast::<PyDict>().map_err(|_| {
         raise(
-            "DataError",
+            Class::Data,
             format!(
                 "runs[{i}] must be a dict with keys dt, input (or x_m), measured, coupled, external, x0, start"
             ),
@@ -71,7 +71,7 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize, width: usize) -> PyResul
     })?;
     let get = |k: &str| -> PyResult<Bound<'_, PyAny>> {
         d.get_item(k)?
-            .ok_or_else(|| raise("DataError", format!("runs[{i}] has no key {k:?}"), &[]))
+            .ok_or_else(|| raise(Class::Data, format!("runs[{i}] has no key {k:?}"), &[]))
     };
     let dt: f64 = get("dt")?.extract()?;
     let input_obj = match d.get_item("input")? {
@@ -83,7 +83,7 @@ fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize, width: usize) -> PyResul
     let measured = flat(&get("measured")?, &format!("runs[{i}].measured"))?;
     if measured.len() != t * q || input.len() != t * width {
         return Err(raise(
-            "ShapeError",
+            Class::Shape,
             format!(
                 "runs[{i}]: input must have shape (T, {width}) and measured (T, {q}); got {} and {} values",
                 input.len(),

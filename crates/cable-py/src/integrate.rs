@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 
 use crate::convert::{matrix, vector};
 use crate::dynamics::{with_model, AnyModel, CableTransmission, Model};
-use crate::errors::guarded;
+use crate::errors::{guarded, Class};
 
 type Arrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
 type Arrays3<'py> = (
@@ -85,7 +85,7 @@ pub fn simulate_servo_arrays<'py>(
             let (e, rows) = matrix(obj, "external", Some(nl))?;
             if rows != t_len {
                 return Err(crate::errors::raise(
-                    "ShapeError",
+                    Class::Shape,
                     format!("external must have {t_len} rows like references, got {rows}"),
                     &[],
                 ));

@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use crate::convert::{any_vector, matrix, ndim_of, to_vector};
-use crate::errors::{guarded, raise};
+use crate::errors::{guarded, raise, Class};
 
 /// `(weight, bias)` of one layer as numpy arrays.
 type LayerArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
@@ -50,7 +50,7 @@ impl Mlp {
 
 fn layout_error(name: &str) -> PyErr {
     raise(
-        "LayoutError",
+        Class::Layout,
         format!("{name} must be C-contiguous; pass np.ascontiguousarray({name})"),
         &[],
     )
@@ -63,10 +63,10 @@ fn borrow_pair<'py, D: Dimension>(
 ) -> PyResult<(PyReadonlyArray<'py, f64, D>, PyReadwriteArray<'py, f64, D>)> {
     let xr = x
         .try_readonly()
-        .map_err(|_| raise("LayoutError", "x is being written elsewhere".into(), &[]))?;
+        .map_err(|_| raise(Class::Layout, "x is being written elsewhere".into(), &[]))?;
     let ow = out.try_readwrite().map_err(|_| {
         raise(
-            "LayoutError",
+            Class::Layout,
             "out must be a writeable array not borrowed elsewhere".into(),
             &[],
         )
@@ -148,7 +148,7 @@ impl Mlp {
             let n_in = self.inner.n_inputs();
             if xr.shape()[1] != n_in {
                 return Err(raise(
-                    "ShapeError",
+                    Class::Shape,
                     format!("x must have shape (N, {n_in}), got {:?}", xr.shape()),
                     &[],
                 ));
@@ -162,9 +162,9 @@ impl Mlp {
         let same_rank = nx == no && (nx == 1 || nx == 2);
         Err(raise(
             if same_rank {
-                "DTypeError"
+                Class::DType
             } else {
-                "ShapeError"
+                Class::Shape
             },
             format!(
                 "x and out must be float64 arrays, both 1-D or both 2-D; got {nx}-D and {no}-D"
