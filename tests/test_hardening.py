@@ -282,7 +282,7 @@ def test_a_diverged_step_is_typed_and_leaves_the_filter_where_it_was():
             before = (f.x.copy(), f.S.copy())
             f.step(np.zeros(0), np.zeros(1))
     step = e.value.step
-    assert 1 <= step < 10 and f.health["steps"] == step
+    assert 1 <= step < 10 and f.health.steps == step
     np.testing.assert_array_equal(f.x, before[0])
     np.testing.assert_array_equal(f.S, before[1])
     # a run reports the row, and the filter is not stuck: a reset makes it usable again
@@ -291,7 +291,7 @@ def test_a_diverged_step_is_typed_and_leaves_the_filter_where_it_was():
         g.run(np.zeros((10, 0)), np.zeros((10, 1)))
     assert np.isfinite(g.x).all()
     g.reset(np.zeros(1), np.eye(1))
-    assert g.health["steps"] == 0
+    assert g.health.steps == 0
 
 
 def _walk():
@@ -314,11 +314,11 @@ def test_innovation_gate_rejects_a_spike_and_counts_it():
     r_clean = clean.run(np.zeros((300, 0)), ys)
     r_gated = gated.run(np.zeros((300, 0)), spiked)
     r_open = open_.run(np.zeros((300, 0)), spiked)
-    assert r_gated["gated"].sum() == 1 and r_gated["gated"][150]
-    assert gated.health["rejected_total"] == r_gated["gated"].sum()
+    assert r_gated.gated.sum() == 1 and r_gated.gated[150]
+    assert gated.health.rejected_total == r_gated.gated.sum()
     # the gated filter tracks as if the spike were missing; the open one is thrown far off
-    assert np.max(np.abs(r_gated["x"][-50:, 0] - r_clean["x"][-50:, 0])) < 0.05
-    assert np.max(np.abs(r_open["x"][151:, 0])) > 1e10
+    assert np.max(np.abs(r_gated.x[-50:, 0] - r_clean.x[-50:, 0])) < 0.05
+    assert np.max(np.abs(r_open.x[151:, 0])) > 1e10
     with pytest.raises(ck.ParameterError):
         gated.nis_gate = -1.0
     gated.nis_gate = None

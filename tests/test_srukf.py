@@ -99,13 +99,13 @@ def test_batch_run_equals_stepping_and_reports_health():
     s = ck.SrUkf.linear(f, h, x0, p0, q, r, B=b)
     for k in range(200):
         s.step(us[k], ys[k])
-    np.testing.assert_array_equal(res["x"][-1], s.x)
-    np.testing.assert_allclose(res["S"][-1] @ res["S"][-1].T, s.P, rtol=0, atol=1e-15)
-    assert res["x"].shape == (200, 4) and res["S"].shape == (200, 4, 4)
+    np.testing.assert_array_equal(res.x[-1], s.x)
+    np.testing.assert_allclose(res.S[-1] @ res.S[-1].T, s.P, rtol=0, atol=1e-15)
+    assert res.x.shape == (200, 4) and res.S.shape == (200, 4, 4)
     # a consistent filter: the NIS averages the number of measured channels (chi-square, 2 dof)
-    assert 1.5 < np.mean(res["nis"][20:]) < 2.5
-    assert np.all(res["recovered"] == 0) and np.all(res["measured"] == 2)
-    assert np.all(np.triu(res["S"][-1], 1) == 0) and np.all(np.diag(res["S"][-1]) > 0)
+    assert 1.5 < np.mean(res.nis[20:]) < 2.5
+    assert np.all(res.recovered == 0) and np.all(res.measured == 2)
+    assert np.all(np.triu(res.S[-1], 1) == 0) and np.all(np.diag(res.S[-1]) > 0)
 
 
 @settings(max_examples=25, deadline=None)
@@ -183,7 +183,7 @@ def step_both_and_compare(rust, ref, u, y, tol):
         assert np.all(np.abs(rust.x - ref.x) <= tol * xs), k
         ps = np.sqrt(np.outer(np.diag(ref.p), np.diag(ref.p)))
         assert np.all(np.abs(rust.P - ref.p) <= tol * ps), k
-    assert rust.health["recoveries_total"] == 0
+    assert rust.health.recoveries_total == 0
 
 
 #: (α, steps, tolerance) for the nonlinear comparisons. At α = 0.5 (W0 = −0.25, n = 8) the two
@@ -291,7 +291,7 @@ def test_forced_downdate_failure_is_recovered_and_counted():
     )
     ukf.step(np.zeros(0), np.array([0.5]))
     h = ukf.health
-    assert h["recovered"] >= 1 and h["recoveries_total"] >= 1
+    assert h.recovered >= 1 and h.recoveries_total >= 1
     assert np.all(np.isfinite(ukf.P)) and 0 <= ukf.P[0, 0] < 1e-6 and abs(ukf.P[1, 1] - 1) < 1e-9
     assert abs(ukf.x[0] - 0.5) < 1e-9
     for _ in range(5):  # keeps going
@@ -311,14 +311,14 @@ def test_nan_measurement_is_an_error_unless_masked():
     np.testing.assert_array_equal(ukf.P, p_before)
     ukf = ck.SrUkf.linear(f, h, x0, p0, q, r, B=b)
     ukf.step(np.zeros(1), np.array([0.1, np.nan]), [True, False])
-    assert ukf.health["measured"] == 1 and np.all(np.isfinite(ukf.x))
+    assert ukf.health.measured == 1 and np.all(np.isfinite(ukf.x))
     _, ys = linear_log(10)
     ys[4, 1] = np.nan
     with pytest.raises(ck.NotFiniteError, match=r"row 4, column 1"):
         ck.SrUkf.linear(f, h, x0, p0, q, r, B=b).run(np.zeros((10, 1)), ys)
     mask = ~np.isnan(ys)
     res = ck.SrUkf.linear(f, h, x0, p0, q, r, B=b).run(np.zeros((10, 1)), ys, mask)
-    assert res["measured"][4] == 1 and np.all(np.isfinite(res["x"]))
+    assert res.measured[4] == 1 and np.all(np.isfinite(res.x))
 
 
 @pytest.mark.parametrize(
@@ -399,12 +399,12 @@ def test_smoother_equals_the_linear_rts_smoother(alpha):
         ps.insert(0, pf[k] + g @ (ps[0] - pp[k + 1]) @ g.T)
     xs, ps = np.array(xs), np.array(ps)
     tol = 1e-9 if alpha == 0.5 else 2e-9
-    np.testing.assert_allclose(res["x_smooth"], xs, rtol=0, atol=tol * (1 + np.abs(xs).max()))
-    p_sm = np.einsum("tij,tkj->tik", res["S_smooth"], res["S_smooth"])
+    np.testing.assert_allclose(res.x_smooth, xs, rtol=0, atol=tol * (1 + np.abs(xs).max()))
+    p_sm = np.einsum("tij,tkj->tik", res.S_smooth, res.S_smooth)
     np.testing.assert_allclose(p_sm, ps, rtol=0, atol=1e-9 * np.abs(ps).max())
-    np.testing.assert_array_equal(res["x_smooth"][-1], res["x"][-1])
+    np.testing.assert_array_equal(res.x_smooth[-1], res.x[-1])
     # smoothing never increases the variance
-    assert np.all(np.einsum("tii->ti", p_sm) <= np.einsum("tij,tij->ti", res["S"], res["S"]) * (1 + 1e-9))
+    assert np.all(np.einsum("tii->ti", p_sm) <= np.einsum("tij,tij->ti", res.S, res.S) * (1 + 1e-9))
 
 
 def test_smoother_reduces_the_joint_angle_error_on_the_raven_twin():
@@ -428,8 +428,8 @@ def test_smoother_reduces_the_joint_angle_error_on_the_raven_twin():
     ukf = ck.SrUkf(model, x0, p0, q, 1.8e-9 * np.eye(3), dt=run.dt, substeps=6, states=[0, 4, 8])
     res = ukf.run(u, run.q_m, smooth=True)
     s = slice(1000, -10)
-    dev_f = res["x"][s][:, 2::4] - run.q_l_true[s]
-    dev_s = res["x_smooth"][s][:, 2::4] - run.q_l_true[s]
+    dev_f = res.x[s][:, 2::4] - run.q_l_true[s]
+    dev_s = res.x_smooth[s][:, 2::4] - run.q_l_true[s]
     spread_f, spread_s = dev_f.std(axis=0), dev_s.std(axis=0)
     assert np.all(spread_s < 0.98 * spread_f), (spread_s, spread_f)
     err_f, err_s = np.abs(dev_f).mean(axis=0), np.abs(dev_s).mean(axis=0)

@@ -234,15 +234,15 @@ def estimate_joint_states(
     obs = _observations(q_m, q_camera, encoder_noise, camera_noise, x0, "q_camera")
     ukf = SrUkf(model, x0, p0, q, obs.r, dt=dt, substeps=substeps, states=obs.states, alpha=alpha)
     res = ukf.run(u, obs.y, obs.mask)
-    std = np.sqrt(np.einsum("tij,tij->ti", res["S"], res["S"]))  # row norms of S: √diag(S·Sᵀ)
+    std = np.sqrt(np.einsum("tij,tij->ti", res.S, res.S))  # row norms of S: √diag(S·Sᵀ)
     return JointStateEstimate(
-        q_l=res["x"][:, 2::4],
-        dq_l=res["x"][:, 3::4],
+        q_l=res.x[:, 2::4],
+        dq_l=res.x[:, 3::4],
         q_l_std=std[:, 2::4],
         q_l_kinematics=kinematic_joint_angles(model, q_m),
-        x=res["x"],
-        nis=res["nis"],
-        recovered=res["recovered"],
+        x=res.x,
+        nis=res.nis,
+        recovered=res.recovered,
         substeps=substeps,
     )
 
@@ -406,10 +406,10 @@ def estimate_parameters(
         nan = np.full((len(u), n), np.nan)
         return ParameterEstimate(
             list(params),
-            out["theta"],
-            out["theta_std"],
+            out.theta,
+            out.theta_std,
             theta0,
-            out["x"],
+            out.x,
             nan,
             np.full(len(u), np.nan),
             np.zeros(len(u)),
@@ -428,16 +428,16 @@ def estimate_parameters(
         alpha=alpha,
     )
     res = ukf.run(u, obs.y, obs.mask)
-    std = np.sqrt(np.einsum("tij,tij->ti", res["S"], res["S"]))
+    std = np.sqrt(np.einsum("tij,tij->ti", res.S, res.S))
     return ParameterEstimate(
         list(params),
-        res["x"][:, n:],
+        res.x[:, n:],
         std[:, n:],
         theta0,
-        res["x"][:, :n],
+        res.x[:, :n],
         std[:, :n],
-        res["nis"],
-        res["recovered"],
+        res.nis,
+        res.recovered,
     )
 
 
@@ -500,8 +500,8 @@ def estimate_external_force(
         alpha=alpha,
     )
     res = ukf.run(u, obs.y, obs.mask)
-    std = np.sqrt(np.einsum("tij,tij->ti", res["S"], res["S"]))
-    return ForceEstimate(list(links), res["x"][:, n:], std[:, n:], res["x"][:, :n], res["nis"])
+    std = np.sqrt(np.einsum("tij,tij->ti", res.S, res.S))
+    return ForceEstimate(list(links), res.x[:, n:], std[:, n:], res.x[:, :n], res.nis)
 
 
 def _two_gaussians(

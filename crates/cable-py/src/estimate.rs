@@ -8,14 +8,13 @@ use cable_core::estimate::{
 use cable_core::CableError;
 use std::sync::{Mutex, MutexGuard};
 
-use numpy::ndarray::Array3;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
 use crate::convert::{matrix, to_matrix, to_vector, vector};
 use crate::dynamics::{with_model, AnyModel, Model};
 use crate::errors::{guarded, lock, raise, Class};
+use crate::results::{DualRun, FilterHealth, FilterRun};
 
 type DynProcess = Box<dyn Process + Send + Sync>;
 type DynObserve = Box<dyn Observe + Send + Sync>;
@@ -57,13 +56,6 @@ fn col_major_from_lower(l: &[f64], n: usize) -> Vec<f64> {
         }
     }
     out
-}
-
-/// `(t, n, n)` ndarray from a row-major buffer.
-fn cube(py: Python<'_>, data: Vec<f64>, t: usize, n: usize) -> Bound<'_, PyArray3<f64>> {
-    Array3::from_shape_vec((t, n, n), data)
-        .expect("sized by the caller")
-        .into_pyarray(py)
 }
 
 /// Selected states or `H·x` (exactly one of them).
@@ -153,20 +145,6 @@ impl SrUkf {
             vector(y, "y", p)?,
             mask_vec(mask, p)?,
         ))
-    }
-
-    fn health_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let h = self.filter()?.health();
-        let d = PyDict::new(py);
-        d.set_item("nis", h.nis)?;
-        d.set_item("measured", h.measured)?;
-        d.set_item("condition", h.condition)?;
-        d.set_item("recovered", h.recovered)?;
-        d.set_item("recoveries_total", h.recoveries_total)?;
-        d.set_item("gated", h.gated)?;
-        d.set_item("rejected_total", h.rejected_total)?;
-        d.set_item("steps", h.steps)?;
-        Ok(d)
     }
 }
 
@@ -404,8 +382,8 @@ impl SrUkf {
     /// Health of the last step: `nis`, `measured`, `condition`, `recovered`,
     /// `recoveries_total`, `gated`, `rejected_total`, `steps`.
     #[getter]
-    fn health<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        self.health_dict(py)
+    fn health(&self) -> PyResult<FilterHealth> {
+        Ok(self.filter()?.health().into())
     }
 
     /// Time update with input `u` held over one period.
@@ -468,28 +446,13 @@ impl SrUkf {
         Y: &Bound<'py, PyAny>,
         mask: Option<&Bound<'py, PyAny>>,
         smooth: bool,
-    ) -> PyResult<Bound<'py, PyDict>> {
+    ) -> PyResult<FilterRun> {
         let (p, m) = (self.filter()?.n_outputs(), self.m);
         let (y, u, mk) = log_arrays(U, Y, mask, m, p)?;
         let mut guard = self.filter()?;
         let f: &mut Filter = &mut guard; // a plain borrow crosses into the GIL-free closure
         let run = py.detach(|| guarded(|| f.run(&u, &y, mk.as_deref(), smooth)))?;
-        let (t, n) = (run.len, run.n);
-        let d = PyDict::new(py);
-        if let Some((xsm, ssm)) = run.smoothed {
-            d.set_item("x_smooth", to_matrix(py, xsm, t, n))?;
-            d.set_item("S_smooth", cube(py, ssm, t, n))?;
-        }
-        let as_f64 = |v: Vec<u32>| v.into_iter().map(f64::from).collect::<Vec<f64>>();
-        d.set_item("x", to_matrix(py, run.x, t, n))?;
-        d.set_item("S", cube(py, run.s, t, n))?;
-        d.set_item("nis", to_vector(py, run.nis))?;
-        d.set_item("condition", to_vector(py, run.condition))?;
-        d.set_item("recovered", to_vector(py, as_f64(run.recovered)))?;
-        let meas: Vec<f64> = run.measured.iter().map(|&q| q as f64).collect();
-        d.set_item("measured", to_vector(py, meas))?;
-        d.set_item("gated", run.gated.into_pyarray(py))?;
-        Ok(d)
+        Ok(FilterRun::new(py, run))
     }
 }
 
@@ -604,7 +567,7 @@ impl DualSrUkf {
         U: &Bound<'py, PyAny>,
         Y: &Bound<'py, PyAny>,
         mask: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<Bound<'py, PyDict>> {
+    ) -> PyResult<DualRun> {
         let mut f = lock(&self.inner, "DualSrUkf")?;
         let (n, q, p) = (f.state.n_states(), f.state.n_outputs(), f.params.n_states());
         if self.m == 0 {
@@ -617,12 +580,7 @@ impl DualSrUkf {
         let (y, u, mk) = log_arrays(U, Y, mask, self.m, q)?;
         let fr: &mut core::DualSrUkf = &mut f; // a plain borrow crosses into the closure
         let run = py.detach(|| guarded(|| fr.run(&u, &y, mk.as_deref())))?;
-        let t = run.len;
-        let d = PyDict::new(py);
-        d.set_item("x", to_matrix(py, run.x, t, n))?;
-        d.set_item("theta", to_matrix(py, run.theta, t, p))?;
-        d.set_item("theta_std", to_matrix(py, run.theta_std, t, p))?;
-        Ok(d)
+        Ok(DualRun::new(py, run, n, p))
     }
 }
 

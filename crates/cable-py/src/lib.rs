@@ -11,6 +11,7 @@ mod friction;
 mod identify;
 mod integrate;
 mod nn;
+mod results;
 
 use pyo3::prelude::*;
 
@@ -33,6 +34,9 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<identify::JointProblem>()?;
     m.add_class::<estimate::SrUkf>()?;
     m.add_class::<estimate::DualSrUkf>()?;
+    m.add_class::<results::FilterRun>()?;
+    m.add_class::<results::DualRun>()?;
+    m.add_class::<results::FilterHealth>()?;
     m.add_function(wrap_pyfunction!(identify::effect_catalogue, m)?)?;
     m.add_class::<nn::Mlp>()?;
     Ok(())

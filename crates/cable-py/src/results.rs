@@ -1,0 +1,153 @@
+//! Typed results of the filters (numpy arrays as read-only attributes), converted from the
+//! core's `FilterRun`, `DualRun` and `Health`.
+
+use cable_core::estimate::{DualRun as CoreDualRun, FilterRun as CoreFilterRun, Health};
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+
+use crate::convert::to_matrix;
+
+fn cube(py: Python<'_>, data: Vec<f64>, t: usize, n: usize) -> Py<PyArray3<f64>> {
+    Array3::from_shape_vec((t, n, n), data)
+        .expect("buffer length matches the shape by construction")
+        .into_pyarray(py)
+        .unbind()
+}
+
+/// A filtered log (`SrUkf.run`): `x` `(T, n)` means, `S` `(T, n, n)` lower square roots of the
+/// covariances, per row `nis`, `condition`, `recovered` downdates, `measured` channels and
+/// `gated` (rejected by the innovation gate); with `smooth=True` also `x_smooth`, `S_smooth`.
+#[pyclass(frozen, module = "cablekit._cablekit")]
+pub struct FilterRun {
+    #[pyo3(get)]
+    x: Py<PyArray2<f64>>,
+    #[pyo3(get, name = "S")]
+    s: Py<PyArray3<f64>>,
+    #[pyo3(get)]
+    nis: Py<PyArray1<f64>>,
+    #[pyo3(get)]
+    condition: Py<PyArray1<f64>>,
+    #[pyo3(get)]
+    recovered: Py<PyArray1<u32>>,
+    #[pyo3(get)]
+    measured: Py<PyArray1<u64>>,
+    #[pyo3(get)]
+    gated: Py<PyArray1<bool>>,
+    #[pyo3(get)]
+    x_smooth: Option<Py<PyArray2<f64>>>,
+    #[pyo3(get, name = "S_smooth")]
+    s_smooth: Option<Py<PyArray3<f64>>>,
+}
+
+impl FilterRun {
+    pub fn new(py: Python<'_>, run: CoreFilterRun) -> Self {
+        let (t, n) = (run.len, run.n);
+        let (x_smooth, s_smooth) = match run.smoothed {
+            Some((xs, ss)) => (
+                Some(to_matrix(py, xs, t, n).unbind()),
+                Some(cube(py, ss, t, n)),
+            ),
+            None => (None, None),
+        };
+        let measured: Vec<u64> = run.measured.iter().map(|&q| q as u64).collect();
+        Self {
+            x: to_matrix(py, run.x, t, n).unbind(),
+            s: cube(py, run.s, t, n),
+            nis: run.nis.into_pyarray(py).unbind(),
+            condition: run.condition.into_pyarray(py).unbind(),
+            recovered: run.recovered.into_pyarray(py).unbind(),
+            measured: measured.into_pyarray(py).unbind(),
+            gated: run.gated.into_pyarray(py).unbind(),
+            x_smooth,
+            s_smooth,
+        }
+    }
+}
+
+#[pymethods]
+impl FilterRun {
+    fn __repr__(&self, py: Python<'_>) -> String {
+        let shape = self.x.bind(py).shape().to_vec();
+        format!(
+            "FilterRun(T={}, n={}, smoothed={})",
+            shape[0],
+            shape[1],
+            self.x_smooth.is_some()
+        )
+    }
+}
+
+/// A dual-filtered log (`DualSrUkf.run`): state means `x` `(T, n)`, parameter means `theta`
+/// `(T, p)` and their standard deviations `theta_std` `(T, p)`.
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct DualRun {
+    x: Py<PyArray2<f64>>,
+    theta: Py<PyArray2<f64>>,
+    theta_std: Py<PyArray2<f64>>,
+}
+
+impl DualRun {
+    pub fn new(py: Python<'_>, run: CoreDualRun, n: usize, p: usize) -> Self {
+        let t = run.len;
+        Self {
+            x: to_matrix(py, run.x, t, n).unbind(),
+            theta: to_matrix(py, run.theta, t, p).unbind(),
+            theta_std: to_matrix(py, run.theta_std, t, p).unbind(),
+        }
+    }
+}
+
+/// Health of a filter's last step (`SrUkf.health`).
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct FilterHealth {
+    /// Normalised innovation squared of the last update (NaN without one).
+    nis: f64,
+    /// Channels measured in the last update.
+    measured: usize,
+    /// Condition estimate of the covariance.
+    condition: f64,
+    /// Downdates recovered in the last step.
+    recovered: u32,
+    /// Downdates recovered since construction.
+    recoveries_total: u64,
+    /// Whether the last update was rejected by the innovation gate.
+    gated: bool,
+    /// Updates rejected by the gate since construction.
+    rejected_total: u64,
+    /// Steps since construction or the last reset.
+    steps: u64,
+}
+
+impl From<Health> for FilterHealth {
+    fn from(h: Health) -> Self {
+        Self {
+            nis: h.nis,
+            measured: h.measured,
+            condition: h.condition,
+            recovered: h.recovered,
+            recoveries_total: h.recoveries_total,
+            gated: h.gated,
+            rejected_total: h.rejected_total,
+            steps: h.steps,
+        }
+    }
+}
+
+#[pymethods]
+impl FilterHealth {
+    fn __repr__(&self) -> String {
+        format!(
+            "FilterHealth(nis={}, measured={}, condition={:.3e}, recovered={}, \
+             recoveries_total={}, gated={}, rejected_total={}, steps={})",
+            self.nis,
+            self.measured,
+            self.condition,
+            self.recovered,
+            self.recoveries_total,
+            self.gated,
+            self.rejected_total,
+            self.steps
+        )
+    }
+}
