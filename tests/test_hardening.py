@@ -514,11 +514,21 @@ def test_any_value_anywhere_in_a_model_file_loads_or_raises_a_cablekit_error(tab
 
 
 def test_thread_counts_follow_the_problem_the_option_and_the_environment(monkeypatch):
+    import os
+
+    from cablekit import _threads
     from cablekit._threads import PARALLEL_WORK, available_cores, choose_threads
 
     monkeypatch.delenv("CABLEKIT_THREADS", raising=False)
     assert choose_threads(PARALLEL_WORK / 10) == 1  # small problems: one thread
-    assert choose_threads(PARALLEL_WORK * 10) == available_cores() >= 1
+    assert 1 <= choose_threads(PARALLEL_WORK * 10) <= len(os.sched_getaffinity(0))
+    # the free cores are the idle share of the CPUs over the window, within the affinity mask
+    cpus = os.cpu_count()
+    for idle_share, want in ((1.0, cpus), (0.5, cpus / 2), (0.0, 1)):
+        samples = iter([(0.0, 0.0), (idle_share * 100.0, 100.0)])
+        monkeypatch.setattr(_threads, "_cpu_times", lambda s=samples: next(s))
+        got = available_cores(window_s=0.0)
+        assert got == max(1, min(len(os.sched_getaffinity(0)), int(want + 0.5))), (idle_share, got)
     assert choose_threads(1e3, threads=3) == 3  # the option wins
     monkeypatch.setenv("CABLEKIT_THREADS", "2")
     assert choose_threads(1e3) == 2  # then the environment

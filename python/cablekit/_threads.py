@@ -10,7 +10,8 @@ actually free, and lets the user decide:
 * else the environment variable ``CABLEKIT_THREADS``;
 * else automatic: one thread below :data:`PARALLEL_WORK` floating-point operations per step,
   otherwise the free cores — those in this process's affinity mask
-  (``os.sched_getaffinity``) minus the ones the 1-minute load average says other work holds.
+  (``os.sched_getaffinity``) that are idle right now (the idle share of ``/proc/stat`` over
+  50 ms; the 1-minute load average where there is no ``/proc/stat``).
 
 ``CABLEKIT_THREADS`` is also handed to the Rust core's rayon pool (``RAYON_NUM_THREADS``, when
 that is not set) at import, before the pool starts.
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -28,7 +30,7 @@ from cablekit.errors import ParameterError
 __all__ = ["PARALLEL_WORK", "available_cores", "choose_threads", "torch_threads"]
 
 #: below this many floating-point operations per step, one thread is faster than a pool
-PARALLEL_WORK = 2e8
+PARALLEL_WORK = 1e7
 
 
 def _env_threads() -> int | None:
@@ -44,18 +46,39 @@ def _env_threads() -> int | None:
     return n
 
 
-def available_cores() -> int:
-    """Cores this process may run on (affinity mask) that other work is not already using
-    (the 1-minute load average, rounded), at least 1."""
+def _cpu_times() -> tuple[float, float] | None:
+    """``(idle, total)`` jiffies of all CPUs from ``/proc/stat`` (Linux), else None."""
+    try:
+        with open("/proc/stat") as fh:
+            fields = [float(v) for v in fh.readline().split()[1:]]
+    except (OSError, ValueError):  # pragma: no cover - not Linux
+        return None
+    if len(fields) < 5:  # pragma: no cover - unexpected format
+        return None
+    return fields[3] + fields[4], sum(fields[:8])
+
+
+def available_cores(window_s: float = 0.05) -> int:
+    """Cores this process may run on (affinity mask) that other work is not using right now:
+    the idle share of all CPUs over ``window_s`` (``/proc/stat``), or the 1-minute load average
+    where that is not available; at least 1."""
     try:
         allowed = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):  # pragma: no cover - not Linux
         allowed = os.cpu_count() or 1
-    try:
+    total_cpus = os.cpu_count() or allowed
+    a = _cpu_times()
+    if a is not None:
+        time.sleep(window_s)
+        b = _cpu_times()
+        if b is not None and b[1] > a[1]:
+            idle = total_cpus * (b[0] - a[0]) / (b[1] - a[1])
+            return max(1, min(allowed, math.floor(idle + 0.5)))
+    try:  # pragma: no cover - no /proc/stat
         busy = math.floor(os.getloadavg()[0] + 0.5)
     except (AttributeError, OSError):  # pragma: no cover - no load average
         busy = 0
-    return max(1, min(allowed, allowed - busy + 1))
+    return max(1, min(allowed, allowed - busy))  # pragma: no cover
 
 
 def choose_threads(flops_per_step: float, threads: int | None = None) -> int:
