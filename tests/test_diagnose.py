@@ -374,12 +374,12 @@ def test_each_effect_is_recovered(effect):
     measured = gen.predict(np.array(truth), 0)
     p = _problem([effect], measured=np.ascontiguousarray(measured), substeps=8)
     res = p.fit()
-    got = res["params"]
+    got = res.params
     if effect == "sensor_sampling":  # grid search: within a sample of the instants
         assert abs(got[0] - truth[0]) < 0.02 * truth[0] and abs(got[1] - truth[1]) <= 0.1 / 12 + DT
         return
     np.testing.assert_allclose(got, truth, rtol=rtol, atol=1e-12)
-    assert res["cost"] <= 1e-6 * res["initial_cost"]
+    assert res.cost <= 1e-6 * res.initial_cost
 
 
 # ---- diagnoses ------------------------------------------------------------------------------
@@ -929,11 +929,10 @@ def test_a_fit_left_on_a_bound_away_from_off_is_named():
         {"effect": "creep@cable.both", "name": "tau", "reference": 0.0, "grid": False},
         {"effect": "sensor_sampling@sensors.force", "name": "period", "reference": 0.0, "grid": True},
     ]
-    res = {"params": np.array([0.0, 0.005, 0.1]), "at_bound": np.array([True, True, True])}
-    assert _bound_away(res, specs) == ["creep@cable.both:tau"]
-    res["at_bound"] = np.array([True, False, True])
-    assert _bound_away(res, specs) == []
-    c = CandidateFit(["creep@cable.both"], res["params"], specs, 1, True, [], [], 0.0, res["params"], 3)
+    params = np.array([0.0, 0.005, 0.1])
+    assert _bound_away(params, np.array([True, True, True]), specs) == ["creep@cable.both:tau"]
+    assert _bound_away(params, np.array([True, False, True]), specs) == []
+    c = CandidateFit(["creep@cable.both"], params, specs, 1, True, [], [], 0.0, params, 3)
     assert c.bound == []
 
 

@@ -9,6 +9,7 @@ use pyo3::types::{PyDict, PyList};
 use crate::convert::{any_vector, to_matrix, to_vector};
 use crate::dynamics::{AnyModel, Model};
 use crate::errors::{guarded, raise, Class};
+use crate::results::FitReport;
 
 /// The candidate effects: a list of dicts `name, stage, has_state, description`.
 #[pyfunction]
@@ -308,9 +309,7 @@ impl JointProblem {
         py.detach(|| guarded(|| self.inner.advised_substeps(&theta)))
     }
 
-    /// Fit the active effects (bounded Levenberg–Marquardt, GIL released). Returns a dict:
-    /// `params, cost, initial_cost, iterations, evaluations, converged, at_bound, jacobian
-    /// (m, p), residuals (m,)`.
+    /// Fit the active effects (bounded Levenberg–Marquardt, GIL released): a `FitReport`.
     #[pyo3(signature = (theta0 = None, *, max_iter = 60, threads = 1, ftol = 1e-8, xtol = 1e-8))]
     fn fit<'py>(
         &self,
@@ -320,7 +319,7 @@ impl JointProblem {
         threads: usize,
         ftol: f64,
         xtol: f64,
-    ) -> PyResult<Bound<'py, PyDict>> {
+    ) -> PyResult<FitReport> {
         let theta0 = theta0.map(|t| any_vector(t, "theta0")).transpose()?;
         let opts = LmOptions {
             max_iter,
@@ -330,18 +329,7 @@ impl JointProblem {
             ..LmOptions::default()
         };
         let rep = py.detach(|| guarded(|| self.inner.fit(theta0.as_deref(), &opts)))?;
-        let d = PyDict::new(py);
-        let (m, p) = (rep.residuals.len(), rep.params.len());
-        d.set_item("params", to_vector(py, rep.params))?;
-        d.set_item("cost", rep.cost)?;
-        d.set_item("initial_cost", rep.initial_cost)?;
-        d.set_item("iterations", rep.iterations)?;
-        d.set_item("evaluations", rep.evaluations)?;
-        d.set_item("converged", rep.converged)?;
-        d.set_item("at_bound", rep.at_bound)?;
-        d.set_item("jacobian", to_matrix(py, rep.jacobian, m, p))?;
-        d.set_item("residuals", to_vector(py, rep.residuals))?;
-        Ok(d)
+        Ok(FitReport::new(py, rep))
     }
 
     /// Sample-and-hold `(period, phase)` read off the measured update instants of the first

@@ -1,7 +1,8 @@
-//! Typed results of the filters (numpy arrays as read-only attributes), converted from the
-//! core's `FilterRun`, `DualRun` and `Health`.
+//! Typed results (numpy arrays as read-only attributes), converted from the core's
+//! `FilterRun`, `DualRun`, `Health` and `LmReport`.
 
 use cable_core::estimate::{DualRun as CoreDualRun, FilterRun as CoreFilterRun, Health};
+use cable_core::identify::LmReport;
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -148,6 +149,50 @@ impl FilterHealth {
             self.gated,
             self.rejected_total,
             self.steps
+        )
+    }
+}
+
+/// A bounded Levenberg–Marquardt fit (`JointProblem.fit`): fitted `params` `(p,)`, `cost` and
+/// `initial_cost` (½‖r‖²), `iterations`, `evaluations`, `converged` (a tolerance, not the
+/// iteration cap, stopped it), `at_bound` `(p,)`, `jacobian` `(m, p)` and `residuals` `(m,)` at
+/// the fitted parameters.
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct FitReport {
+    params: Py<PyArray1<f64>>,
+    cost: f64,
+    initial_cost: f64,
+    iterations: usize,
+    evaluations: usize,
+    converged: bool,
+    at_bound: Py<PyArray1<bool>>,
+    jacobian: Py<PyArray2<f64>>,
+    residuals: Py<PyArray1<f64>>,
+}
+
+impl FitReport {
+    pub fn new(py: Python<'_>, rep: LmReport) -> Self {
+        let (m, p) = (rep.residuals.len(), rep.params.len());
+        Self {
+            params: rep.params.into_pyarray(py).unbind(),
+            cost: rep.cost,
+            initial_cost: rep.initial_cost,
+            iterations: rep.iterations,
+            evaluations: rep.evaluations,
+            converged: rep.converged,
+            at_bound: rep.at_bound.into_pyarray(py).unbind(),
+            jacobian: to_matrix(py, rep.jacobian, m, p).unbind(),
+            residuals: rep.residuals.into_pyarray(py).unbind(),
+        }
+    }
+}
+
+#[pymethods]
+impl FitReport {
+    fn __repr__(&self) -> String {
+        format!(
+            "FitReport(cost={:.6e}, initial_cost={:.6e}, iterations={}, converged={})",
+            self.cost, self.initial_cost, self.iterations, self.converged
         )
     }
 }

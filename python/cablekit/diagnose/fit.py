@@ -75,17 +75,17 @@ def fit_candidate(
         )
         problem = base.with_effects(effects, sub)
         res = problem.fit(start, max_iter=max_iter)
-        if theta0 is None and res["cost"] >= STUCK * res["initial_cost"] and any(s["starts"] for s in specs):
+        if theta0 is None and res.cost >= STUCK * res.initial_cost and any(s["starts"] for s in specs):
             # the cost is flat at the default start (a pretension loss before any cable
             # slackens): search the parameters' start grid, refine the best start
             res = problem.fit(None, max_iter=max_iter)
-        theta = res["params"]
+        theta = res.params
         need = min(MAX_SUBSTEPS, problem.advised_substeps(theta))
         if need > sub:  # the fitted model is stiffer than the start: refit with enough substeps
             sub = need
             problem = base.with_effects(effects, sub)
             res = problem.fit(theta, max_iter=max_iter)
-            theta = res["params"]
+            theta = res.params
 
         hold = prep.hold0.with_effects(effects, sub)
         r_hold = hold.residuals(theta)
@@ -103,10 +103,10 @@ def fit_candidate(
             0,
             error=f"{type(exc).__name__}: {exc}",
         )
-    r_fit = res["residuals"]
+    r_fit = res.residuals
     p = len(theta)
     try:
-        sd = np.sqrt(np.clip(np.diag(_sandwich(prep, res["jacobian"], r_fit)), 0.0, None))
+        sd = np.sqrt(np.clip(np.diag(_sandwich(prep, res.jacobian, r_fit)), 0.0, None))
     except np.linalg.LinAlgError:
         sd = np.full(p, np.nan)
     for j, s in enumerate(specs):
@@ -117,23 +117,23 @@ def fit_candidate(
         theta,
         specs,
         sub,
-        bool(res["converged"]),
+        bool(res.converged),
         _split(prep, prep.fit_runs, r_fit),
         _split(prep, prep.hold_runs, r_hold),
-        float(res["cost"]),
+        float(res.cost),
         sd,
-        int(res["iterations"]),
-        at_bound=bool(np.any(res["at_bound"])),
-        bound=_bound_away(res, specs),
+        int(res.iterations),
+        at_bound=bool(np.any(res.at_bound)),
+        bound=_bound_away(res.params, res.at_bound, specs),
     )
 
 
-def _bound_away(res: dict[str, Any], specs: list[dict[str, Any]]) -> list[str]:
+def _bound_away(params: _F, at_bound: NDArray[np.bool_], specs: list[dict[str, Any]]) -> list[str]:
     """Parameters that ended on a bound of their range other than the effect's "off" value (a
     Coulomb level at 0 is the nested model without the effect and is not listed; a creep time
     constant at its smallest allowed value is)."""
     out = []
-    for s, v, hit in zip(specs, res["params"], res["at_bound"], strict=True):
+    for s, v, hit in zip(specs, params, at_bound, strict=True):
         if hit and not s["grid"] and abs(float(v) - float(s["reference"])) > 1e-12 * max(1.0, abs(float(v))):
             out.append(f"{s['effect']}:{s['name']}")
     return out
