@@ -386,3 +386,26 @@ def test_pretension_helpers_check_their_input():
 
     with pytest.raises(ck.ParameterError, match="tension"):
         raven_pretension_run(0.1)
+
+
+def test_named_parameters_are_read_and_set_by_the_core():
+    """TransmissionParameters reads and writes through the core's parser; the result equals
+    the constructor with the edited keywords (the reference), and the edit is validated."""
+    from cablekit.estimate import TransmissionParameters
+
+    model = ck.CableTransmission.raven2(3)
+    names = ["cable_stiffness[1]", "coupling[2][0]", "link_viscous[0]", "joint_radius[2]"]
+    tp = TransmissionParameters(model, names)
+    p = model.params()
+    want = [p["cable_stiffness"][1], p["coupling"][2][0], p["link_viscous"][0], p["joint_radius"][2]]
+    np.testing.assert_array_equal(tp.values(), want)
+    new = [2.0 * want[0], 0.05, 3.0 * want[2] + 1e-3, 0.9 * want[3]]
+    got = tp.model(new).params()
+    ref = {k: ([list(r) for r in v] if k == "coupling" else v) for k, v in p.items()}
+    ref["cable_stiffness"][1], ref["coupling"][2][0] = new[0], new[1]
+    ref["link_viscous"][0], ref["joint_radius"][2] = new[2], new[3]
+    assert got == ck.CableTransmission(**ref).params()
+    with pytest.raises(ck.ParameterError):
+        tp.model([-1.0, 0.0, 0.0, 0.01])  # a negative stiffness
+    with pytest.raises(ck.ShapeError):
+        tp.model([1.0])

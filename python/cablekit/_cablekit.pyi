@@ -112,6 +112,10 @@ class CableTransmission(Model):
         """T of eq. (2.8): q_m = T q_l at rest length, shape (n, n)."""
     def params(self) -> dict[str, Any]:
         """Constructor keywords with per-link lists."""
+    def parameter_values(self, names: list[str]) -> _F:
+        """Values of named parameters (``"cable_stiffness[1]"``, ``"coupling[2][0]"``, …)."""
+    def with_parameter_values(self, names: list[str], values: _F) -> CableTransmission:
+        """This model with the named parameters set to ``values``."""
     def joint_to_motor(self, q_l: _F) -> _F: ...
     def motor_to_joint(self, q_m: _F) -> _F:
         """``q_l = T⁻¹·q_m`` for ``(n,)`` or ``(T, n)`` motor angles."""

@@ -247,10 +247,6 @@ def estimate_joint_states(
     )
 
 
-#: per-link parameters (one index); ``coupling`` takes two
-_KEYS = {"cable_stiffness", "cable_damping", "joint_radius", "link_inertia", "link_coulomb", "link_viscous"}
-
-
 class TransmissionParameters:
     """Named parameters of a cable transmission (``"cable_stiffness[1]"``,
     ``"coupling[2][0]"``, … — the keyword names of :class:`CableTransmission` with 0-based
@@ -259,56 +255,15 @@ class TransmissionParameters:
     def __init__(self, model: CableTransmission, names: list[str]):
         self.base = model
         self.names = list(names)
-        self._params = model.params()
-        for name in self.names:
-            self._locate(name)
-
-    def _locate(self, name: str) -> tuple[str, tuple[int, ...]]:
-        key, _, rest = name.partition("[")
-        try:
-            idx = tuple(int(part) for part in ("[" + rest).replace("]", "").split("[")[1:])
-        except ValueError:
-            idx = ()
-        value = self._params.get(key)
-        ok = (key in _KEYS and len(idx) == 1) or (key == "coupling" and len(idx) == 2)
-        try:
-            for i in idx:
-                value = value[i]  # type: ignore[index]
-        except (IndexError, TypeError):
-            ok = False
-        if not ok or (key == "coupling" and idx[1] >= idx[0]):
-            raise ParameterError(
-                f"unknown transmission parameter {name!r}: use cable_stiffness[i], cable_damping[i], "
-                "coupling[i][j] (i > j), joint_radius[i], link_inertia[i], link_coulomb[i], link_viscous[i]"
-            )
-        return key, idx
+        self.values()  # the core parses and checks every name (ParameterError otherwise)
 
     def values(self) -> NDArray[np.float64]:
         """The parameters' values in the base model."""
-        out = []
-        for name in self.names:
-            key, idx = self._locate(name)
-            v = self._params[key]
-            for i in idx:
-                v = v[i]
-            out.append(float(v))
-        return np.array(out)
+        return self.base.parameter_values(self.names)
 
     def model(self, values: list[float] | NDArray[np.float64]) -> CableTransmission:
         """The base model with the parameters set to ``values``."""
-        from cablekit._cablekit import CableTransmission as _Tx
-
-        p = {
-            k: ([list(r) for r in v] if k == "coupling" else (list(v) if isinstance(v, list) else v))
-            for k, v in self._params.items()
-        }
-        for name, v in zip(self.names, values, strict=True):
-            key, idx = self._locate(name)
-            if key == "coupling":
-                p[key][idx[0]][idx[1]] = float(v)
-            else:
-                p[key][idx[0]] = float(v)
-        return _Tx(**p)
+        return self.base.with_parameter_values(self.names, float_array(values, "values", 1))
 
 
 @dataclass(frozen=True)

@@ -2,6 +2,7 @@
 
 use cable_core::check;
 use cable_core::dynamics::{self as core, Model as _};
+use cable_core::estimate::{with_named_params, TransmissionParam};
 use cable_core::friction::Dahl;
 use cable_core::integrate::jacobian_rows;
 use numpy::{PyArray1, PyArray2};
@@ -295,6 +296,35 @@ impl CableTransmission {
         d.set_item("joint_kind", spec.joint_kind)?;
         d.set_item("coupling", spec.coupling)?;
         Ok(d)
+    }
+
+    /// Values of named parameters (`"cable_stiffness[1]"`, `"coupling[2][0]"`, …: the
+    /// keyword names with 0-based indices).
+    fn parameter_values<'py>(
+        slf: PyRef<'py, Self>,
+        names: Vec<String>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let t = transmission(&slf);
+        let params = guarded(|| TransmissionParam::parse_all(&names, t.n_links()))?;
+        Ok(to_vector(
+            slf.py(),
+            params.iter().map(|p| p.get(&t)).collect(),
+        ))
+    }
+
+    /// This model with the named parameters set to `values` (validated like the constructor).
+    fn with_parameter_values(
+        slf: PyRef<'_, Self>,
+        names: Vec<String>,
+        values: &Bound<'_, PyAny>,
+    ) -> PyResult<Py<CableTransmission>> {
+        let values = vector(values, "values", names.len())?;
+        let t = transmission(&slf);
+        let model = guarded(|| with_named_params(&t, &names, &values))?;
+        Py::new(
+            slf.py(),
+            wrap(AnyModel::Transmission(model), CableTransmission),
+        )
     }
 
     /// Rigid-cable kinematics `q_m = T·q_l`.

@@ -28,7 +28,8 @@ pub use models::{
     Process,
 };
 pub use params::{
-    with_params, DualSrUkf, ParamObserve, ParamTransmission, RandomWalk, TransmissionParam,
+    with_named_params, with_params, DualSrUkf, ParamObserve, ParamTransmission, RandomWalk,
+    TransmissionParam,
 };
 pub use run::{DualRun, FilterRun};
 pub use srukf::{Health, SigmaScaling, SrUkf, Weights, SPECIALISED_UP_TO};

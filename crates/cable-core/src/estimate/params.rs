@@ -78,6 +78,11 @@ impl TransmissionParam {
         }
     }
 
+    /// Parse every name of `names` for a model of `links` links.
+    pub fn parse_all(names: &[String], links: usize) -> Result<Vec<Self>> {
+        names.iter().map(|n| Self::parse(n, links)).collect()
+    }
+
     /// Current value in `m`.
     pub fn get(&self, m: &CableTransmission) -> f64 {
         let l = m.links();
@@ -105,6 +110,19 @@ impl TransmissionParam {
             Self::Coupling(..) => (f64::NEG_INFINITY, f64::INFINITY),
         }
     }
+}
+
+/// `base` with the parameters named `names` (see [`TransmissionParam::parse`]) set to
+/// `values` (finite, one per name); the result validated like any transmission.
+pub fn with_named_params(
+    base: &CableTransmission,
+    names: &[String],
+    values: &[f64],
+) -> Result<CableTransmission> {
+    let params = TransmissionParam::parse_all(names, base.n_links())?;
+    crate::error::check::len("values", values, params.len())?;
+    crate::error::check::all_finite("values", values, 1)?;
+    with_params(base, &params, values)
 }
 
 /// `base` with `params` set to `values`.
