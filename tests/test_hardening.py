@@ -540,3 +540,16 @@ def test_thread_counts_follow_the_problem_the_option_and_the_environment(monkeyp
     for bad in (0, -2, 1.5, True):
         with pytest.raises(ck.ParameterError):
             choose_threads(1e3, threads=bad)
+
+
+def test_state_indices_come_from_the_core_layout():
+    from cablekit.simulation import state_indices
+
+    for links in (1, 2, 3):
+        r = ck.CableTransmission.raven2(links)
+        names = r.state_names
+        for q in ("q_m", "dq_m", "q_l", "dq_l"):
+            idx = state_indices(r, q)
+            assert [names[i] for i in idx] == [f"{q}{j}" for j in range(1, links + 1)]
+    with pytest.raises(ck.ParameterError, match="no state"):
+        state_indices(ck.CableTransmission.raven2(1), "tension")

@@ -28,7 +28,7 @@ import numpy as np
 from cablekit._arrays import float_array
 from cablekit._cablekit import DualSrUkf, SrUkf
 from cablekit.errors import ParameterError, ShapeError
-from cablekit.simulation import propose_step
+from cablekit.simulation import propose_step, state_indices
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -85,6 +85,7 @@ class _Observations:
 
 
 def _observations(
+    model: CableTransmission,
     q_m: NDArray[np.float64],
     q_l: NDArray[np.float64] | None,
     encoder_noise: float,
@@ -97,7 +98,8 @@ def _observations(
     ``x0``'s joint angles at their first reading. The measurement noise of the joint channels
     is ``joint_noise``."""
     n_links = q_m.shape[1]
-    states = [4 * j for j in range(n_links)]
+    i_qm, i_ql = state_indices(model, "q_m"), state_indices(model, "q_l")
+    states = list(i_qm)
     r = [encoder_noise**2] * n_links
     if q_l is None:
         return _Observations(states, q_m, None, np.diag(r))
@@ -115,8 +117,8 @@ def _observations(
     seen = ~np.isnan(q_l[:, cols])
     for c, j in enumerate(cols):
         if name == "q_l" and seen[0, c]:
-            x0[2 + 4 * j] = q_l[0, j]
-    states += [2 + 4 * j for j in cols]
+            x0[i_ql[j]] = q_l[0, j]
+    states += [i_ql[j] for j in cols]
     r += [jn**2] * len(cols)
     y = np.ascontiguousarray(np.concatenate([q_m, np.where(seen, q_l[:, cols], 0.0)], axis=1))
     mask = None
@@ -176,13 +178,19 @@ def _setup(
     u = np.concatenate([tau_m, ext], axis=1)
     u = np.ascontiguousarray(np.vstack([u[:1], u[:-1]]))
     n = model.n_states
+    at = {k: state_indices(model, k) for k in ("q_m", "dq_m", "q_l", "dq_l")}
     x0 = np.zeros(n + extra)
-    x0[0:n:4] = q_m[0]
-    x0[2:n:4] = kinematic_joint_angles(model, q_m[:1])[0]
-    p0 = np.zeros((n + extra, n + extra))
-    p0[:n, :n] = np.diag(np.tile([encoder_noise**2, 1e-2, 1e-6, 1e-2], n_links))
-    q = np.zeros((n + extra, n + extra))
-    q[:n, :n] = np.diag(np.tile([0.0, motor_noise**2 * dt, 0.0, link_noise**2 * dt], n_links))
+    x0[at["q_m"]] = q_m[0]
+    x0[at["q_l"]] = kinematic_joint_angles(model, q_m[:1])[0]
+    p0_diag, q_diag = np.zeros(n + extra), np.zeros(n + extra)
+    for k, p0_k, q_k in (
+        ("q_m", encoder_noise**2, 0.0),
+        ("dq_m", 1e-2, motor_noise**2 * dt),
+        ("q_l", 1e-6, 0.0),
+        ("dq_l", 1e-2, link_noise**2 * dt),
+    ):
+        p0_diag[at[k]], q_diag[at[k]] = p0_k, q_k
+    p0, q = np.diag(p0_diag), np.diag(q_diag)
     return _Setup(q_m, u, x0, p0, q, substeps)
 
 
@@ -231,14 +239,15 @@ def estimate_joint_states(
     q_m, u, x0, p0, q, substeps = su.q_m, su.u, su.x0, su.p0, su.q, su.substeps
     if q_camera is not None and not (np.isfinite(camera_noise) and camera_noise > 0):
         raise ParameterError(f"camera_noise must be finite and > 0, got {camera_noise}")
-    obs = _observations(q_m, q_camera, encoder_noise, camera_noise, x0, "q_camera")
+    obs = _observations(model, q_m, q_camera, encoder_noise, camera_noise, x0, "q_camera")
     ukf = SrUkf(model, x0, p0, q, obs.r, dt=dt, substeps=substeps, states=obs.states, alpha=alpha)
     res = ukf.run(u, obs.y, obs.mask)
     std = np.sqrt(np.einsum("tij,tij->ti", res.S, res.S))  # row norms of S: √diag(S·Sᵀ)
+    i_ql, i_dql = state_indices(model, "q_l"), state_indices(model, "dq_l")
     return JointStateEstimate(
-        q_l=res.x[:, 2::4],
-        dq_l=res.x[:, 3::4],
-        q_l_std=std[:, 2::4],
+        q_l=res.x[:, i_ql],
+        dq_l=res.x[:, i_dql],
+        q_l_std=std[:, i_ql],
         q_l_kinematics=kinematic_joint_angles(model, q_m),
         x=res.x,
         nis=res.nis,
@@ -339,7 +348,7 @@ def estimate_parameters(
     x0[n:] = theta0
     p0[n:, n:] = np.diag((initial_spread * scale) ** 2)
     q[n:, n:] = np.diag((drift * scale) ** 2 * dt)
-    obs = _observations(q_m, q_l, encoder_noise, joint_noise, x0)
+    obs = _observations(model, q_m, q_l, encoder_noise, joint_noise, x0)
     if method == "dual":
         c = np.ascontiguousarray
         dual = DualSrUkf(
@@ -441,7 +450,7 @@ def estimate_external_force(
     q_m, u, x0, p0, q, substeps = su.q_m, su.u, su.x0, su.p0, su.q, su.substeps
     p0[n:, n:] = 100.0 * np.eye(k)
     q[n:, n:] = force_noise**2 * dt * np.eye(k)
-    obs = _observations(q_m, q_l, encoder_noise, joint_noise, x0)
+    obs = _observations(model, q_m, q_l, encoder_noise, joint_noise, x0)
     ukf = SrUkf.with_input_states(
         model,
         [n_links + i for i in links],

@@ -8,7 +8,14 @@ import numpy as np
 
 from cablekit._cablekit import AntagonisticJoint, CableTransmission
 from cablekit.errors import ParameterError
-from cablekit.simulation import MotorPD, SimulationResult, propose_step, simulate, simulate_servo
+from cablekit.simulation import (
+    MotorPD,
+    SimulationResult,
+    propose_step,
+    simulate,
+    simulate_servo,
+    state_indices,
+)
 
 
 def _grid(duration: float, dt: float) -> np.ndarray:
@@ -37,8 +44,8 @@ def raven_link(duration: float = 4.0, dt: float = 1e-3) -> SimulationResult:
     tmat = model.transmission_matrix
     refs = np.ascontiguousarray(np.hstack([q_l @ tmat.T, dq_l @ tmat.T]))
     x0 = np.zeros(model.n_states)
-    x0[0::4] = tmat @ centre
-    x0[2::4] = centre
+    x0[state_indices(model, "q_m")] = tmat @ centre
+    x0[state_indices(model, "q_l")] = centre
     advice = propose_step(model, dt, x0, np.zeros(model.n_inputs))
     result = simulate_servo(model, refs, dt, MotorPD.raven2(3), x0=x0, substeps=advice.substeps)
     result.meta.update(example="raven-link", reference_joint=q_l, advice=advice)

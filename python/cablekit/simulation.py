@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cablekit import _cablekit
-from cablekit.errors import ShapeError
+from cablekit.errors import ParameterError, ShapeError
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -84,6 +84,17 @@ def _result(
         output_names=model.output_names,
         meta={"dt": dt, "model": repr(model), **meta},
     )
+
+
+def state_indices(model: Model, quantity: str) -> list[int]:
+    """Indices of ``quantity`` (``"q_m"``, ``"dq_m"``, ``"q_l"``, ``"dq_l"``, …) of every link in
+    the model's state vector, link 1 first, read off the core's ``state_names`` (no layout is
+    assumed)."""
+    names = model.state_names
+    out = [i for i, n in enumerate(names) if n.rstrip("0123456789") == quantity]
+    if not out:
+        raise ParameterError(f"the model has no state {quantity!r}; its states are {names}")
+    return out
 
 
 def simulate(

@@ -17,6 +17,7 @@ from cablekit.diagnose import localise
 from cablekit.diagnose.data import Run, check_units
 from cablekit.diagnose.spec import NOT_IN_TRANSMISSION, ModelSpec
 from cablekit.errors import DataError
+from cablekit.simulation import state_indices
 
 __all__ = ["MAX_SUBSTEPS", "MIN_CLOSED", "NOISE_LEVEL", "Options", "Prepared", "prepare", "run_dict"]
 
@@ -131,8 +132,8 @@ def _transmission_x0(spec: ModelSpec, run: Run, model: Any) -> _F:
     else:
         q_l = np.where(np.isnan(q_l), 0.0, q_l)
         q_m = np.where(np.isnan(q_m), model.joint_to_motor(q_l), q_m)
-    x0 = np.zeros(4 * n)
-    x0[0::4], x0[2::4] = q_m, q_l
+    x0 = np.zeros(model.n_states)
+    x0[state_indices(model, "q_m")], x0[state_indices(model, "q_l")] = q_m, q_l
     return x0
 
 
