@@ -922,13 +922,21 @@ def test_parsimony_prefers_the_simpler_unless_the_richer_is_better_on_held_out_d
 def test_a_fit_left_on_a_bound_away_from_off_is_named():
     """The bound check: a parameter on a bound other than its "off" value is named; one at its
     "off" bound (the nested model without the effect) is not; grid parameters never are."""
+    from cablekit._cablekit import ParamSpec
     from cablekit.diagnose.fit import CandidateFit, _bound_away
 
+    def spec(effect, name, grid):
+        return ParamSpec(effect, name, "1", 0.0, 0.0, 0.0, 1.0, 1.0, grid, [])
+
     specs = [
-        {"effect": "creep@cable.both", "name": "kappa", "reference": 0.0, "grid": False},
-        {"effect": "creep@cable.both", "name": "tau", "reference": 0.0, "grid": False},
-        {"effect": "sensor_sampling@sensors.force", "name": "period", "reference": 0.0, "grid": True},
+        spec("creep@cable.both", "kappa", False),
+        spec("creep@cable.both", "tau", False),
+        spec("sensor_sampling@sensors.force", "period", True),
     ]
+    import pickle
+
+    back = pickle.loads(pickle.dumps(specs[2]))  # crosses to Ray workers and back
+    assert (back.effect, back.name, back.grid, back.upper) == (specs[2].effect, "period", True, 1.0)
     params = np.array([0.0, 0.005, 0.1])
     assert _bound_away(params, np.array([True, True, True]), specs) == ["creep@cable.both:tau"]
     assert _bound_away(params, np.array([True, False, True]), specs) == []

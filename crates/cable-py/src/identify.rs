@@ -9,7 +9,7 @@ use pyo3::types::{PyDict, PyList};
 use crate::convert::{any_vector, to_matrix, to_vector};
 use crate::dynamics::{AnyModel, Model};
 use crate::errors::{guarded, raise, Class};
-use crate::results::FitReport;
+use crate::results::{FitReport, ParamSpec};
 
 /// The candidate effects: a list of dicts `name, stage, has_state, description`.
 #[pyfunction]
@@ -243,28 +243,19 @@ impl JointProblem {
         self.inner.n_residuals()
     }
 
-    /// Parameter specs: list of dicts `effect, name, unit, reference, initial, lower, upper,
-    /// scale, grid`.
-    fn param_specs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let out = PyList::empty(py);
+    /// Parameter specs of the active candidates, in parameter order (`ParamSpec`).
+    fn param_specs(&self) -> Vec<ParamSpec> {
         let sc = self.inner.scales();
+        let mut out = Vec::new();
         for c in self.inner.candidates() {
-            for s in c.params(sc) {
-                let d = PyDict::new(py);
-                d.set_item("effect", self.inner.candidate_id(c))?;
-                d.set_item("name", &s.name)?;
-                d.set_item("unit", s.unit)?;
-                d.set_item("reference", s.reference)?;
-                d.set_item("initial", s.initial)?;
-                d.set_item("lower", s.lower)?;
-                d.set_item("upper", s.upper)?;
-                d.set_item("scale", s.scale)?;
-                d.set_item("grid", s.grid)?;
-                d.set_item("starts", s.starts.clone())?;
-                out.append(d)?;
-            }
+            let id = self.inner.candidate_id(c);
+            out.extend(
+                c.params(sc)
+                    .into_iter()
+                    .map(|s| ParamSpec::new(id.clone(), s)),
+            );
         }
-        Ok(out)
+        out
     }
 
     /// Parameters at which every active effect is off.

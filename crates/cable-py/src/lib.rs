@@ -38,6 +38,7 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<results::DualRun>()?;
     m.add_class::<results::FilterHealth>()?;
     m.add_class::<results::FitReport>()?;
+    m.add_class::<results::ParamSpec>()?;
     m.add_function(wrap_pyfunction!(identify::effect_catalogue, m)?)?;
     m.add_class::<nn::Mlp>()?;
     Ok(())

@@ -196,3 +196,107 @@ impl FitReport {
         )
     }
 }
+
+/// One fitted parameter of a candidate (`JointProblem.param_specs`): the candidate `effect`
+/// id, `name` and `unit`, the `reference` value at which the effect is off, the `initial`
+/// value, the bounds `lower`/`upper`, the typical `scale`, whether it is found by `grid`
+/// search, and further `starts` tried before the local search.
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct ParamSpec {
+    effect: String,
+    name: String,
+    unit: String,
+    reference: f64,
+    initial: f64,
+    lower: f64,
+    upper: f64,
+    scale: f64,
+    grid: bool,
+    starts: Vec<f64>,
+}
+
+impl ParamSpec {
+    pub fn new(effect: String, s: cable_core::identify::ParamSpec) -> Self {
+        Self {
+            effect,
+            name: s.name,
+            unit: s.unit.to_owned(),
+            reference: s.reference,
+            initial: s.initial,
+            lower: s.lower,
+            upper: s.upper,
+            scale: s.scale,
+            grid: s.grid,
+            starts: s.starts,
+        }
+    }
+}
+
+/// The constructor's arguments: `(effect, name, unit, reference, initial, lower, upper, scale,
+/// grid, starts)`.
+type ParamSpecArgs = (
+    String,
+    String,
+    String,
+    f64,
+    f64,
+    f64,
+    f64,
+    f64,
+    bool,
+    Vec<f64>,
+);
+
+#[pymethods]
+impl ParamSpec {
+    /// A spec from its fields (for pickling across processes, e.g. Ray workers).
+    #[new]
+    #[allow(clippy::too_many_arguments)]
+    fn py_new(
+        effect: String,
+        name: String,
+        unit: String,
+        reference: f64,
+        initial: f64,
+        lower: f64,
+        upper: f64,
+        scale: f64,
+        grid: bool,
+        starts: Vec<f64>,
+    ) -> Self {
+        Self {
+            effect,
+            name,
+            unit,
+            reference,
+            initial,
+            lower,
+            upper,
+            scale,
+            grid,
+            starts,
+        }
+    }
+
+    fn __getnewargs__(&self) -> ParamSpecArgs {
+        (
+            self.effect.clone(),
+            self.name.clone(),
+            self.unit.clone(),
+            self.reference,
+            self.initial,
+            self.lower,
+            self.upper,
+            self.scale,
+            self.grid,
+            self.starts.clone(),
+        )
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "ParamSpec({}:{} = {} {} in [{}, {}])",
+            self.effect, self.name, self.initial, self.unit, self.lower, self.upper
+        )
+    }
+}

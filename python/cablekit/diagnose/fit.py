@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from cablekit._cablekit import ParamSpec
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.prepare import MAX_SUBSTEPS, Options, Prepared
 from cablekit.diagnose.progress import Progress
@@ -28,7 +29,7 @@ class CandidateFit:
 
     effects: list[str]
     params: _F
-    specs: list[dict[str, Any]]
+    specs: list[ParamSpec]
     substeps: int
     converged: bool
     fit_resid: list[_F]
@@ -63,19 +64,17 @@ def fit_candidate(
     """Fit ``effects`` on the fit runs, then evaluate on the held-out runs (never fitted)."""
     base = prep.fit0.with_effects(effects, prep.substeps)
     specs = base.param_specs()
-    start = (
-        np.array([s["initial"] for s in specs]) if theta0 is None else np.asarray(theta0, dtype=np.float64)
-    )
+    start = np.array([s.initial for s in specs]) if theta0 is None else np.asarray(theta0, dtype=np.float64)
     try:
         # substeps for the stiffest starting point (largest start of every parameter), so the
         # search does not begin in a coarsely integrated, distorted landscape
-        corner = np.array([max([s["initial"], *s["starts"]]) for s in specs]) if theta0 is None else start
+        corner = np.array([max([s.initial, *s.starts]) for s in specs]) if theta0 is None else start
         sub = min(
             MAX_SUBSTEPS, max(prep.substeps, base.advised_substeps(start), base.advised_substeps(corner))
         )
         problem = base.with_effects(effects, sub)
         res = problem.fit(start, max_iter=max_iter)
-        if theta0 is None and res.cost >= STUCK * res.initial_cost and any(s["starts"] for s in specs):
+        if theta0 is None and res.cost >= STUCK * res.initial_cost and any(s.starts for s in specs):
             # the cost is flat at the default start (a pretension loss before any cable
             # slackens): search the parameters' start grid, refine the best start
             res = problem.fit(None, max_iter=max_iter)
@@ -110,7 +109,7 @@ def fit_candidate(
     except np.linalg.LinAlgError:
         sd = np.full(p, np.nan)
     for j, s in enumerate(specs):
-        if s["grid"]:
+        if s.grid:
             sd[j] = np.nan
     return CandidateFit(
         effects,
@@ -128,14 +127,14 @@ def fit_candidate(
     )
 
 
-def _bound_away(params: _F, at_bound: NDArray[np.bool_], specs: list[dict[str, Any]]) -> list[str]:
+def _bound_away(params: _F, at_bound: NDArray[np.bool_], specs: list[ParamSpec]) -> list[str]:
     """Parameters that ended on a bound of their range other than the effect's "off" value (a
     Coulomb level at 0 is the nested model without the effect and is not listed; a creep time
     constant at its smallest allowed value is)."""
     out = []
     for s, v, hit in zip(specs, params, at_bound, strict=True):
-        if hit and not s["grid"] and abs(float(v) - float(s["reference"])) > 1e-12 * max(1.0, abs(float(v))):
-            out.append(f"{s['effect']}:{s['name']}")
+        if hit and not s.grid and abs(float(v) - float(s.reference)) > 1e-12 * max(1.0, abs(float(v))):
+            out.append(f"{s.effect}:{s.name}")
     return out
 
 
@@ -204,9 +203,9 @@ def parameters_out(c: CandidateFit, refit: list[list[float] | None] | None = Non
         half = 1.96 * sd if np.isfinite(sd) else None
         rows.append(
             {
-                "effect": s["effect"],
-                "name": s["name"],
-                "unit": s["unit"],
+                "effect": s.effect,
+                "name": s.name,
+                "unit": s.unit,
                 "value": float(v),
                 "ci95": [float(v - half), float(v + half)] if half is not None else None,
                 "ci95_refit": refit[j] if refit is not None else None,
@@ -221,5 +220,5 @@ def warm_start(prep: Prepared, current: CandidateFit, effects: list[str], single
     have = {}
     for src in (single, current):
         for s, v in zip(src.specs, src.params, strict=False):
-            have[(s["effect"], s["name"])] = v
-    return np.array([have.get((s["effect"], s["name"]), s["initial"]) for s in specs])
+            have[(s.effect, s.name)] = v
+    return np.array([have.get((s.effect, s.name), s.initial) for s in specs])

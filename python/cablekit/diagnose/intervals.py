@@ -63,7 +63,7 @@ def refit_intervals(
     for j, s in enumerate(current.specs):
         v = float(current.params[j])
         if (
-            s["grid"]
+            s.grid
             or len(draws) < max(2, opts.interval_refits // 2)
             or float(np.ptp(p[:, j])) <= 1e-9 * max(1.0, abs(v))
         ):
