@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import cablekit as ck
-from cablekit._cablekit import JointProblem, effect_catalogue
+from cablekit._cablekit import JointProblem, JointRun, effect_catalogue
 from cablekit.diagnose import Options, diagnose, load_model_spec, load_run, model_spec_from_dict
 from cablekit.diagnose.data import Run, check_units, from_arrays
 from cablekit.diagnose.report import to_json, validate
@@ -44,16 +44,9 @@ def _x_m(seconds: float = 3.0) -> np.ndarray:
     return NOMINAL["radius"] * (0.4 * np.sin(w[0] * t) + 0.05 * np.sin(w[1] * t) + 0.01 * np.sin(w[2] * t))
 
 
-def _run(x_m: np.ndarray, measured: np.ndarray | None = None, coupled: np.ndarray | None = None) -> dict:
-    d = {
-        "dt": DT,
-        "x_m": x_m,
-        "measured": measured if measured is not None else np.zeros((len(x_m), 3)),
-        "start": 50,
-    }
-    if coupled is not None:
-        d["coupled"] = coupled
-    return d
+def _run(x_m: np.ndarray, measured: np.ndarray | None = None, coupled: np.ndarray | None = None) -> JointRun:
+    measured = measured if measured is not None else np.zeros((len(x_m), 3))
+    return JointRun(DT, x_m, measured, coupled=coupled, start=50)
 
 
 def _problem(
@@ -334,8 +327,10 @@ def test_problem_rejects_bad_input_with_typed_errors():
         JointProblem(model, CHANNELS, [_run(x)], ["coupling"])
     with pytest.raises(ck.ParameterError, match="effect"):
         JointProblem(model, CHANNELS, [_run(x)], ["friction"])
-    with pytest.raises(ck.DataError, match='no key "x_m"'):
+    with pytest.raises(TypeError):  # a run is a JointRun, not a dict
         JointProblem(model, CHANNELS, [{"dt": DT, "measured": np.zeros((3, 3))}], [])
+    with pytest.raises(ck.DTypeError):
+        JointRun(DT, x.astype(np.float32), np.zeros((len(x), 3)))
     p = _problem(["sensor_lag"])
     with pytest.raises(ck.ShapeError):
         p.predict(np.zeros(3), 0)
@@ -510,7 +505,7 @@ def test_problem_shapes_are_checked(t_len, q, extra):
     measured = np.zeros(t_len * q + extra) if t_len * q + extra > 0 else np.zeros(1)
     chans = CHANNELS[:q]
     with pytest.raises(ck.ShapeError):
-        JointProblem(model, chans, [{"dt": DT, "x_m": x, "measured": measured}], [])
+        JointProblem(model, chans, [JointRun(DT, x, measured)], [])
 
 
 # ---- the cable transmission as a diagnosis model ------------------------------------------------
@@ -566,7 +561,7 @@ def test_transmission_diagnosis_names_a_coupling_error():
         gen = JointProblem(
             model,
             [(0, 1.0, False), (1, 1.0, False), (5, 1.0, False), (6, 1.0, False)],
-            [{"dt": DT, "input": np.ascontiguousarray(tau), "measured": np.zeros((3000, 4))}],
+            [JointRun(DT, np.ascontiguousarray(tau), np.zeros((3000, 4)))],
             ["coupling"],
             2,
         )
@@ -617,7 +612,7 @@ def test_servo_replay_diagnosis_names_link_friction():
                 (10, 1.0, False),
                 (11, 1.0, False),
             ],
-            [{"dt": DT, "input": refs, "measured": np.zeros((3000, 6))}],
+            [JointRun(DT, refs, np.zeros((3000, 6)))],
             ["coulomb_friction"],
             2,
             spec.servo(),

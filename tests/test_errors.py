@@ -165,3 +165,55 @@ def test_servo_errors(raven):
         ck.simulate_servo(raven, refs, 1e-3, ck.MotorPD.raven2(3), external=np.zeros((9, 3)))
     with pytest.raises(ck.ParameterError, match="torque_limit"):
         ck.simulate_servo(raven, refs, 1e-3, ck.MotorPD((0.3,) * 3, (0.01,) * 3, (0.5, 0.0, 0.5)))
+
+
+def test_constructor_keywords_are_checked_by_the_core_and_named():
+    """The model constructors take their keywords to the core's specs: a misspelt keyword is a
+    ParameterError listing the known ones, a value of the wrong kind a DTypeError naming it (both
+    used to be bare TypeErrors from the binding)."""
+    with pytest.raises(ck.ParameterError, match="gear_ration") as e:
+        ck.CableTransmission(**{**BASE, "gear_ration": 2.0})
+    assert "gear_ratio" in str(e.value)
+    wrong = (("cable_law", 3.0), ("length_scale", [1.0, 2.0]), ("coupling", "none"), ("joint_kind", 1.0))
+    for key, value in wrong:
+        with pytest.raises(ck.DTypeError) as e:
+            ck.CableTransmission(**{**BASE, key: value})
+        assert e.value.argument == key
+    with pytest.raises(ck.DTypeError) as e:
+        ck.CableTransmission(**{**BASE, "gear_ratio": {"a": 1}})
+    assert e.value.argument == "gear_ratio"
+    joint = ck.AntagonisticJoint.forceps_example().params()
+    with pytest.raises(ck.DTypeError) as e:
+        ck.AntagonisticJoint(**{**joint, "stiffness": [1.0, 2.0]})
+    assert e.value.argument == "stiffness"
+    with pytest.raises(ck.ParameterError, match="radiuss"):
+        ck.AntagonisticJoint(**{**joint, "radiuss": 1.0})
+    # None means "left out": the core's default applies, as before
+    a = ck.CableTransmission(**{**BASE, "cable_damping": None})
+    assert a.params()["cable_damping"] == [0.0] * len(a.params()["gear_ratio"])
+
+
+def _filter(model, *, x0=None, P0=None, R=None, dt=1e-3, states=(0,)):
+    x0 = np.zeros(12) if x0 is None else x0
+    P0 = np.eye(12) if P0 is None else P0
+    R = np.eye(len(states)) if R is None else R
+    return ck.SrUkf(model, x0, P0, np.eye(12), R, dt=dt, states=list(states))
+
+
+@pytest.mark.parametrize(
+    ("call", "argument"),
+    [
+        (lambda m: m.derivative(np.zeros(3), np.zeros(6)), "x"),
+        (lambda m: m.derivative(np.zeros(12), np.zeros(6, dtype=np.float32)), "u"),
+        (lambda m: m.derivative(np.zeros(12), np.zeros((6, 2))[:, 0]), "u"),
+        (lambda m: _filter(m, R=np.eye(2), states=[0, 1, 2]), "R"),
+        (lambda m: _filter(m, P0=np.eye(12)[:, :5]), "P0"),
+        (lambda m: _filter(m, x0=np.zeros(11)), "x0"),
+        (lambda m: _filter(m, dt=-1.0), "dt"),
+    ],
+)
+def test_argument_errors_name_their_argument(call, argument):
+    """Every shape, dtype, layout and parameter error carries ``.argument``."""
+    with pytest.raises(ck.CablekitError) as e:
+        call(ck.CableTransmission.raven2(3))
+    assert e.value.argument == argument, str(e.value)

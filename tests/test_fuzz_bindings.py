@@ -27,7 +27,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import cablekit as ck
-from cablekit._cablekit import JointProblem
+from cablekit._cablekit import JointProblem, JointRun
 
 R1 = ck.CableTransmission.raven2(1)
 R3 = ck.CableTransmission.raven2(3)
@@ -74,7 +74,7 @@ def _mlp() -> ck.Mlp:
 
 def _problem() -> JointProblem:
     t = np.arange(200) * 1e-3
-    run = dict(dt=1e-3, input=1e-3 * np.sin(6 * t), measured=np.zeros((200, 1)))
+    run = JointRun(1e-3, 1e-3 * np.sin(6 * t), np.zeros((200, 1)))
     return JointProblem(AJ, [(0, 1.0, True)], [run], ["coulomb_friction"], substeps=8)
 
 
@@ -137,7 +137,7 @@ def _calls() -> dict[str, Call]:
     t = np.arange(200) * 1e-3
     out["JointProblem"] = Call(
         lambda inp, meas, dt: JointProblem(
-            AJ, [(0, 1.0, True)], [dict(dt=dt, input=inp, measured=meas)], ["coulomb_friction"], substeps=8
+            AJ, [(0, 1.0, True)], [JointRun(dt, inp, meas)], ["coulomb_friction"], substeps=8
         ),
         (1e-3 * np.sin(6 * t), np.zeros((200, 1)), 1e-3),
     )

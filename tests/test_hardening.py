@@ -85,10 +85,10 @@ def test_step_advice_is_capped_and_names_dt():
 
 
 def test_degenerate_run_time_base_is_not_a_panic():
-    from cablekit._cablekit import JointProblem
+    from cablekit._cablekit import JointProblem, JointRun
 
     aj = ck.AntagonisticJoint.forceps_example()
-    runs = [dict(dt=1e300, input=np.zeros(200), measured=np.zeros((200, 1)))]
+    runs = [JointRun(1e300, np.zeros(200), np.zeros((200, 1)))]
     try:
         JointProblem(aj, [(0, 1.0, True)], runs, ["coulomb_friction"])
     except ck.InternalError as e:  # pragma: no cover - the regression
@@ -96,7 +96,7 @@ def test_degenerate_run_time_base_is_not_a_panic():
     except ck.CablekitError:
         pass
     # a time base that overflows is refused, naming the run
-    runs = [dict(dt=1e307, input=np.zeros(200), measured=np.zeros((200, 1)))]
+    runs = [JointRun(1e307, np.zeros(200), np.zeros((200, 1)))]
     with pytest.raises(ck.ParameterError, match="dt"):
         JointProblem(aj, [(0, 1.0, True)], runs, ["coulomb_friction"])
 
@@ -246,11 +246,11 @@ def test_nan_parameter_bounds_are_refused(bounds):
 
 
 def test_fit_tolerances_are_checked():
-    from cablekit._cablekit import JointProblem
+    from cablekit._cablekit import JointProblem, JointRun
 
     aj = ck.AntagonisticJoint.forceps_example()
     t = np.arange(400) * 1e-3
-    runs = [dict(dt=1e-3, input=1e-3 * np.sin(6 * t), measured=np.zeros((400, 1)))]
+    runs = [JointRun(1e-3, 1e-3 * np.sin(6 * t), np.zeros((400, 1)))]
     prob = JointProblem(aj, [(0, 1.0, True)], runs, ["coulomb_friction"])
     for kw in (dict(ftol=np.nan), dict(xtol=-1.0), dict(max_iter=10**9), dict(threads=0)):
         with pytest.raises(ck.ParameterError):

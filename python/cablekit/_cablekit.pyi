@@ -18,6 +18,7 @@ __all__ = [
     "FilterRun",
     "FitReport",
     "JointProblem",
+    "JointRun",
     "Mlp",
     "Model",
     "ParamSpec",
@@ -218,6 +219,29 @@ def effect_catalogue() -> list[dict[str, Any]]:
     """The candidate effects of the diagnosis: name, stage, has_state, description."""
 
 @final
+class JointRun:
+    """One recorded run of a JointProblem: dt (s); input (joint x_m (T,) in m; transmission motor
+    torques (T, n); servo references (T, 2n)); measured (T, q); optional coupled (T,), external
+    joint torques (T,) or (T, n), initial state x0 and first counted sample start."""
+
+    def __new__(
+        cls,
+        dt: float,
+        input: _F,
+        measured: _F,
+        *,
+        coupled: _F | None = None,
+        external: _F | None = None,
+        x0: _F | None = None,
+        start: int = 0,
+    ) -> JointRun: ...
+    def with_measured(self, measured: _F) -> JointRun:
+        """The same run with other measurements (T, q)."""
+    @property
+    def dt(self) -> float: ...
+    def __len__(self) -> int: ...
+
+@final
 class JointProblem:
     """Grey-box least-squares problem of an AntagonisticJoint or CableTransmission with candidate
     effects."""
@@ -226,7 +250,7 @@ class JointProblem:
         cls,
         model: Model,
         channels: list[tuple[int, float, bool]],
-        runs: list[dict[str, Any]],
+        runs: Sequence[JointRun],
         effects: list[str],
         substeps: int = 1,
         servo: tuple[list[float], list[float], list[float]] | None = None,

@@ -42,6 +42,16 @@ pub enum CableError {
         /// The admissible range in words, e.g. `"finite and > 0"`.
         requirement: &'static str,
     },
+    /// A value of the wrong kind (a string where a number belongs, ...).
+    #[error("{name} must be {expected}, got {got}")]
+    WrongType {
+        /// Argument or parameter name.
+        name: String,
+        /// What it must be, in words.
+        expected: String,
+        /// What it was, in words.
+        got: String,
+    },
     /// A categorical option was not recognised.
     #[error("invalid option {name} = {value:?}: expected one of {allowed}")]
     InvalidOption {

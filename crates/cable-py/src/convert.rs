@@ -13,7 +13,10 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
-use crate::errors::{raise, Class};
+use cable_core::dynamics::SpecValue;
+use pyo3::types::{PyDict, PyString};
+
+use crate::errors::{arg_error, Class};
 
 fn shape_str(shape: &[usize]) -> String {
     match shape {
@@ -32,42 +35,27 @@ fn shape_str(shape: &[usize]) -> String {
 /// Check that `obj` is a C-contiguous float64 ndarray with `ndim` dimensions; returns its shape.
 fn checked<'py>(obj: &Bound<'py, PyAny>, name: &str, ndim: usize) -> PyResult<Vec<usize>> {
     let arr = obj.cast::<PyUntypedArray>().map_err(|_| {
-        raise(
-            Class::DType,
-            format!(
-                "{name} must be a numpy.ndarray of float64, got {}; pass np.asarray({name}, dtype=np.float64)",
-                obj.get_type().name().map(|n| n.to_string()).unwrap_or_default()
-            ),
-            &[],
-        )
+        let got = obj.get_type().name().map(|n| n.to_string()).unwrap_or_default();
+        let msg = format!("{name} must be a numpy.ndarray of float64, got {got}; pass np.asarray({name}, dtype=np.float64)");
+        arg_error(Class::DType, name, msg)
     })?;
-    let py = obj.py();
-    if !arr.dtype().is_equiv_to(&numpy::dtype::<f64>(py)) {
-        return Err(raise(
-            Class::DType,
-            format!(
-                "{name} must have dtype float64, got {}; convert with {name}.astype(np.float64)",
-                arr.dtype()
-            ),
-            &[],
-        ));
+    if !arr.dtype().is_equiv_to(&numpy::dtype::<f64>(obj.py())) {
+        let msg = format!(
+            "{name} must have dtype float64, got {}; convert with {name}.astype(np.float64)",
+            arr.dtype()
+        );
+        return Err(arg_error(Class::DType, name, msg));
     }
     if arr.ndim() != ndim {
-        return Err(raise(
-            Class::Shape,
-            format!(
-                "{name} must be {ndim}-D, got shape {}",
-                shape_str(arr.shape())
-            ),
-            &[],
-        ));
+        let msg = format!(
+            "{name} must be {ndim}-D, got shape {}",
+            shape_str(arr.shape())
+        );
+        return Err(arg_error(Class::Shape, name, msg));
     }
     if !arr.is_c_contiguous() {
-        return Err(raise(
-            Class::Layout,
-            format!("{name} must be C-contiguous (no copy is made behind your back); pass np.ascontiguousarray({name})"),
-            &[],
-        ));
+        let msg = format!("{name} must be C-contiguous (no copy is made behind your back); pass np.ascontiguousarray({name})");
+        return Err(arg_error(Class::Layout, name, msg));
     }
     Ok(arr.shape().to_vec())
 }
@@ -80,21 +68,16 @@ pub fn matrix<'py>(
     cols: Option<usize>,
 ) -> PyResult<(PyReadonlyArray2<'py, f64>, usize)> {
     let shape = checked(obj, name, 2)?;
-    if let Some(c) = cols {
-        if shape[1] != c {
-            return Err(raise(
-                Class::Shape,
-                format!("{name} must have shape (T, {c}), got {}", shape_str(&shape)),
-                &[],
-            ));
+    match cols {
+        Some(c) if shape[1] != c => {
+            let msg = format!("{name} must have shape (T, {c}), got {}", shape_str(&shape));
+            return Err(arg_error(Class::Shape, name, msg));
         }
-    }
-    if shape[0] == 0 {
-        return Err(raise(
-            Class::Shape,
-            format!("{name} must have at least one row"),
-            &[],
-        ));
+        _ if shape[0] == 0 => {
+            let msg = format!("{name} must have at least one row");
+            return Err(arg_error(Class::Shape, name, msg));
+        }
+        _ => {}
     }
     let copy = obj.call_method0("copy")?.cast_into::<PyArray2<f64>>()?;
     Ok((copy.readonly(), shape[0]))
@@ -104,11 +87,8 @@ pub fn matrix<'py>(
 pub fn vector(obj: &Bound<'_, PyAny>, name: &str, len: usize) -> PyResult<Vec<f64>> {
     let shape = checked(obj, name, 1)?;
     if shape[0] != len {
-        return Err(raise(
-            Class::Shape,
-            format!("{name} must have shape ({len},), got {}", shape_str(&shape)),
-            &[],
-        ));
+        let msg = format!("{name} must have shape ({len},), got {}", shape_str(&shape));
+        return Err(arg_error(Class::Shape, name, msg));
     }
     let arr = obj.cast::<PyArray1<f64>>()?.readonly();
     Ok(arr.as_slice()?.to_vec())
@@ -141,10 +121,56 @@ pub fn to_vector(py: Python<'_>, data: Vec<f64>) -> Bound<'_, PyArray1<f64>> {
 /// Number of dimensions of an ndarray argument (`DTypeError` if it is not one).
 pub fn ndim_of(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<usize> {
     obj.cast::<PyUntypedArray>().map(|a| a.ndim()).map_err(|_| {
-        raise(
-            Class::DType,
-            format!("{name} must be a numpy.ndarray of float64; pass np.asarray({name}, dtype=np.float64)"),
-            &[],
-        )
+        let msg = format!(
+            "{name} must be a numpy.ndarray of float64; pass np.asarray({name}, dtype=np.float64)"
+        );
+        arg_error(Class::DType, name, msg)
     })
+}
+
+/// A square `(k, k)` float64 matrix as its row-major values (the core checks `k`).
+pub fn square(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
+    let (arr, rows) = matrix(obj, name, None)?;
+    let values = arr.as_slice()?.to_vec();
+    if values.len() != rows * rows {
+        let msg = format!(
+            "{name} must be square, got ({rows}, {})",
+            values.len() / rows
+        );
+        return Err(arg_error(Class::Shape, name, msg));
+    }
+    Ok(values)
+}
+
+/// A `(rows, cols)` float64 matrix as `(row-major values, rows)`.
+pub fn rows(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<(Vec<f64>, usize)> {
+    let (arr, rows) = matrix(obj, name, None)?;
+    Ok((arr.as_slice()?.to_vec(), rows))
+}
+
+/// Keyword arguments as named spec values (a `None` is left out: the core's default applies).
+pub fn spec_values(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<(String, SpecValue)>> {
+    let mut out = Vec::new();
+    for (k, v) in kwargs.into_iter().flatten() {
+        let name: String = k.extract()?;
+        if v.is_none() {
+            continue;
+        }
+        let value = if let Ok(s) = v.cast::<PyString>() {
+            SpecValue::Text(s.to_string())
+        } else if let Ok(x) = v.extract::<f64>() {
+            SpecValue::Number(x)
+        } else if let Ok(x) = v.extract::<Vec<f64>>() {
+            SpecValue::Numbers(x)
+        } else if let Ok(x) = v.extract::<Vec<String>>() {
+            SpecValue::Texts(x)
+        } else if let Ok(x) = v.extract::<Vec<Vec<f64>>>() {
+            SpecValue::Rows(x)
+        } else {
+            let msg = format!("{name} must be a number, a string or a list of them");
+            return Err(arg_error(Class::DType, &name, msg));
+        };
+        out.push((name, value));
+    }
+    Ok(out)
 }

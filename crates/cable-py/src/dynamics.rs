@@ -1,39 +1,16 @@
 //! Model classes: `Model` (base, shared evaluation methods) and one subclass per core model.
 
 use cable_core::check;
-use cable_core::dynamics::{self as core, Model as _};
+use cable_core::dynamics::{self as core, AnyModel, Model as _};
 use cable_core::estimate::{with_named_params, TransmissionParam};
 use cable_core::friction::Dahl;
 use cable_core::integrate::jacobian_rows;
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyFloat, PyInt};
+use pyo3::types::PyDict;
 
-use crate::convert::{to_matrix, to_vector, vector};
-use crate::errors::{guarded, Class};
-
-/// The core models behind the Python classes.
-#[derive(Debug, Clone)]
-pub enum AnyModel {
-    /// Coupled cable transmission.
-    Transmission(core::CableTransmission),
-    /// Antagonistic joint.
-    Antagonistic(core::AntagonisticJoint),
-    /// Dahl friction element.
-    Dahl(core::DahlElement),
-}
-
-/// Evaluate `$body` with `$m` bound to the concrete core model (monomorphised per variant).
-macro_rules! with_model {
-    ($any:expr, $m:ident => $body:expr) => {
-        match $any {
-            $crate::dynamics::AnyModel::Transmission($m) => $body,
-            $crate::dynamics::AnyModel::Antagonistic($m) => $body,
-            $crate::dynamics::AnyModel::Dahl($m) => $body,
-        }
-    };
-}
-pub(crate) use with_model;
+use crate::convert::{spec_values, to_matrix, to_vector, vector};
+use crate::errors::guarded;
 
 /// Base class of every cablekit model: sizes, names, and single evaluations of `f`, `h` and RK4.
 #[pyclass(subclass, frozen, module = "cablekit._cablekit")]
@@ -45,27 +22,27 @@ pub struct Model {
 impl Model {
     #[getter]
     fn n_states(&self) -> usize {
-        with_model!(&self.inner, m => m.n_states())
+        self.inner.n_states()
     }
     #[getter]
     fn n_inputs(&self) -> usize {
-        with_model!(&self.inner, m => m.n_inputs())
+        self.inner.n_inputs()
     }
     #[getter]
     fn n_outputs(&self) -> usize {
-        with_model!(&self.inner, m => m.n_outputs())
+        self.inner.n_outputs()
     }
     #[getter]
     fn state_names(&self) -> Vec<String> {
-        with_model!(&self.inner, m => m.state_names())
+        self.inner.state_names()
     }
     #[getter]
     fn input_names(&self) -> Vec<String> {
-        with_model!(&self.inner, m => m.input_names())
+        self.inner.input_names()
     }
     #[getter]
     fn output_names(&self) -> Vec<String> {
-        with_model!(&self.inner, m => m.output_names())
+        self.inner.output_names()
     }
 
     /// `f(x, u)`: the state derivative.
@@ -78,12 +55,9 @@ impl Model {
         let (x, u) = self.point(x, u)?;
         let (n, m) = (self.n_states(), self.n_inputs());
         let out = guarded(|| {
-            check::evaluate(
-                &[("x", &x, n), ("u", &u, m)],
-                "derivative",
-                n,
-                |out| with_model!(&self.inner, mm => mm.derivative(&x, &u, out)),
-            )
+            check::evaluate(&[("x", &x, n), ("u", &u, m)], "derivative", n, |out| {
+                self.inner.derivative(&x, &u, out)
+            })
         })?;
         Ok(to_vector(py, out))
     }
@@ -98,12 +72,9 @@ impl Model {
         let (x, u) = self.point(x, u)?;
         let (n, m, p) = (self.n_states(), self.n_inputs(), self.n_outputs());
         let out = guarded(|| {
-            check::evaluate(
-                &[("x", &x, n), ("u", &u, m)],
-                "output",
-                p,
-                |out| with_model!(&self.inner, mm => mm.output(&x, &u, out)),
-            )
+            check::evaluate(&[("x", &x, n), ("u", &u, m)], "output", p, |out| {
+                self.inner.output(&x, &u, out)
+            })
         })?;
         Ok(to_vector(py, out))
     }
@@ -127,7 +98,7 @@ impl Model {
         };
         let out = py.detach(|| {
             guarded(|| {
-                with_model!(&self.inner, m => cable_core::integrate::rk4_interval(m, &x, &u, &u_b, dt, substeps))
+                cable_core::with_model!(&self.inner, m => cable_core::integrate::rk4_interval(m, &x, &u, &u_b, dt, substeps))
             })
         })?;
         Ok(to_vector(py, out))
@@ -142,7 +113,7 @@ impl Model {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let (x, u) = self.point(x, u)?;
         let n = self.n_states();
-        let rows = guarded(|| with_model!(&self.inner, m => jacobian_rows(m, &x, &u)))?;
+        let rows = guarded(|| jacobian_rows(&self.inner, &x, &u))?;
         Ok(to_matrix(py, rows, n, n))
     }
 
@@ -172,20 +143,6 @@ fn wrap<S: pyo3::PyClass<BaseType = Model>>(inner: AnyModel, sub: S) -> PyClassI
     PyClassInitializer::from(Model { inner }).add_subclass(sub)
 }
 
-/// A float (one value for every link) or a sequence of floats (one per link).
-fn per_link(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
-    if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
-        return Ok(vec![obj.extract::<f64>()?]);
-    }
-    obj.extract().map_err(|_| {
-        crate::errors::raise(
-            Class::Parameter,
-            format!("{name} must be a float or a sequence of floats (one per link)"),
-            &[],
-        )
-    })
-}
-
 /// Cable-driven transmission with 1–3 coupled links (seed 001 eqs 2.3–2.8).
 #[pyclass(extends = Model, frozen, module = "cablekit._cablekit")]
 pub struct CableTransmission;
@@ -199,67 +156,14 @@ fn transmission(slf: &PyRef<'_, CableTransmission>) -> core::CableTransmission {
 
 #[pymethods]
 impl CableTransmission {
+    /// Keywords as in `params()`: per-link values (a float applies to every link),
+    /// `cable_law`, `length_scale`, `joint_kind`, `coupling`; defaults and validation are the
+    /// core's `TransmissionSpec`.
     #[new]
-    #[pyo3(signature = (
-        *, motor_inertia, gear_ratio, capstan_radius, joint_radius, link_inertia, cable_stiffness,
-        cable_damping = None, pretension = None, cable_law = "linear", length_scale = 1.0,
-        joint_kind = None, motor_coulomb = None, motor_viscous = None, motor_smoothing = None,
-        link_coulomb = None, link_viscous = None, link_smoothing = None,
-        gravity_amplitude = None, gravity_offset = None, coupling = None
-    ))]
-    fn new(
-        motor_inertia: &Bound<'_, PyAny>,
-        gear_ratio: &Bound<'_, PyAny>,
-        capstan_radius: &Bound<'_, PyAny>,
-        joint_radius: &Bound<'_, PyAny>,
-        link_inertia: &Bound<'_, PyAny>,
-        cable_stiffness: &Bound<'_, PyAny>,
-        cable_damping: Option<&Bound<'_, PyAny>>,
-        pretension: Option<&Bound<'_, PyAny>>,
-        cable_law: &str,
-        length_scale: f64,
-        joint_kind: Option<Vec<String>>,
-        motor_coulomb: Option<&Bound<'_, PyAny>>,
-        motor_viscous: Option<&Bound<'_, PyAny>>,
-        motor_smoothing: Option<&Bound<'_, PyAny>>,
-        link_coulomb: Option<&Bound<'_, PyAny>>,
-        link_viscous: Option<&Bound<'_, PyAny>>,
-        link_smoothing: Option<&Bound<'_, PyAny>>,
-        gravity_amplitude: Option<&Bound<'_, PyAny>>,
-        gravity_offset: Option<&Bound<'_, PyAny>>,
-        coupling: Option<Vec<Vec<f64>>>,
-    ) -> PyResult<PyClassInitializer<Self>> {
-        let named = [
-            ("motor_inertia", Some(motor_inertia)),
-            ("gear_ratio", Some(gear_ratio)),
-            ("capstan_radius", Some(capstan_radius)),
-            ("joint_radius", Some(joint_radius)),
-            ("link_inertia", Some(link_inertia)),
-            ("cable_stiffness", Some(cable_stiffness)),
-            ("cable_damping", cable_damping),
-            ("pretension", pretension),
-            ("motor_coulomb", motor_coulomb),
-            ("motor_viscous", motor_viscous),
-            ("motor_smoothing", motor_smoothing),
-            ("link_coulomb", link_coulomb),
-            ("link_viscous", link_viscous),
-            ("link_smoothing", link_smoothing),
-            ("gravity_amplitude", gravity_amplitude),
-            ("gravity_offset", gravity_offset),
-        ];
-        let mut spec = core::TransmissionSpec {
-            cable_law: cable_law.to_owned(),
-            length_scale,
-            joint_kind: joint_kind.unwrap_or_default(),
-            coupling: coupling.unwrap_or_default(),
-            ..Default::default()
-        };
-        for (name, obj) in named {
-            if let Some(obj) = obj {
-                spec.values.insert(name.to_owned(), per_link(obj, name)?);
-            }
-        }
-        let model = guarded(|| spec.build())?;
+    #[pyo3(signature = (**params))]
+    fn new(params: Option<&Bound<'_, PyDict>>) -> PyResult<PyClassInitializer<Self>> {
+        let named = spec_values(params)?;
+        let model = guarded(|| core::TransmissionSpec::from_named(named)?.build())?;
         Ok(wrap(AnyModel::Transmission(model), CableTransmission))
     }
 
@@ -380,85 +284,12 @@ fn antagonistic(slf: &PyRef<'_, AntagonisticJoint>) -> core::AntagonisticJoint {
 
 #[pymethods]
 impl AntagonisticJoint {
+    /// Keywords as in `params()`; defaults and validation are the core's `JointSpec`.
     #[new]
-    #[pyo3(signature = (
-        *, radius, stiffness, inertia, damping = 0.0, pretension = 0.0,
-        stiffness_return = None, damping_return = None, pretension_return = None,
-        cable_law = "linear", length_scale = 1.0,
-        viscous = 0.0, coulomb = 0.0, smoothing = 0.05,
-        static_friction = None, stribeck_velocity = 1.0, stribeck_exponent = 2.0,
-        capstan_mu = 0.0, capstan_wrap = 0.0, capstan_smoothing = 1e-3,
-        contact_angle = None, contact_stiffness = None, contact_damping = 0.0, contact_lever_arm = None,
-        dahl_coulomb = None, dahl_sigma0 = None, dahl_exponent = 1.0,
-        creep_fraction = None, creep_time_constant = None
-    ))]
-    fn new(
-        radius: f64,
-        stiffness: f64,
-        inertia: f64,
-        damping: f64,
-        pretension: f64,
-        stiffness_return: Option<f64>,
-        damping_return: Option<f64>,
-        pretension_return: Option<f64>,
-        cable_law: &str,
-        length_scale: f64,
-        viscous: f64,
-        coulomb: f64,
-        smoothing: f64,
-        static_friction: Option<f64>,
-        stribeck_velocity: f64,
-        stribeck_exponent: f64,
-        capstan_mu: f64,
-        capstan_wrap: f64,
-        capstan_smoothing: f64,
-        contact_angle: Option<f64>,
-        contact_stiffness: Option<f64>,
-        contact_damping: f64,
-        contact_lever_arm: Option<f64>,
-        dahl_coulomb: Option<f64>,
-        dahl_sigma0: Option<f64>,
-        dahl_exponent: f64,
-        creep_fraction: Option<f64>,
-        creep_time_constant: Option<f64>,
-    ) -> PyResult<PyClassInitializer<Self>> {
-        let given = [
-            ("radius", Some(radius)),
-            ("stiffness", Some(stiffness)),
-            ("inertia", Some(inertia)),
-            ("damping", Some(damping)),
-            ("pretension", Some(pretension)),
-            ("stiffness_return", stiffness_return),
-            ("damping_return", damping_return),
-            ("pretension_return", pretension_return),
-            ("length_scale", Some(length_scale)),
-            ("viscous", Some(viscous)),
-            ("coulomb", Some(coulomb)),
-            ("smoothing", Some(smoothing)),
-            ("static_friction", static_friction),
-            ("stribeck_velocity", Some(stribeck_velocity)),
-            ("stribeck_exponent", Some(stribeck_exponent)),
-            ("capstan_mu", Some(capstan_mu)),
-            ("capstan_wrap", Some(capstan_wrap)),
-            ("capstan_smoothing", Some(capstan_smoothing)),
-            ("contact_angle", contact_angle),
-            ("contact_stiffness", contact_stiffness),
-            ("contact_damping", Some(contact_damping)),
-            ("contact_lever_arm", contact_lever_arm),
-            ("dahl_coulomb", dahl_coulomb),
-            ("dahl_sigma0", dahl_sigma0),
-            ("dahl_exponent", Some(dahl_exponent)),
-            ("creep_fraction", creep_fraction),
-            ("creep_time_constant", creep_time_constant),
-        ];
-        let spec = core::JointSpec {
-            values: given
-                .into_iter()
-                .filter_map(|(k, v)| v.map(|v| (k.to_owned(), v)))
-                .collect(),
-            cable_law: cable_law.to_owned(),
-        };
-        let joint = guarded(|| spec.build())?;
+    #[pyo3(signature = (**params))]
+    fn new(params: Option<&Bound<'_, PyDict>>) -> PyResult<PyClassInitializer<Self>> {
+        let named = spec_values(params)?;
+        let joint = guarded(|| core::JointSpec::from_named(named)?.build())?;
         Ok(wrap(AnyModel::Antagonistic(joint), AntagonisticJoint))
     }
 

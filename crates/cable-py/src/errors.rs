@@ -64,87 +64,87 @@ impl Class {
     }
 }
 
+/// An attribute value of a raised exception.
+#[derive(Debug, Clone, Copy)]
+pub enum Attr<'a> {
+    /// A name.
+    Str(&'a str),
+    /// An index, step or limit.
+    Int(usize),
+    /// A value or time.
+    Float(f64),
+}
+
 /// Raise `class(message)` with extra attributes (`argument`, `index`, `step`, ...).
-pub fn raise(class: Class, message: String, attrs: &[(&str, Py<PyAny>)]) -> PyErr {
+pub fn raise(class: Class, message: String, attrs: &[(&str, Attr<'_>)]) -> PyErr {
     Python::attach(|py| -> PyResult<PyErr> {
         let exc = class.get(py)?.call1((message,))?;
         for (k, v) in attrs {
-            exc.setattr(*k, v.bind(py))?;
+            match *v {
+                Attr::Str(s) => exc.setattr(*k, s)?,
+                Attr::Int(i) => exc.setattr(*k, i)?,
+                Attr::Float(f) => exc.setattr(*k, f)?,
+            }
         }
         Ok(PyErr::from_value(exc))
     })
     .unwrap_or_else(|e| e)
 }
 
-/// Newtype around [`CableError`] so it can become a `PyErr` (orphan rule).
-pub struct PyCableError(pub CableError);
-
-impl From<CableError> for PyCableError {
-    fn from(e: CableError) -> Self {
-        Self(e)
-    }
+/// `class(message)` about argument `name` (its `.argument`).
+pub fn arg_error(class: Class, name: &str, message: String) -> PyErr {
+    raise(class, message, &[("argument", Attr::Str(name))])
 }
 
-impl From<PyCableError> for PyErr {
-    fn from(err: PyCableError) -> PyErr {
-        let msg = err.0.to_string();
-        Python::attach(|py| {
-            let int = |v: usize| v.into_pyobject(py).map(|o| o.into_any().unbind());
-            let float = |v: f64| v.into_pyobject(py).map(|o| o.into_any().unbind());
-            let s = |v: &str| v.into_pyobject(py).map(|o| o.into_any().unbind());
-            let built: PyResult<PyErr> = (|| {
-                Ok(match &err.0 {
-                    CableError::Shape { what, .. } => {
-                        raise(Class::Shape, msg, &[("argument", s(what)?)])
-                    }
-                    CableError::NotFinite { what, index, .. } => raise(
-                        Class::NotFinite,
-                        msg,
-                        &[("argument", s(what)?), ("index", int(*index)?)],
-                    ),
-                    CableError::InvalidParameter { name, value, .. } => raise(
-                        Class::Parameter,
-                        msg,
-                        &[("parameter", s(name)?), ("value", float(*value)?)],
-                    ),
-                    CableError::InvalidOption { name, .. } => {
-                        raise(Class::Parameter, msg, &[("parameter", s(name)?)])
-                    }
-                    CableError::Diverged { step, time_s } => raise(
-                        Class::SimulationDiverged,
-                        msg,
-                        &[("step", int(*step)?), ("time", float(*time_s)?)],
-                    ),
-                    CableError::FilterDiverged { step } => {
-                        raise(Class::FilterDiverged, msg, &[("step", int(*step)?)])
-                    }
-                    CableError::NonFiniteResult { what, index, .. } => raise(
-                        Class::NonFiniteResult,
-                        msg,
-                        &[("argument", s(what)?), ("index", int(*index)?)],
-                    ),
-                    CableError::NotConverged { what, limit, .. } => raise(
-                        Class::Convergence,
-                        msg,
-                        &[("argument", s(what)?), ("limit", int(*limit)?)],
-                    ),
-                    CableError::Weights { kind, item, .. } => raise(
-                        match kind {
-                            WeightsErrorKind::Corrupt => Class::WeightsCorrupt,
-                            WeightsErrorKind::Metadata => Class::WeightsMetadata,
-                            WeightsErrorKind::Shape => Class::WeightsShape,
-                            WeightsErrorKind::Value => Class::WeightsValue,
-                            _ => Class::WeightsFormat,
-                        },
-                        msg,
-                        &[("item", s(item)?)],
-                    ),
-                    _ => raise(Class::Cablekit, msg, &[]),
-                })
-            })();
-            built.unwrap_or_else(|e| e)
-        })
-    }
+/// The exception of a core error: its class, with what it names as attributes.
+fn core_error(err: CableError) -> PyErr {
+    use Attr::{Float, Int, Str};
+    let msg = err.to_string();
+    let (class, attrs): (Class, Vec<(&str, Attr<'_>)>) = match &err {
+        CableError::Shape { what, .. } => (Class::Shape, vec![("argument", Str(what))]),
+        CableError::WrongType { name, .. } => (Class::DType, vec![("argument", Str(name))]),
+        CableError::NotFinite { what, index, .. } => (
+            Class::NotFinite,
+            vec![("argument", Str(what)), ("index", Int(*index))],
+        ),
+        CableError::InvalidParameter { name, value, .. } => (
+            Class::Parameter,
+            vec![
+                ("argument", Str(name)),
+                ("parameter", Str(name)),
+                ("value", Float(*value)),
+            ],
+        ),
+        CableError::InvalidOption { name, .. } => (
+            Class::Parameter,
+            vec![("argument", Str(name)), ("parameter", Str(name))],
+        ),
+        CableError::Diverged { step, time_s } => (
+            Class::SimulationDiverged,
+            vec![("step", Int(*step)), ("time", Float(*time_s))],
+        ),
+        CableError::FilterDiverged { step } => (Class::FilterDiverged, vec![("step", Int(*step))]),
+        CableError::NonFiniteResult { what, index, .. } => (
+            Class::NonFiniteResult,
+            vec![("argument", Str(what)), ("index", Int(*index))],
+        ),
+        CableError::NotConverged { what, limit, .. } => (
+            Class::Convergence,
+            vec![("argument", Str(what)), ("limit", Int(*limit))],
+        ),
+        CableError::Weights { kind, item, .. } => (
+            match kind {
+                WeightsErrorKind::Corrupt => Class::WeightsCorrupt,
+                WeightsErrorKind::Metadata => Class::WeightsMetadata,
+                WeightsErrorKind::Shape => Class::WeightsShape,
+                WeightsErrorKind::Value => Class::WeightsValue,
+                _ => Class::WeightsFormat,
+            },
+            vec![("item", Str(item))],
+        ),
+        _ => (Class::Cablekit, vec![]),
+    };
+    raise(class, msg, &attrs)
 }
 
 /// Run core work, turning a Rust panic into `cablekit.errors.InternalError` instead of letting
@@ -152,7 +152,7 @@ impl From<PyCableError> for PyErr {
 pub fn guarded<T>(work: impl FnOnce() -> Result<T, CableError>) -> PyResult<T> {
     match catch_unwind(AssertUnwindSafe(work)) {
         Ok(Ok(v)) => Ok(v),
-        Ok(Err(e)) => Err(PyCableError(e).into()),
+        Ok(Err(e)) => Err(core_error(e)),
         Err(payload) => {
             let what = payload
                 .downcast_ref::<&str>()

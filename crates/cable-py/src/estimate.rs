@@ -1,24 +1,16 @@
 //! `SrUkf`: the square-root UKF over a cablekit model or a discrete linear system.
 
-use cable_core::dynamics::Model as _;
-use cable_core::estimate::{
-    self as core, InputStates, LinearObserve, LinearProcess, ModelOutputs, ModelProcess, Observe,
-    ParamTransmission, Process, SigmaScaling, TransmissionParam,
-};
-use cable_core::CableError;
+use cable_core::estimate::{self as core, DynSrUkf as Filter, Measure, Moments, ProcessKind};
 use std::sync::{Mutex, MutexGuard};
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::convert::{matrix, to_matrix, to_vector, vector};
-use crate::dynamics::{with_model, AnyModel, Model};
-use crate::errors::{guarded, lock, raise, Class};
+use crate::convert::{matrix, rows, square, to_matrix, to_vector, vector};
+use crate::dynamics::Model;
+use crate::errors::{arg_error, guarded, lock, Class};
 use crate::results::{DualRun, FilterHealth, FilterRun};
 
-type DynProcess = Box<dyn Process + Send + Sync>;
-type DynObserve = Box<dyn Observe + Send + Sync>;
-type Filter = core::SrUkf<DynProcess, DynObserve>;
 /// `(u, y, mask)` of one step; `(Y, U, mask)` of a log.
 type Measurement = (Vec<f64>, Vec<f64>, Option<Vec<bool>>);
 /// `(gamma, (Wm0, Wmi), (Wc0, Wci))`.
@@ -32,95 +24,46 @@ pub struct SrUkf {
     m: usize,
 }
 
-/// A `(k, k)` covariance as a flat row-major copy.
-fn square(obj: &Bound<'_, PyAny>, name: &str, k: usize) -> PyResult<Vec<f64>> {
-    let (arr, rows) = matrix(obj, name, Some(k))?;
-    if rows != k {
-        return Err(raise(
-            Class::Shape,
-            format!("{name} must have shape ({k}, {k}), got ({rows}, {k})"),
-            &[],
-        ));
-    }
-    Ok(arr.as_slice()?.to_vec())
+/// `x0`, `P0`, `Q`, `R` as the core's moments (sizes checked there).
+#[allow(non_snake_case)]
+fn moments(
+    x0: &Bound<'_, PyAny>,
+    P0: &Bound<'_, PyAny>,
+    Q: &Bound<'_, PyAny>,
+    R: &Bound<'_, PyAny>,
+) -> PyResult<Moments> {
+    let x0 = crate::convert::any_vector(x0, "x0")?;
+    let (p0, q, r) = (square(P0, "P0")?, square(Q, "Q")?, square(R, "R")?);
+    Ok(Moments { x0, p0, q, r })
 }
 
-/// Transpose a row-major `(r, c)` buffer into column-major (the same numbers for a symmetric
-/// matrix; needed for the non-symmetric ones the core reads column-major).
-fn col_major_from_lower(l: &[f64], n: usize) -> Vec<f64> {
-    // column-major lower → row-major (n, n)
-    let mut out = vec![0.0; n * n];
-    for j in 0..n {
-        for i in 0..n {
-            out[i * n + j] = l[i + j * n];
-        }
-    }
-    out
-}
-
-/// Selected states or `H·x` (exactly one of them).
-fn linear_observe(
-    n: usize,
-    states: Option<Vec<usize>>,
-    h: Option<&Bound<'_, PyAny>>,
-) -> PyResult<DynObserve> {
-    match (states, h) {
-        (Some(idx), None) => Ok(Box::new(guarded(|| LinearObserve::select(n, &idx))?)),
-        (None, Some(h)) => {
-            let (arr, rows) = matrix(h, "H", Some(n))?;
-            let hv = arr.as_slice()?.to_vec();
-            Ok(Box::new(guarded(|| LinearObserve::new(rows, n, hv))?))
-        }
-        _ => Err(raise(
-            Class::Parameter,
-            format!("give exactly one measurement: states=[...] or H=<(p, {n}) array>"),
-            &[],
-        )),
-    }
-}
-
-fn scaling(alpha: f64, beta: f64, kappa: f64) -> SigmaScaling {
-    SigmaScaling { alpha, beta, kappa }
+/// `H` as `(values, rows)`, when given.
+#[allow(non_snake_case)]
+fn h_rows(H: Option<&Bound<'_, PyAny>>) -> PyResult<Option<(Vec<f64>, usize)>> {
+    H.filter(|h| !h.is_none()).map(|h| rows(h, "H")).transpose()
 }
 
 fn mask_vec(obj: Option<&Bound<'_, PyAny>>, p: usize) -> PyResult<Option<Vec<bool>>> {
-    let Some(o) = obj else { return Ok(None) };
-    if o.is_none() {
+    let Some(o) = obj.filter(|o| !o.is_none()) else {
         return Ok(None);
-    }
-    let v: Vec<bool> = o.extract().map_err(|_| {
-        raise(
-            Class::DType,
-            "mask must be a sequence of booleans (True = measured)".into(),
-            &[],
-        )
-    })?;
+    };
+    let msg = "mask must be a sequence of booleans (True = measured)";
+    let v: Vec<bool> = o
+        .extract()
+        .map_err(|_| arg_error(Class::DType, "mask", msg.into()))?;
     if v.len() != p {
-        return Err(raise(
-            Class::Shape,
-            format!("mask must have length {p}, got {}", v.len()),
-            &[],
-        ));
+        let msg = format!("mask must have length {p}, got {}", v.len());
+        return Err(arg_error(Class::Shape, "mask", msg));
     }
     Ok(Some(v))
 }
 
 impl SrUkf {
-    fn build(
-        process: DynProcess,
-        observe: DynObserve,
-        x0: &Bound<'_, PyAny>,
-        p0: &Bound<'_, PyAny>,
-        q: &Bound<'_, PyAny>,
-        r: &Bound<'_, PyAny>,
-        s: SigmaScaling,
-    ) -> PyResult<Self> {
-        let (n, p, m) = (process.n_states(), observe.n_outputs(), process.n_inputs());
-        let x0 = vector(x0, "x0", n)?;
-        let p0 = square(p0, "P0", n)?;
-        let q = square(q, "Q", n)?;
-        let r = square(r, "R", p)?;
-        let inner = guarded(|| core::SrUkf::new(process, observe, &x0, &p0, &q, &r, s))?;
+    fn build(kind: ProcessKind, measure: Measure, init: Moments, s: [f64; 3]) -> PyResult<Self> {
+        let [alpha, beta, kappa] = s;
+        let scaling = core::SigmaScaling { alpha, beta, kappa };
+        let inner = guarded(|| core::filter(kind, measure, &init, scaling))?;
+        let m = inner.n_inputs();
         Ok(Self {
             inner: Mutex::new(inner),
             m,
@@ -170,32 +113,15 @@ impl SrUkf {
         beta: f64,
         kappa: f64,
     ) -> PyResult<Self> {
-        let any = model.get().inner.clone();
-        let n = with_model!(&any, m => m.n_states());
-        let given = [states.is_some(), outputs.is_some(), H.is_some()];
-        if given.iter().filter(|&&g| g).count() != 1 {
-            return Err(raise(
-                Class::Parameter,
-                "give exactly one measurement: states=[...], outputs=[...] or H=<(p, n) array>"
-                    .into(),
-                &[],
-            ));
-        }
-        let process: DynProcess = guarded(|| {
-            Ok::<DynProcess, CableError>(
-                with_model!(any.clone(), m => Box::new(ModelProcess::new(m, dt, substeps)?)),
-            )
-        })?;
-        let observe: DynObserve = if let Some(idx) = outputs {
-            guarded(|| {
-                Ok::<DynObserve, CableError>(
-                    with_model!(any, m => Box::new(ModelOutputs::new(m, idx)?)),
-                )
-            })?
-        } else {
-            linear_observe(n, states, H)?
+        let model = model.get().inner.clone();
+        let kind = ProcessKind::Model {
+            model,
+            dt,
+            substeps,
         };
-        Self::build(process, observe, x0, P0, Q, R, scaling(alpha, beta, kappa))
+        let h = h_rows(H)?;
+        let measure = guarded(|| Measure::one_of(states, outputs, h))?;
+        Self::build(kind, measure, moments(x0, P0, Q, R)?, [alpha, beta, kappa])
     }
 
     /// Joint state–parameter filter over a cable transmission: the state is `[x; θ]` with `θ`
@@ -222,32 +148,17 @@ impl SrUkf {
         beta: f64,
         kappa: f64,
     ) -> PyResult<Self> {
-        let AnyModel::Transmission(base) = model.get().inner.clone() else {
-            return Err(raise(
-                Class::Parameter,
-                "parameter estimation needs a CableTransmission".into(),
-                &[],
-            ));
+        let model = model.get().inner.clone();
+        let h = h_rows(H)?;
+        let measure = guarded(|| Measure::one_of(states, None, h))?;
+        let kind = ProcessKind::Parameters {
+            model,
+            names: params,
+            bounds,
+            dt,
+            substeps,
         };
-        let links = base.n_links();
-        let parsed = guarded(|| {
-            params
-                .iter()
-                .map(|p| TransmissionParam::parse(p, links))
-                .collect::<Result<Vec<_>, _>>()
-        })?;
-        let process = guarded(|| ParamTransmission::new(base, parsed, bounds, dt, substeps))?;
-        let n = process.n_states();
-        let observe = linear_observe(n, states, H)?;
-        Self::build(
-            Box::new(process),
-            observe,
-            x0,
-            P0,
-            Q,
-            R,
-            scaling(alpha, beta, kappa),
-        )
+        Self::build(kind, measure, moments(x0, P0, Q, R)?, [alpha, beta, kappa])
     }
 
     /// Filter over `model` with unknown inputs as random-walk states (seed 001 §5.3): the state
@@ -271,14 +182,16 @@ impl SrUkf {
         beta: f64,
         kappa: f64,
     ) -> PyResult<Self> {
-        let process: DynProcess = guarded(|| {
-            Ok::<DynProcess, CableError>(with_model!(
-                model.get().inner.clone(),
-                m => Box::new(InputStates::new(m, inputs, dt, substeps)?)
-            ))
-        })?;
-        let observe = linear_observe(process.n_states(), states, H)?;
-        Self::build(process, observe, x0, P0, Q, R, scaling(alpha, beta, kappa))
+        let model = model.get().inner.clone();
+        let h = h_rows(H)?;
+        let measure = guarded(|| Measure::one_of(states, None, h))?;
+        let kind = ProcessKind::InputStates {
+            model,
+            inputs,
+            dt,
+            substeps,
+        };
+        Self::build(kind, measure, moments(x0, P0, Q, R)?, [alpha, beta, kappa])
     }
 
     /// Filter over the discrete linear system `x' = F·x + B·u`, `y = H·x`.
@@ -297,36 +210,19 @@ impl SrUkf {
         beta: f64,
         kappa: f64,
     ) -> PyResult<Self> {
-        let (farr, n) = matrix(F, "F", None)?;
-        let fv = farr.as_slice()?.to_vec();
-        if fv.len() != n * n {
-            return Err(raise(
-                Class::Shape,
-                format!("F must be square, got ({n}, {})", fv.len() / n),
-                &[],
-            ));
-        }
-        let (bv, m) = match B {
-            Some(b) if !b.is_none() => {
-                let (barr, rows) = matrix(b, "B", None)?;
-                if rows != n {
-                    return Err(raise(
-                        Class::Shape,
-                        format!("B must have {n} rows, got {rows}"),
-                        &[],
-                    ));
-                }
-                let v = barr.as_slice()?.to_vec();
-                let m = v.len() / n;
-                (v, m)
-            }
-            _ => (Vec::new(), 0),
+        let (f, n) = rows(F, "F")?;
+        let b = B
+            .filter(|b| !b.is_none())
+            .map(|b| rows(b, "B"))
+            .transpose()?;
+        let (h, p) = rows(H, "H")?;
+        let kind = ProcessKind::Linear {
+            f,
+            b: b.map(|b| b.0).unwrap_or_default(),
+            n,
         };
-        let (harr, p) = matrix(H, "H", Some(n))?;
-        let hv = harr.as_slice()?.to_vec();
-        let process: DynProcess = Box::new(guarded(|| LinearProcess::new(n, m, fv, bv))?);
-        let observe: DynObserve = Box::new(guarded(|| LinearObserve::new(p, n, hv))?);
-        Self::build(process, observe, x0, P0, Q, R, scaling(alpha, beta, kappa))
+        let measure = Measure::Matrix { rows: p, h };
+        Self::build(kind, measure, moments(x0, P0, Q, R)?, [alpha, beta, kappa])
     }
 
     #[getter]
@@ -351,8 +247,7 @@ impl SrUkf {
     fn sqrt_covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let f = self.filter()?;
         let n = f.n_states();
-        let s = col_major_from_lower(f.sqrt_covariance(), n);
-        Ok(to_matrix(py, s, n, n))
+        Ok(to_matrix(py, f.sqrt_covariance_rows(), n, n))
     }
     /// Current covariance `S·Sᵀ`.
     #[getter(P)]
@@ -423,10 +318,8 @@ impl SrUkf {
     /// Replace the mean and covariance.
     #[allow(non_snake_case)]
     fn reset(&self, x: &Bound<'_, PyAny>, P: &Bound<'_, PyAny>) -> PyResult<()> {
+        let (x, p) = (crate::convert::any_vector(x, "x")?, square(P, "P")?);
         let mut f = self.filter()?;
-        let n = f.n_states();
-        let x = vector(x, "x", n)?;
-        let p = square(P, "P", n)?;
         guarded(|| f.reset(&x, &p))
     }
 
@@ -467,18 +360,15 @@ fn log_arrays(
 ) -> PyResult<Measurement> {
     let (yarr, t) = matrix(Y, "Y", Some(p))?;
     let y = yarr.as_slice()?.to_vec();
-    let u = if m == 0 {
-        Vec::new()
-    } else {
-        let (uarr, tu) = matrix(U, "U", Some(m))?;
-        if tu != t {
-            return Err(raise(
-                Class::Shape,
-                format!("U has {tu} rows but Y has {t}"),
-                &[],
-            ));
-        }
-        uarr.as_slice()?.to_vec()
+    let u = match m {
+        0 => Vec::new(),
+        _ => match matrix(U, "U", Some(m))? {
+            (_, tu) if tu != t => {
+                let msg = format!("U has {tu} rows but Y has {t}");
+                return Err(arg_error(Class::Shape, "U", msg));
+            }
+            (uarr, _) => uarr.as_slice()?.to_vec(),
+        },
     };
     Ok((y, u, bool_matrix(mask, t, p)?))
 }
@@ -513,44 +403,17 @@ impl DualSrUkf {
         beta: f64,
         kappa: f64,
     ) -> PyResult<Self> {
-        let AnyModel::Transmission(base) = model.get().inner.clone() else {
-            return Err(raise(
-                Class::Parameter,
-                "dual estimation needs a CableTransmission".into(),
-                &[],
-            ));
-        };
-        let (n, m, p) = (base.n_states(), base.n_inputs(), params.len());
-        let links = base.n_links();
-        let parsed = guarded(|| {
-            params
-                .iter()
-                .map(|s| TransmissionParam::parse(s, links))
-                .collect::<Result<Vec<_>, _>>()
-        })?;
-        let x0 = vector(x0, "x0", n)?;
-        let p0 = square(P0, "P0", n)?;
-        let q = square(Q, "Q", n)?;
-        let p0t = square(P0_theta, "P0_theta", p)?;
-        let qt = square(Q_theta, "Q_theta", p)?;
-        let r = square(R, "R", states.len())?;
+        let init = moments(x0, P0, Q, R)?;
+        let theta = (square(P0_theta, "P0_theta")?, square(Q_theta, "Q_theta")?);
+        let scaling = core::SigmaScaling { alpha, beta, kappa };
+        let model = &model.get().inner;
         let inner = guarded(|| {
-            core::DualSrUkf::new(
-                base,
-                parsed,
-                bounds,
-                dt,
-                substeps,
-                &states,
-                &x0,
-                &p0,
-                &q,
-                &p0t,
-                &qt,
-                &r,
-                scaling(alpha, beta, kappa),
+            let theta = (theta.0.as_slice(), theta.1.as_slice());
+            core::dual_filter(
+                model, &params, bounds, dt, substeps, &states, &init, theta, scaling,
             )
         })?;
+        let m = inner.state.n_inputs();
         Ok(Self {
             inner: Mutex::new(inner),
             m,
@@ -570,13 +433,6 @@ impl DualSrUkf {
     ) -> PyResult<DualRun> {
         let mut f = lock(&self.inner, "DualSrUkf")?;
         let (n, q, p) = (f.state.n_states(), f.state.n_outputs(), f.params.n_states());
-        if self.m == 0 {
-            return Err(raise(
-                Class::Shape,
-                "the transmission has no inputs".into(),
-                &[],
-            ));
-        }
         let (y, u, mk) = log_arrays(U, Y, mask, self.m, q)?;
         let fr: &mut core::DualSrUkf = &mut f; // a plain borrow crosses into the closure
         let run = py.detach(|| guarded(|| fr.run(&u, &y, mk.as_deref())))?;
@@ -589,18 +445,12 @@ fn bool_matrix(mask: Option<&Bound<'_, PyAny>>, t: usize, q: usize) -> PyResult<
     match mask {
         Some(mk) if !mk.is_none() => {
             let arr = mk.cast::<numpy::PyArray2<bool>>().map_err(|_| {
-                raise(
-                    Class::DType,
-                    "mask must be a (T, p) numpy array of bool".into(),
-                    &[],
-                )
+                let msg = "mask must be a (T, p) numpy array of bool";
+                arg_error(Class::DType, "mask", msg.into())
             })?;
             if arr.shape() != [t, q] {
-                return Err(raise(
-                    Class::Shape,
-                    format!("mask must have shape ({t}, {q}), got {:?}", arr.shape()),
-                    &[],
-                ));
+                let msg = format!("mask must have shape ({t}, {q}), got {:?}", arr.shape());
+                return Err(arg_error(Class::Shape, "mask", msg));
             }
             Ok(Some(arr.readonly().as_array().iter().copied().collect()))
         }

@@ -1,14 +1,13 @@
 //! Grey-box identification for the diagnosis: `JointProblem` and the effect catalogue.
 
-use cable_core::control::MotorPd;
 use cable_core::identify::{self as core, Candidate, Effect, LmOptions};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::convert::{any_vector, to_matrix, to_vector};
-use crate::dynamics::{AnyModel, Model};
-use crate::errors::{guarded, raise, Class};
+use crate::convert::{any_vector, ndim_of, rows, to_matrix, to_vector};
+use crate::dynamics::Model;
+use crate::errors::guarded;
 use crate::results::{FitReport, ParamSpec};
 
 /// The candidate effects: a list of dicts `name, stage, has_state, description`.
@@ -35,87 +34,77 @@ pub fn effect_catalogue(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
 
 type Gains = (Vec<f64>, Vec<f64>, Vec<f64>);
 
-fn plant_of(model: &Bound<'_, Model>, servo: Option<Gains>) -> PyResult<core::Plant> {
-    match &model.get().inner {
-        AnyModel::Antagonistic(j) => Ok(core::Plant::Joint(*j)),
-        AnyModel::Transmission(t) => match servo {
-            None => Ok(core::Plant::Transmission(t.clone())),
-            Some((kp, kd, lim)) => {
-                let pd = guarded(|| MotorPd::new(kp, kd, lim))?;
-                Ok(core::Plant::Servo(t.clone(), pd))
-            }
-        },
-        AnyModel::Dahl(_) => Err(raise(
-            Class::Parameter,
-            "the diagnosis needs an AntagonisticJoint or a CableTransmission, not a DahlElement"
-                .into(),
-            &[],
-        )),
+/// An ndarray of any rank as its row-major float64 values and its columns (1 for 1-D).
+fn flat(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<(Vec<f64>, usize)> {
+    if ndim_of(obj, name)? == 1 {
+        return Ok((any_vector(obj, name)?, 1));
+    }
+    let (values, rows) = rows(obj, name)?;
+    let width = values.len() / rows;
+    Ok((values, width))
+}
+
+fn optional(obj: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Vec<f64>> {
+    match obj {
+        Some(o) if !o.is_none() => Ok(flat(o, name)?.0),
+        _ => Ok(Vec::new()),
     }
 }
 
-/// An ndarray of any rank as its row-major float64 values (`DTypeError` for anything else).
-fn flat(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
-    crate::convert::ndim_of(obj, name)?;
-    any_vector(&obj.call_method0("ravel")?, name)
+/// One recorded run of a `JointProblem`: sample interval `dt` (s); `input` (joint: `x_m` `(T,)`
+/// in m; transmission: motor torques `(T, n)`; under a servo the references `[q_m_ref, dq_m_ref]`
+/// `(T, 2n)`); `measured` `(T, q)`; optional `coupled` `(T,)`, `external` joint torques `(T,)` or
+/// `(T, n)`, initial state `x0` and the first sample counted, `start`. Checked against the
+/// plant when the problem is built.
+#[pyclass(frozen, module = "cablekit._cablekit")]
+#[derive(Clone)]
+pub struct JointRun {
+    inner: core::JointRun,
 }
 
-fn run_from(obj: &Bound<'_, PyAny>, i: usize, q: usize, width: usize) -> PyResult<core::JointRun> {
-    let d = obj.cast::<PyDict>().map_err(|_| {
-        raise(
-            Class::Data,
-            format!(
-                "runs[{i}] must be a dict with keys dt, input (or x_m), measured, coupled, external, x0, start"
-            ),
-            &[],
-        )
-    })?;
-    let get = |k: &str| -> PyResult<Bound<'_, PyAny>> {
-        d.get_item(k)?
-            .ok_or_else(|| raise(Class::Data, format!("runs[{i}] has no key {k:?}"), &[]))
-    };
-    let dt: f64 = get("dt")?.extract()?;
-    let input_obj = match d.get_item("input")? {
-        Some(v) => v,
-        None => get("x_m")?,
-    };
-    let input = flat(&input_obj, &format!("runs[{i}].input"))?;
-    let t = input.len() / width.max(1);
-    let measured = flat(&get("measured")?, &format!("runs[{i}].measured"))?;
-    if measured.len() != t * q || input.len() != t * width {
-        return Err(raise(
-            Class::Shape,
-            format!(
-                "runs[{i}]: input must have shape (T, {width}) and measured (T, {q}); got {} and {} values",
-                input.len(),
-                measured.len()
-            ),
-            &[],
-        ));
+#[pymethods]
+impl JointRun {
+    #[new]
+    #[pyo3(signature = (dt, input, measured, *, coupled = None, external = None, x0 = None, start = 0))]
+    fn new(
+        dt: f64,
+        input: &Bound<'_, PyAny>,
+        measured: &Bound<'_, PyAny>,
+        coupled: Option<&Bound<'_, PyAny>>,
+        external: Option<&Bound<'_, PyAny>>,
+        x0: Option<&Bound<'_, PyAny>>,
+        start: usize,
+    ) -> PyResult<Self> {
+        let (input, width) = flat(input, "input")?;
+        let inner = core::JointRun {
+            dt,
+            input,
+            width,
+            x0: optional(x0, "x0")?,
+            coupled: optional(coupled, "coupled")?,
+            external: optional(external, "external")?,
+            measured: flat(measured, "measured")?.0,
+            start,
+        };
+        Ok(Self { inner })
     }
-    let optional = |k: &str| -> PyResult<Vec<f64>> {
-        match d.get_item(k)? {
-            Some(c) if !c.is_none() => flat(&c, &format!("runs[{i}].{k}")),
-            _ => Ok(vec![]),
-        }
-    };
-    let x0 = optional("x0")?;
-    let coupled = optional("coupled")?;
-    let external = optional("external")?;
-    let start: usize = match d.get_item("start")? {
-        Some(s) => s.extract()?,
-        None => 0,
-    };
-    Ok(core::JointRun {
-        dt,
-        input,
-        width,
-        x0,
-        coupled,
-        external,
-        measured,
-        start,
-    })
+
+    /// The same run with other measurements `(T, q)`.
+    fn with_measured(&self, measured: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let mut inner = self.inner.clone();
+        inner.measured = flat(measured, "measured")?.0;
+        Ok(Self { inner })
+    }
+
+    /// Sample interval, s.
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.inner.dt
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
 }
 
 fn candidates_from(problem: &core::JointProblem, ids: &[String]) -> PyResult<Vec<Candidate>> {
@@ -146,12 +135,10 @@ fn candidate_dict<'py>(
 ///
 /// `channels` is a list of `(output_index, weight, is_force_sensor)`; joint output indices are
 /// `[T_m1, T_m2, T_j1, T_j2, theta, contact_force, T_m1 - T_m2]`, transmission ones the model's
-/// outputs (5 per link). `runs` is a list of dicts with `dt` (s), `input` (joint: `x_m` (T,) in m,
-/// also accepted as key `x_m`; transmission: motor torques (T, n)), `measured` (T, q), optional
-/// `coupled` (T,), optional `external` joint torques (T,) or (T, n), optional `x0` (initial
-/// state) and `start` (first sample counted). With `servo = (kp, kd, torque_limit)` a transmission
-/// is replayed in closed loop under its motor PD servo: `input` is then the recorded references
-/// `[q_m_ref (n), dq_m_ref (n)]` and the outputs gain the applied motor torques (n) at the end.
+/// outputs (5 per link). `runs` is a list of `JointRun`. With `servo = (kp, kd, torque_limit)` a
+/// transmission is replayed in closed loop under its motor PD servo: each run's `input` is then
+/// the recorded references `[q_m_ref (n), dq_m_ref (n)]` and the outputs gain the applied motor
+/// torques (n) at the end.
 /// The joint's sample intervals with a kink (slack, contact, reversal) are integrated with
 /// `kink_refine` times the substeps (1: none). Immutable; safe to use from several threads
 /// (calls release the GIL).
@@ -167,20 +154,14 @@ impl JointProblem {
     fn new(
         model: &Bound<'_, Model>,
         channels: Vec<(usize, f64, bool)>,
-        runs: &Bound<'_, PyList>,
+        runs: Vec<PyRef<'_, JointRun>>,
         effects: Vec<String>,
         substeps: usize,
         servo: Option<Gains>,
         kink_refine: usize,
     ) -> PyResult<Self> {
-        let q = channels.len();
-        let plant = plant_of(model, servo)?;
-        let width = plant.input_width();
-        let runs = runs
-            .iter()
-            .enumerate()
-            .map(|(i, r)| run_from(&r, i, q, width))
-            .collect::<PyResult<Vec<_>>>()?;
+        let plant = guarded(|| core::Plant::of(&model.get().inner, servo))?;
+        let runs = runs.iter().map(|r| r.inner.clone()).collect();
         let channels = channels
             .into_iter()
             .map(|(output, weight, sensor)| core::Channel {

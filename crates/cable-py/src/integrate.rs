@@ -1,14 +1,15 @@
 //! Trajectory simulation and step advice (GIL released for the integration).
 
 use cable_core::control::{simulate_closed_loop_into, ClosedLoopMut, MotorPd};
-use cable_core::dynamics::Model as _;
+use cable_core::dynamics::{AnyModel, Model as _};
 use cable_core::integrate::{propose_step, simulate_into, InputHold, SimOptions, TrajectoryMut};
+use cable_core::with_model;
 use numpy::{PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 
 use crate::convert::{matrix, vector};
-use crate::dynamics::{with_model, AnyModel, CableTransmission, Model};
-use crate::errors::{guarded, Class};
+use crate::dynamics::{CableTransmission, Model};
+use crate::errors::{arg_error, guarded, Class};
 
 type Arrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
 type Arrays3<'py> = (
@@ -30,12 +31,12 @@ pub fn simulate_arrays<'py>(
     hold: &str,
 ) -> PyResult<Arrays<'py>> {
     let inner: AnyModel = model.inner.clone();
-    let (n, m, p) = with_model!(&inner, mm => (mm.n_states(), mm.n_inputs(), mm.n_outputs()));
+    let (n, m, p) = (inner.n_states(), inner.n_inputs(), inner.n_outputs());
     let (u_arr, t_len) = matrix(inputs, "inputs", Some(m))?;
     let u = u_arr.as_slice()?;
     let x0 = match x0 {
         Some(obj) => vector(obj, "x0", n)?,
-        None => with_model!(&inner, mm => mm.rest_state()),
+        None => inner.rest_state(),
     };
     let hold = guarded(|| InputHold::from_name(hold))?;
     // numpy-owned outputs: numpy recycles large buffers (and asks for huge pages), which saves
@@ -73,10 +74,7 @@ pub fn simulate_servo_arrays<'py>(
     x0: Option<&Bound<'py, PyAny>>,
     substeps: usize,
 ) -> PyResult<Arrays3<'py>> {
-    let t = match &model.as_super().inner {
-        AnyModel::Transmission(t) => t.clone(),
-        _ => unreachable!("CableTransmission always wraps a transmission"),
-    };
+    let t = guarded(|| model.as_super().inner.transmission("the servo").cloned())?;
     let nl = t.n_links();
     let (refs_arr, t_len) = matrix(references, "references", Some(2 * nl))?;
     let refs = refs_arr.as_slice()?;
@@ -84,11 +82,8 @@ pub fn simulate_servo_arrays<'py>(
         Some(obj) => {
             let (e, rows) = matrix(obj, "external", Some(nl))?;
             if rows != t_len {
-                return Err(crate::errors::raise(
-                    Class::Shape,
-                    format!("external must have {t_len} rows like references, got {rows}"),
-                    &[],
-                ));
+                let msg = format!("external must have {t_len} rows like references, got {rows}");
+                return Err(arg_error(Class::Shape, "external", msg));
             }
             e
         }
@@ -134,15 +129,15 @@ pub fn propose_step_raw(
     safety: f64,
 ) -> PyResult<(f64, (f64, f64), usize)> {
     let inner = &model.inner;
-    let (n, m) = with_model!(inner, mm => (mm.n_states(), mm.n_inputs()));
+    let (n, m) = (inner.n_states(), inner.n_inputs());
     let x = match x {
         Some(o) => vector(o, "x", n)?,
-        None => with_model!(inner, mm => mm.rest_state()),
+        None => inner.rest_state(),
     };
     let u = match u {
         Some(o) => vector(o, "u", m)?,
         None => vec![0.0; m],
     };
-    let adv = guarded(|| with_model!(inner, mm => propose_step(mm, &x, &u, dt, safety)))?;
+    let adv = guarded(|| propose_step(inner, &x, &u, dt, safety))?;
     Ok((adv.max_stable_step, adv.stiffest_eigenvalue, adv.substeps))
 }

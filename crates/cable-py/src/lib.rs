@@ -32,6 +32,7 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(friction::dahl_rate, m)?)?;
     m.add_function(wrap_pyfunction!(friction::cable_tension, m)?)?;
     m.add_class::<identify::JointProblem>()?;
+    m.add_class::<identify::JointRun>()?;
     m.add_class::<estimate::SrUkf>()?;
     m.add_class::<estimate::DualSrUkf>()?;
     m.add_class::<results::FilterRun>()?;

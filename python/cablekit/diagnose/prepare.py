@@ -12,14 +12,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from cablekit._cablekit import JointProblem, effect_catalogue
+from cablekit._cablekit import JointProblem, JointRun, effect_catalogue
 from cablekit.diagnose import localise
 from cablekit.diagnose.data import Run, check_units
 from cablekit.diagnose.spec import NOT_IN_TRANSMISSION, ModelSpec
 from cablekit.errors import DataError
 from cablekit.simulation import state_indices
 
-__all__ = ["MAX_SUBSTEPS", "MIN_CLOSED", "NOISE_LEVEL", "Options", "Prepared", "prepare", "run_dict"]
+__all__ = ["MAX_SUBSTEPS", "MIN_CLOSED", "NOISE_LEVEL", "Options", "Prepared", "joint_run", "prepare"]
 
 _F = NDArray[np.float64]
 
@@ -90,26 +90,31 @@ class Prepared:
         return len(self.channel_names)
 
 
-def run_dict(spec: ModelSpec, run: Run, columns: list[str], model: Any = None) -> dict[str, Any]:
+def joint_run(spec: ModelSpec, run: Run, columns: list[str], model: Any = None) -> JointRun:
+    """The core's view of a run: inputs (servo references: angles then rates, given or the
+    angles' derivative), the measured ``columns``, and the optional coupled axis, external torques
+    and initial state."""
     measured = np.column_stack([run.column(c) for c in columns])
     cols = [run.column(c) for c in spec.inputs]
-    if spec.servo():  # references: angles then rates (given, or the angles' derivative)
+    if spec.servo():
         rates = spec.extra.get("dq_m_ref")
         cols += [run.column(c) for c in rates] if rates else [np.gradient(c, run.dt) for c in cols]
-    d: dict[str, Any] = {
-        "dt": run.dt,
-        "input": np.ascontiguousarray(cols[0] if len(cols) == 1 else np.column_stack(cols)),
-        "measured": np.ascontiguousarray(measured),
-        "start": round(spec.warmup / run.dt),
-    }
-    if spec.coupled:
-        d["coupled"] = np.ascontiguousarray(run.column(spec.coupled))
+    external = None
     if spec.external:
         ext = [run.column(c) for c in spec.external]
-        d["external"] = np.ascontiguousarray(ext[0] if len(ext) == 1 else np.column_stack(ext))
+        external = np.ascontiguousarray(ext[0] if len(ext) == 1 else np.column_stack(ext))
+    x0 = None
     if spec.kind == "cable_transmission" and model is not None:
-        d["x0"] = _transmission_x0(spec, run, model)
-    return d
+        x0 = _transmission_x0(spec, run, model)
+    return JointRun(
+        run.dt,
+        np.ascontiguousarray(cols[0] if len(cols) == 1 else np.column_stack(cols)),
+        np.ascontiguousarray(measured),
+        coupled=np.ascontiguousarray(run.column(spec.coupled)) if spec.coupled else None,
+        external=external,
+        x0=x0,
+        start=round(spec.warmup / run.dt),
+    )
 
 
 def _transmission_x0(spec: ModelSpec, run: Run, model: Any) -> _F:
@@ -163,13 +168,13 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     sigma = np.array(sigma_list)
     chans = [(spec.output(o)[0], 1.0 / s, spec.output(o)[2]) for o, s in zip(names, sigma, strict=False)]
     model = spec.model()
-    fit_dicts = [run_dict(spec, r, columns, model) for r in fit_runs]
-    hold_dicts = [run_dict(spec, r, columns, model) for r in hold_runs]
+    fit_core = [joint_run(spec, r, columns, model) for r in fit_runs]
+    hold_core = [joint_run(spec, r, columns, model) for r in hold_runs]
     servo = spec.servo()
-    probe = JointProblem(model, chans, fit_dicts, [], 1, servo)
+    probe = JointProblem(model, chans, fit_core, [], 1, servo)
     substeps = spec.substeps or max(1, probe.advised_substeps(np.zeros(0)))
-    fit0 = JointProblem(model, chans, fit_dicts, [], substeps, servo)
-    hold0 = JointProblem(model, chans, hold_dicts, [], substeps, servo)
+    fit0 = JointProblem(model, chans, fit_core, [], substeps, servo)
+    hold0 = JointProblem(model, chans, hold_core, [], substeps, servo)
     all_effects = [e["name"] for e in effect_catalogue()]
     wanted = spec.effects or []
     library = [
@@ -202,7 +207,7 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
         else:
             skipped[e] = "no site of this plant where it can act on the measured channels"
     candidates = list(info)
-    warnings = _servo_saturation(spec, model, fit_runs + hold_runs, fit_dicts + hold_dicts, substeps)
+    warnings = _servo_saturation(spec, model, fit_runs + hold_runs, fit_core + hold_core, substeps)
     return Prepared(
         spec,
         fit_runs,
@@ -226,7 +231,7 @@ SATURATION_WARN = 0.02
 
 
 def _servo_saturation(
-    spec: ModelSpec, model: Any, runs: list[Run], dicts: list[dict[str, Any]], substeps: int
+    spec: ModelSpec, model: Any, runs: list[Run], dicts: list[JointRun], substeps: int
 ) -> list[str]:
     """Warnings for runs whose nominal servo replay sits at the torque limit: a saturated servo
     is open loop, and an open-loop replay of a frictional transmission amplifies any initial
@@ -239,7 +244,7 @@ def _servo_saturation(
     chans = [(5 * n + i, 1.0, False) for i in range(n)]
     out = []
     for run, d in zip(runs, dicts, strict=True):
-        probe = JointProblem(model, chans, [{**d, "measured": np.zeros((len(run), n))}], [], substeps, servo)
+        probe = JointProblem(model, chans, [d.with_measured(np.zeros((len(run), n)))], [], substeps, servo)
         tau = probe.predict(np.zeros(0), 0)
         share = np.mean(np.abs(tau) >= 0.99 * limit, axis=0)
         for i in np.flatnonzero(share > SATURATION_WARN):

@@ -12,7 +12,7 @@ from cablekit._cablekit import JointProblem
 from cablekit.diagnose import localise
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.fit import CandidateFit
-from cablekit.diagnose.prepare import NOISE_LEVEL, Prepared, run_dict
+from cablekit.diagnose.prepare import NOISE_LEVEL, Prepared, joint_run
 from cablekit.diagnose.spec import OUTPUTS
 
 __all__ = ["localise_all"]
@@ -25,10 +25,9 @@ def _nominal_contact(prep: Prepared, runs: list[Run]) -> list[NDArray[np.bool_]]
     if "contact_angle" not in prep.spec.parameters:
         return None
     model = prep.spec.model()
-    dicts = [run_dict(prep.spec, r, prep.columns, model) for r in runs]
-    for d in dicts:
-        d["measured"] = np.zeros((len(d["input"]), 1))
-    probe = JointProblem(model, [(OUTPUTS["contact_force"][0], 1.0, True)], dicts, [], prep.substeps)
+    core_runs = [joint_run(prep.spec, r, prep.columns, model) for r in runs]
+    core_runs = [c.with_measured(np.zeros((len(c), 1))) for c in core_runs]
+    probe = JointProblem(model, [(OUTPUTS["contact_force"][0], 1.0, True)], core_runs, [], prep.substeps)
     return [probe.predict(np.zeros(0), i)[:, 0] > 0.0 for i in range(len(runs))]
 
 

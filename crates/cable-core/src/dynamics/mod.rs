@@ -5,15 +5,19 @@
 //! allocation-free and works on flat slices whose layouts the models document and name.
 
 mod antagonistic;
+mod any;
 mod dahl;
 mod raven2;
 mod spec;
 mod transmission;
 
 pub use antagonistic::{AntagonisticJoint, Contact};
+pub use any::AnyModel;
 pub use dahl::DahlElement;
 pub use raven2::raven2;
-pub use spec::{FieldDefault, JointSpec, TransmissionSpec, JOINT_FIELDS, TRANSMISSION_FIELDS};
+pub use spec::{
+    FieldDefault, JointSpec, SpecValue, TransmissionSpec, JOINT_FIELDS, TRANSMISSION_FIELDS,
+};
 pub use transmission::{CableTransmission, Gravity, JointKind, TransmissionLink, MAX_LINKS};
 
 /// A continuous-time state-space model `ẋ = f(x, u)`, `y = h(x, u)`.

@@ -17,12 +17,14 @@
 //! Matrices handed to the filter are `n × n` symmetric covariances (either storage order);
 //! square roots it returns are lower-triangular, column-major.
 
+mod build;
 pub mod linalg;
 mod models;
 mod params;
 mod run;
 mod srukf;
 
+pub use build::{dual_filter, filter, DynSrUkf, Measure, Moments, ProcessKind};
 pub use models::{
     InputStates, LinearObserve, LinearProcess, LinearRows, ModelOutputs, ModelProcess, Observe,
     Process,

@@ -20,7 +20,7 @@
 //! warm-up that absorbs the unknown initial state) and channels `c` with weights `w_c` (1/noise).
 
 use crate::control::{simulate_closed_loop_into, ClosedLoopMut, MotorPd};
-use crate::dynamics::{AntagonisticJoint, CableTransmission, Model};
+use crate::dynamics::{AntagonisticJoint, AnyModel, CableTransmission, Model};
 use crate::error::{check, CableError, Result};
 use crate::integrate::{simulate_into, InputHold, SimOptions, TrajectoryMut};
 
@@ -61,6 +61,23 @@ impl From<CableTransmission> for Plant {
 }
 
 impl Plant {
+    /// The plant of a model: an antagonistic joint, or a transmission (replayed under the
+    /// motor PD servo `(kp, kd, torque_limit)` when given).
+    pub fn of(model: &AnyModel, servo: Option<(Vec<f64>, Vec<f64>, Vec<f64>)>) -> Result<Self> {
+        match (model, servo) {
+            (AnyModel::Antagonistic(j), _) => Ok(Plant::Joint(*j)),
+            (AnyModel::Transmission(t), None) => Ok(Plant::Transmission(t.clone())),
+            (AnyModel::Transmission(t), Some((kp, kd, lim))) => {
+                Ok(Plant::Servo(t.clone(), MotorPd::new(kp, kd, lim)?))
+            }
+            (other, _) => Err(CableError::InvalidOption {
+                name: "model".into(),
+                value: other.kind().into(),
+                allowed: "AntagonisticJoint or CableTransmission (the diagnosis' plants)".into(),
+            }),
+        }
+    }
+
     /// Number of outputs a channel may index.
     pub fn n_outputs(&self) -> usize {
         match self {

@@ -75,6 +75,21 @@ impl Default for JointSpec {
 }
 
 impl JointSpec {
+    /// The spec of named values as a front end gives them (unknown names are refused by
+    /// [`build`](Self::build), values of the wrong kind here).
+    pub fn from_named(named: impl IntoIterator<Item = (String, super::SpecValue)>) -> Result<Self> {
+        let mut spec = Self::default();
+        for (name, value) in named {
+            if name == "cable_law" {
+                spec.cable_law = value.text(&name)?;
+            } else {
+                let v = value.number(&name)?;
+                spec.values.insert(name, v);
+            }
+        }
+        Ok(spec)
+    }
+
     /// Field `name` with its default applied; `None` for an absent element's parameter.
     fn get(&self, name: &str) -> Result<Option<f64>> {
         if let Some(v) = self.values.get(name) {

@@ -66,6 +66,25 @@ fn shape(what: &str, n: usize, got: usize) -> CableError {
 }
 
 impl TransmissionSpec {
+    /// The spec of named values as a front end gives them (unknown names are refused by
+    /// [`build`](Self::build), values of the wrong kind here).
+    pub fn from_named(named: impl IntoIterator<Item = (String, super::SpecValue)>) -> Result<Self> {
+        let mut spec = Self::default();
+        for (name, value) in named {
+            match name.as_str() {
+                "cable_law" => spec.cable_law = value.text(&name)?,
+                "length_scale" => spec.length_scale = value.number(&name)?,
+                "joint_kind" => spec.joint_kind = value.texts(&name)?,
+                "coupling" => spec.coupling = value.rows(&name)?,
+                _ => {
+                    let v = value.numbers(&name)?;
+                    spec.values.insert(name, v);
+                }
+            }
+        }
+        Ok(spec)
+    }
+
     /// Links `n`: the longest list given (at least 1).
     pub fn links(&self) -> usize {
         self.values

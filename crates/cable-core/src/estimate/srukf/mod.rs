@@ -254,6 +254,10 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     pub fn n_outputs(&self) -> usize {
         self.p
     }
+    /// Input dimension.
+    pub fn n_inputs(&self) -> usize {
+        self.process.n_inputs()
+    }
     /// Current mean.
     pub fn x(&self) -> &[f64] {
         &self.x
@@ -261,6 +265,12 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     /// Current lower-triangular square root of the covariance (column-major `n × n`).
     pub fn sqrt_covariance(&self) -> &[f64] {
         &self.s
+    }
+    /// [`sqrt_covariance`](Self::sqrt_covariance) row-major (the layout of a front end's
+    /// arrays).
+    pub fn sqrt_covariance_rows(&self) -> Vec<f64> {
+        let n = self.n;
+        (0..n * n).map(|k| self.s[(k % n) * n + k / n]).collect()
     }
     /// Current covariance `S·Sᵀ` (column-major; symmetric).
     pub fn covariance(&self) -> Vec<f64> {
