@@ -89,7 +89,7 @@ pub struct ClosedLoopMut<'a> {
 }
 
 /// Simulate `model` under `controller`, tracking motor-space references `(T, 2n)`
-/// `[q_m,ref, q̇_m,ref]` with external loads `(T, n)` (pass zeros for none).
+/// `[q_m,ref, q̇_m,ref]` with external loads `(T, n)` (empty: none).
 pub fn simulate_closed_loop(
     model: &CableTransmission,
     controller: &MotorPd,
@@ -132,7 +132,7 @@ fn validate_servo(
         });
     }
     let t_len = references.len() / (2 * n);
-    if external.len() != t_len * n {
+    if !external.is_empty() && external.len() != t_len * n {
         return Err(CableError::Shape {
             what: "external".into(),
             expected: format!("({t_len}, {n})"),
@@ -182,7 +182,7 @@ pub fn simulate_closed_loop_into(
         let u = &mut inputs[k * m..(k + 1) * m];
         for i in 0..n {
             u[i] = controller.command(i, x[4 * i], x[4 * i + 1], r[i], r[n + i]);
-            u[n + i] = external[k * n + i];
+            u[n + i] = external.get(k * n + i).copied().unwrap_or(0.0);
         }
         record(model, k, &x, u, opts.dt, &mut trajectory)?;
     }

@@ -148,6 +148,21 @@ pub fn rows(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<(Vec<f64>, usize)> {
     Ok((arr.as_slice()?.to_vec(), rows))
 }
 
+/// Named spec values as a dict (the constructor's keywords).
+pub fn spec_dict(py: Python<'_>, named: Vec<(String, SpecValue)>) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    for (name, value) in named {
+        match value {
+            SpecValue::Number(v) => d.set_item(name, v)?,
+            SpecValue::Numbers(v) => d.set_item(name, v)?,
+            SpecValue::Text(v) => d.set_item(name, v)?,
+            SpecValue::Texts(v) => d.set_item(name, v)?,
+            SpecValue::Rows(v) => d.set_item(name, v)?,
+        }
+    }
+    Ok(d)
+}
+
 /// Keyword arguments as named spec values (a `None` is left out: the core's default applies).
 pub fn spec_values(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<(String, SpecValue)>> {
     let mut out = Vec::new();

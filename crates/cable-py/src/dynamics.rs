@@ -9,7 +9,7 @@ use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::{spec_values, to_matrix, to_vector, vector};
+use crate::convert::{spec_dict, spec_values, to_matrix, to_vector, vector};
 use crate::errors::guarded;
 
 /// Base class of every cablekit model: sizes, names, and single evaluations of `f`, `h` and RK4.
@@ -190,16 +190,8 @@ impl CableTransmission {
 
     /// All parameters as a dict of per-link lists (the constructor's keywords).
     fn params<'py>(slf: PyRef<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        let spec = core::TransmissionSpec::of(&transmission(&slf));
-        let d = PyDict::new(slf.py());
-        for (name, values) in &spec.values {
-            d.set_item(name, values)?;
-        }
-        d.set_item("cable_law", spec.cable_law)?;
-        d.set_item("length_scale", spec.length_scale)?;
-        d.set_item("joint_kind", spec.joint_kind)?;
-        d.set_item("coupling", spec.coupling)?;
-        Ok(d)
+        let named = core::TransmissionSpec::of(&transmission(&slf)).named();
+        spec_dict(slf.py(), named)
     }
 
     /// Values of named parameters (`"cable_stiffness[1]"`, `"coupling[2][0]"`, …: the
@@ -307,13 +299,7 @@ impl AntagonisticJoint {
 
     /// All parameters as a dict (the constructor's keywords).
     fn params<'py>(slf: PyRef<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        let spec = core::JointSpec::of(&antagonistic(&slf));
-        let d = PyDict::new(slf.py());
-        for (name, value) in &spec.values {
-            d.set_item(name, value)?;
-        }
-        d.set_item("cable_law", spec.cable_law)?;
-        Ok(d)
+        spec_dict(slf.py(), core::JointSpec::of(&antagonistic(&slf)).named())
     }
 }
 

@@ -11,9 +11,9 @@ use cable_core::{CableError, WeightsErrorKind};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 
-/// `Class::X` for each exception class of `cablekit.errors`, with its Python name.
+/// `Class::X` for each exception class `XError` of `cablekit.errors`.
 macro_rules! classes {
-    ($($variant:ident => $name:literal),* $(,)?) => {
+    ($($variant:ident),* $(,)?) => {
         /// The exception classes of `cablekit.errors` (defined in Python so that they also
         /// derive from the matching built-ins), each imported once per interpreter and kept.
         #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -23,31 +23,16 @@ macro_rules! classes {
         impl Class {
             const ALL: &[Class] = &[$(Class::$variant),*];
             fn name(self) -> &'static str {
-                match self { $(Class::$variant => $name),* }
+                match self { $(Class::$variant => concat!(stringify!($variant), "Error")),* }
             }
         }
     };
 }
 
 classes! {
-    Cablekit => "CablekitError",
-    ConcurrentUse => "ConcurrentUseError",
-    Convergence => "ConvergenceError",
-    DType => "DTypeError",
-    Data => "DataError",
-    FilterDiverged => "FilterDivergedError",
-    Internal => "InternalError",
-    Layout => "LayoutError",
-    NonFiniteResult => "NonFiniteResultError",
-    NotFinite => "NotFiniteError",
-    Parameter => "ParameterError",
-    Shape => "ShapeError",
-    SimulationDiverged => "SimulationDivergedError",
-    WeightsCorrupt => "WeightsCorruptError",
-    WeightsFormat => "WeightsFormatError",
-    WeightsMetadata => "WeightsMetadataError",
-    WeightsShape => "WeightsShapeError",
-    WeightsValue => "WeightsValueError",
+    Cablekit, ConcurrentUse, Convergence, DType, Data, FilterDiverged, Internal, Layout,
+    NonFiniteResult, NotFinite, Parameter, Shape, SimulationDiverged, WeightsCorrupt,
+    WeightsFormat, WeightsMetadata, WeightsShape, WeightsValue,
 }
 
 impl Class {

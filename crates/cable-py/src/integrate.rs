@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 
 use crate::convert::{matrix, vector};
 use crate::dynamics::{CableTransmission, Model};
-use crate::errors::{arg_error, guarded, Class};
+use crate::errors::guarded;
 
 type Arrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
 type Arrays3<'py> = (
@@ -34,10 +34,8 @@ pub fn simulate_arrays<'py>(
     let (n, m, p) = (inner.n_states(), inner.n_inputs(), inner.n_outputs());
     let (u_arr, t_len) = matrix(inputs, "inputs", Some(m))?;
     let u = u_arr.as_slice()?;
-    let x0 = match x0 {
-        Some(obj) => vector(obj, "x0", n)?,
-        None => inner.rest_state(),
-    };
+    let x0 = x0.map(|o| vector(o, "x0", n)).transpose()?;
+    let x0 = x0.unwrap_or_else(|| inner.rest_state());
     let hold = guarded(|| InputHold::from_name(hold))?;
     // numpy-owned outputs: numpy recycles large buffers (and asks for huge pages), which saves
     // the first-touch page faults a fresh Rust allocation pays on every call.
@@ -78,22 +76,15 @@ pub fn simulate_servo_arrays<'py>(
     let nl = t.n_links();
     let (refs_arr, t_len) = matrix(references, "references", Some(2 * nl))?;
     let refs = refs_arr.as_slice()?;
-    let ext_arr = match external {
-        Some(obj) => {
-            let (e, rows) = matrix(obj, "external", Some(nl))?;
-            if rows != t_len {
-                let msg = format!("external must have {t_len} rows like references, got {rows}");
-                return Err(arg_error(Class::Shape, "external", msg));
-            }
-            e
-        }
-        None => PyArray2::<f64>::zeros(py, [t_len, nl], false).readonly(),
-    };
-    let ext = ext_arr.as_slice()?;
-    let x0 = match x0 {
-        Some(obj) => vector(obj, "x0", t.n_states())?,
-        None => t.rest_state(),
-    };
+    let ext = external
+        .map(|e| matrix(e, "external", Some(nl)))
+        .transpose()?;
+    let ext = ext
+        .map(|e| e.0.as_slice().map(<[f64]>::to_vec))
+        .transpose()?;
+    let ext = ext.unwrap_or_default();
+    let x0 = x0.map(|o| vector(o, "x0", t.n_states())).transpose()?;
+    let x0 = x0.unwrap_or_else(|| t.rest_state());
     let states = PyArray2::<f64>::zeros(py, [t_len, t.n_states()], false);
     let outputs = PyArray2::<f64>::zeros(py, [t_len, t.n_outputs()], false);
     let inputs = PyArray2::<f64>::zeros(py, [t_len, t.n_inputs()], false);
@@ -111,7 +102,7 @@ pub fn simulate_servo_arrays<'py>(
             guarded(|| {
                 let pd = MotorPd::new(kp, kd, torque_limit)?;
                 let opts = SimOptions::new(dt, substeps, InputHold::Zoh)?;
-                simulate_closed_loop_into(&t, &pd, refs, ext, &x0, &opts, out)
+                simulate_closed_loop_into(&t, &pd, refs, &ext, &x0, &opts, out)
             })
         })?;
     }
@@ -130,14 +121,12 @@ pub fn propose_step_raw(
 ) -> PyResult<(f64, (f64, f64), usize)> {
     let inner = &model.inner;
     let (n, m) = (inner.n_states(), inner.n_inputs());
-    let x = match x {
-        Some(o) => vector(o, "x", n)?,
-        None => inner.rest_state(),
-    };
-    let u = match u {
-        Some(o) => vector(o, "u", m)?,
-        None => vec![0.0; m],
-    };
+    let x = x.map(|o| vector(o, "x", n)).transpose()?;
+    let x = x.unwrap_or_else(|| inner.rest_state());
+    let u = u
+        .map(|o| vector(o, "u", m))
+        .transpose()?
+        .unwrap_or(vec![0.0; m]);
     let adv = guarded(|| propose_step(inner, &x, &u, dt, safety))?;
     Ok((adv.max_stable_step, adv.stiffest_eigenvalue, adv.substeps))
 }

@@ -1,7 +1,7 @@
 //! `Mlp`: a network loaded from a safetensors weight file, evaluated by cable-core.
 
 use std::path::PathBuf;
-use std::sync::{Mutex, TryLockError};
+use std::sync::Mutex;
 
 use cable_core::nn::{Mlp as CoreMlp, Scratch};
 use numpy::ndarray::Array2;
@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use crate::convert::{any_vector, matrix, ndim_of, to_vector};
-use crate::errors::{guarded, raise, Class};
+use crate::errors::{arg_error, guarded, Class};
 
 /// `(weight, bias)` of one layer as numpy arrays.
 type LayerArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
@@ -36,24 +36,13 @@ impl Mlp {
 
     /// One sample, allocation-free unless another thread is in a single-sample call.
     fn forward(&self, x: &[f64], out: &mut [f64]) -> PyResult<()> {
-        match self.scratch.try_lock() {
-            Ok(mut s) => guarded(|| self.inner.forward_with(x, out, &mut s)),
-            Err(TryLockError::Poisoned(p)) => {
-                guarded(|| self.inner.forward_with(x, out, &mut p.into_inner()))
-            }
-            Err(TryLockError::WouldBlock) => {
-                guarded(|| self.inner.forward_with(x, out, &mut self.inner.scratch()))
-            }
-        }
+        guarded(|| self.inner.forward_shared(x, out, &self.scratch))
     }
 }
 
 fn layout_error(name: &str) -> PyErr {
-    raise(
-        Class::Layout,
-        format!("{name} must be C-contiguous; pass np.ascontiguousarray({name})"),
-        &[],
-    )
+    let msg = format!("{name} must be C-contiguous; pass np.ascontiguousarray({name})");
+    arg_error(Class::Layout, name, msg)
 }
 
 /// Borrow `x` read-only and `out` read-write (`out` must be writeable and not `x` itself).
@@ -63,13 +52,10 @@ fn borrow_pair<'py, D: Dimension>(
 ) -> PyResult<(PyReadonlyArray<'py, f64, D>, PyReadwriteArray<'py, f64, D>)> {
     let xr = x
         .try_readonly()
-        .map_err(|_| raise(Class::Layout, "x is being written elsewhere".into(), &[]))?;
+        .map_err(|_| arg_error(Class::Layout, "x", "x is being written elsewhere".into()))?;
     let ow = out.try_readwrite().map_err(|_| {
-        raise(
-            Class::Layout,
-            "out must be a writeable array not borrowed elsewhere".into(),
-            &[],
-        )
+        let msg = "out must be a writeable array not borrowed elsewhere";
+        arg_error(Class::Layout, "out", msg.into())
     })?;
     Ok((xr, ow))
 }
@@ -147,11 +133,8 @@ impl Mlp {
             let (xr, mut ow) = borrow_pair(xa, oa)?;
             let n_in = self.inner.n_inputs();
             if xr.shape()[1] != n_in {
-                return Err(raise(
-                    Class::Shape,
-                    format!("x must have shape (N, {n_in}), got {:?}", xr.shape()),
-                    &[],
-                ));
+                let msg = format!("x must have shape (N, {n_in}), got {:?}", xr.shape());
+                return Err(arg_error(Class::Shape, "x", msg));
             }
             let xs = xr.as_slice().map_err(|_| layout_error("x"))?;
             let os = ow.as_slice_mut().map_err(|_| layout_error("out"))?;
@@ -160,17 +143,15 @@ impl Mlp {
         }
         let (nx, no) = (ndim_of(x, "x")?, ndim_of(out, "out")?);
         let same_rank = nx == no && (nx == 1 || nx == 2);
-        Err(raise(
-            if same_rank {
-                Class::DType
-            } else {
-                Class::Shape
-            },
-            format!(
-                "x and out must be float64 arrays, both 1-D or both 2-D; got {nx}-D and {no}-D"
-            ),
-            &[],
-        ))
+        let class = if same_rank {
+            Class::DType
+        } else {
+            Class::Shape
+        };
+        let msg = format!(
+            "x and out must be float64 arrays, both 1-D or both 2-D; got {nx}-D and {no}-D"
+        );
+        Err(arg_error(class, "out", msg))
     }
 
     /// Layer sizes `[n_in, hidden…, n_out]`.

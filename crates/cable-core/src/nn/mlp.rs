@@ -1,6 +1,7 @@
 //! The network: dense layers between `mapminmax` maps, single-sample and batch evaluation.
 
 use std::collections::BTreeMap;
+use std::sync::{Mutex, TryLockError};
 
 use rayon::prelude::*;
 
@@ -439,6 +440,22 @@ impl Mlp {
     /// [`Mlp::forward`] on a shared network with the caller's work buffers ([`Mlp::scratch`]).
     pub fn forward_with(&self, x: &[f64], out: &mut [f64], scratch: &mut Scratch) -> Result<()> {
         forward_one(&self.net, x, out, scratch)
+    }
+
+    /// [`Mlp::forward_with`] for threads sharing one set of work buffers: a thread that finds
+    /// them in use takes fresh ones (one small allocation) instead of waiting, so a front end
+    /// holding a global lock never deadlocks on them.
+    pub fn forward_shared(
+        &self,
+        x: &[f64],
+        out: &mut [f64],
+        shared: &Mutex<Scratch>,
+    ) -> Result<()> {
+        match shared.try_lock() {
+            Ok(mut s) => self.forward_with(x, out, &mut s),
+            Err(TryLockError::Poisoned(p)) => self.forward_with(x, out, &mut p.into_inner()),
+            Err(TryLockError::WouldBlock) => self.forward_with(x, out, &mut self.scratch()),
+        }
     }
 
     /// Fresh work buffers for [`Mlp::forward_with`].

@@ -130,6 +130,20 @@ impl JointSpec {
         }
     }
 
+    /// Every value by name, the way [`from_named`](Self::from_named) takes them.
+    pub fn named(&self) -> Vec<(String, super::SpecValue)> {
+        let values = self
+            .values
+            .iter()
+            .map(|(k, v)| (k.clone(), super::SpecValue::Number(*v)));
+        values
+            .chain([(
+                "cable_law".into(),
+                super::SpecValue::Text(self.cable_law.clone()),
+            )])
+            .collect()
+    }
+
     /// The validated joint.
     pub fn build(&self) -> Result<AntagonisticJoint> {
         super::known_names(

@@ -110,6 +110,23 @@ impl TransmissionSpec {
         }
     }
 
+    /// Every value by name, the way [`from_named`](Self::from_named) takes them.
+    pub fn named(&self) -> Vec<(String, super::SpecValue)> {
+        use super::SpecValue::{Number, Numbers, Rows, Text, Texts};
+        let values = self
+            .values
+            .iter()
+            .map(|(k, v)| (k.clone(), Numbers(v.clone())));
+        values
+            .chain([
+                ("cable_law".into(), Text(self.cable_law.clone())),
+                ("length_scale".into(), Number(self.length_scale)),
+                ("joint_kind".into(), Texts(self.joint_kind.clone())),
+                ("coupling".into(), Rows(self.coupling.clone())),
+            ])
+            .collect()
+    }
+
     /// The validated model.
     pub fn build(&self) -> Result<CableTransmission> {
         super::known_names(
