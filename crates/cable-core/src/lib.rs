@@ -14,6 +14,7 @@
 #![warn(missing_docs)]
 
 pub mod cable;
+pub mod cdpr;
 pub mod control;
 pub mod dynamics;
 pub mod error;

@@ -1,0 +1,23 @@
+//! Cable-driven parallel robots (seeds 002 and 003): robot descriptions, inverse and forward
+//! kinematics with pulleys, the structure matrix, and real-time tension distribution.
+//!
+//! Sign convention (seed 002 eq. 5): tensions `f ≥ 0` hold the platform against an external
+//! wrench `w` (gravity included) when `Aᵀ·f + w = 0`.
+
+mod kinematics;
+mod qp;
+mod robot;
+mod tension;
+
+pub use kinematics::{
+    coordinates, elongation, forward_kinematics, inverse_kinematics, rpy, CableGeometry,
+    ForwardKinematics, Pose, FK_MAX_ITER,
+};
+pub use qp::{Distributor, LEAST_ERROR_REGULARISATION, QP_MAX_ITER};
+pub use robot::{Cable, Motion, Platform, Pulley, Robot, MAX_CABLES};
+pub use tension::{
+    closed_form, improved_closed_form, minimum_norm, Distribution, Method, BOUND_TOLERANCE,
+};
+
+#[cfg(test)]
+mod tests;

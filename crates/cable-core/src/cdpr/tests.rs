@@ -1,0 +1,337 @@
+use super::*;
+
+/// An 8-cable spatial robot (the seed-002 frame): anchors at the corners of the frame, each
+/// attached to the platform corner below (top anchors) or above (bottom anchors) it.
+fn box_robot(pulleys: bool) -> Robot {
+    let (fx, fy, fz) = (0.55, 0.40, 0.475);
+    let p = 0.05;
+    let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
+    let mut cables = Vec::new();
+    for z in [-1.0, 1.0] {
+        for &(sx, sy) in &corners {
+            cables.push(Cable {
+                anchor: [sx * fx, sy * fy, z * fz],
+                attachment: [sx * p, sy * p, -z * p],
+                f_min: 1.0,
+                f_max: 50.0,
+                ea: 1e5,
+                pulley: pulleys.then_some(Pulley {
+                    radius: 0.02,
+                    axis: [0.0, 0.0, z],
+                }),
+            });
+        }
+    }
+    let platform = Platform {
+        mass: 1.42,
+        com: [0.0, 0.0, -0.01],
+        inertia: [1e-3, 0.0, 0.0, 0.0, 1e-3, 0.0, 0.0, 0.0, 2e-3],
+    };
+    Robot::new(
+        "box",
+        Motion::Spatial,
+        cables,
+        platform,
+        [0.0, 0.0, -9.80665],
+    )
+    .unwrap()
+}
+
+fn planar_robot() -> Robot {
+    let (w, h) = (1.0, 0.8);
+    let anchors = [[0.0, h], [w, h], [0.0, 0.0], [w, 0.0]];
+    let attach = [[-0.05, 0.05], [0.05, 0.05], [-0.05, -0.05], [0.05, -0.05]];
+    let cables = anchors
+        .iter()
+        .zip(attach)
+        .map(|(a, b)| Cable {
+            anchor: [a[0], a[1], 0.0],
+            attachment: [b[0], b[1], 0.0],
+            f_min: 2.0,
+            f_max: 100.0,
+            ea: 48.9e9 * 1.89e-6,
+            pulley: None,
+        })
+        .collect();
+    let platform = Platform {
+        mass: 0.5,
+        com: [0.0; 3],
+        inertia: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-4],
+    };
+    Robot::new(
+        "planar",
+        Motion::Planar,
+        cables,
+        platform,
+        [0.0, -9.80665, 0.0],
+    )
+    .unwrap()
+}
+
+fn ik(robot: &Robot, q: &[f64]) -> CableGeometry {
+    let mut g = CableGeometry::default();
+    inverse_kinematics(
+        robot,
+        &Pose::from_coordinates(robot.motion, q).unwrap(),
+        &mut g,
+    )
+    .unwrap();
+    g
+}
+
+/// The structure matrix is minus the Jacobian of the lengths with respect to world-frame
+/// translation and rotation increments (with or without pulleys).
+#[test]
+fn structure_matrix_is_minus_the_length_jacobian() {
+    for (robot, q) in [
+        (box_robot(false), vec![0.05, -0.03, 0.02, 0.1, -0.05, 0.2]),
+        (box_robot(true), vec![0.05, -0.03, 0.02, 0.1, -0.05, 0.2]),
+        (planar_robot(), vec![0.45, 0.35, 0.2]),
+    ] {
+        let (n, m) = (robot.dof(), robot.n_cables());
+        let g = ik(&robot, &q);
+        let pose = Pose::from_coordinates(robot.motion, &q).unwrap();
+        let h = 1e-6;
+        for a in 0..n {
+            let mut d = [0.0; 6];
+            d[a] = h;
+            let (mut gp, mut gm) = (CableGeometry::default(), CableGeometry::default());
+            inverse_kinematics(
+                &robot,
+                &super::kinematics::step(robot.motion, &pose, &d),
+                &mut gp,
+            )
+            .unwrap();
+            d[a] = -h;
+            inverse_kinematics(
+                &robot,
+                &super::kinematics::step(robot.motion, &pose, &d),
+                &mut gm,
+            )
+            .unwrap();
+            for i in 0..m {
+                let fd = (gp.length[i] - gm.length[i]) / (2.0 * h);
+                let at = g.structure()[a * m + i];
+                assert!(
+                    (fd + at).abs() < 1e-7,
+                    "{} dof {a} cable {i}: {fd} vs {}",
+                    robot.name,
+                    -at
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn pulley_exit_points_lie_on_the_pulley_and_the_cable_leaves_tangentially() {
+    let robot = box_robot(true);
+    let g = ik(&robot, &[0.1, 0.05, -0.1, 0.0, 0.0, 0.3]);
+    for (i, c) in robot.cables.iter().enumerate() {
+        let p = c.pulley.unwrap();
+        let e = g.exit[i];
+        let u = g.direction[i];
+        // the pulley centre is the exit point plus r along the inward normal; it lies at
+        // distance r from the anchor, perpendicular to the axis
+        let k = p.axis;
+        let rad = [e[0] - c.anchor[0], e[1] - c.anchor[1], e[2] - c.anchor[2]];
+        let along: f64 = rad.iter().zip(&k).map(|(a, b)| a * b).sum();
+        assert!(g.wrap[i] > 0.0 && g.wrap[i] < std::f64::consts::TAU);
+        assert!(
+            along.abs() <= p.radius * (1.0 + 1e-9),
+            "cable {i}: exit off the pulley"
+        );
+        // tangency: the free cable is perpendicular to the radius at the exit point
+        let perp = [
+            rad[0] - along * k[0],
+            rad[1] - along * k[1],
+            rad[2] - along * k[2],
+        ];
+        let norm = perp.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let e_r = perp.map(|v| v / norm);
+        let centre = [0, 1, 2].map(|j| c.anchor[j] + p.radius * e_r[j]);
+        let to_exit = [0, 1, 2].map(|j| e[j] - centre[j]);
+        let r_exit = to_exit.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!((r_exit - p.radius).abs() < 1e-12, "cable {i}: {r_exit}");
+        let dot: f64 = to_exit.iter().zip(&u).map(|(a, b)| a * b).sum();
+        assert!(dot.abs() < 1e-9, "cable {i}: not tangent ({dot})");
+        assert!(g.length[i] > g.free_length[i]);
+    }
+}
+
+#[test]
+fn forward_kinematics_recovers_the_pose_from_its_lengths() {
+    for (robot, q, seed) in [
+        (
+            box_robot(false),
+            vec![0.1, -0.05, 0.08, 0.15, -0.1, 0.25],
+            vec![0.0; 6],
+        ),
+        (
+            box_robot(true),
+            vec![-0.1, 0.05, -0.08, -0.1, 0.1, -0.2],
+            vec![0.0; 6],
+        ),
+        (planar_robot(), vec![0.3, 0.5, -0.3], vec![0.35, 0.45, -0.1]),
+    ] {
+        let g = ik(&robot, &q);
+        let fk = forward_kinematics(&robot, &g.length[..robot.n_cables()], &seed, 1e-12).unwrap();
+        assert!(fk.converged, "{}: {fk:?}", robot.name);
+        for (a, b) in fk.pose.iter().zip(&q) {
+            assert!(
+                (a - b).abs() < 1e-8,
+                "{}: {:?} vs {q:?}",
+                robot.name,
+                fk.pose
+            );
+        }
+    }
+}
+
+#[test]
+fn distributions_hold_the_wrench_and_the_improved_method_respects_the_bounds() {
+    let robot = box_robot(false);
+    let (n, m) = (6, 8);
+    let lo = [1.0; 8];
+    let hi = [50.0; 8];
+    let mut repaired = 0;
+    // poses checked feasible by an exact LP (scipy HiGHS); the third needs the improvement
+    let poses = [
+        [0.0; 6],
+        [0.2, 0.1, -0.15, 0.05, 0.03, -0.1],
+        [0.3, 0.2, 0.3, 0.0, 0.0, 0.0],
+        [0.1, -0.05, 0.08, 0.05, -0.05, 0.1],
+    ];
+    for (k, q) in poses.iter().enumerate() {
+        let g = ik(&robot, q);
+        let pose = Pose::from_coordinates(robot.motion, q).unwrap();
+        let mut w = [0.0; 6];
+        robot.gravity_wrench(&pose.rotation, &mut w);
+        let at = g.structure();
+        let mn = minimum_norm(at, n, m, &w).unwrap();
+        assert!(mn.residual < 1e-9, "pose {k}");
+        let cf = closed_form(at, n, m, &w, &lo, &hi).unwrap();
+        assert!(cf.residual < 1e-9);
+        let icf = improved_closed_form(at, n, m, &w, &lo, &hi).unwrap();
+        assert!(icf.residual < 1e-9 && icf.feasible, "pose {k}: {icf:?}");
+        for (i, f) in icf.tensions().iter().enumerate() {
+            assert!(*f >= lo[i] - 1e-9 && *f <= hi[i] + 1e-9);
+        }
+        if cf.feasible {
+            assert_eq!(
+                cf.tensions(),
+                icf.tensions(),
+                "the closed form is the first step"
+            );
+        } else {
+            repaired += 1;
+        }
+    }
+    assert_eq!(
+        repaired, 1,
+        "the third pose's closed form has a slack cable"
+    );
+    let g = ik(&robot, &[0.0; 6]);
+    // a wrench beyond every cable's reach is flagged, not clamped
+    let huge = [0.0, 0.0, -1e4, 0.0, 0.0, 0.0];
+    let icf = improved_closed_form(g.structure(), n, m, &huge, &lo, &hi).unwrap();
+    assert!(!icf.feasible);
+    assert!(
+        icf.residual < 1e-6 * 1e4,
+        "the equilibrium still holds: {}",
+        icf.residual
+    );
+}
+
+#[test]
+fn degenerate_geometry_and_bad_bounds_are_named_errors() {
+    // all cables in one plane through the platform: no moment about the plane's normal axes
+    let at = [1.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0];
+    let err = minimum_norm(&at, 3, 4, &[0.0, 0.0, 1.0]).unwrap_err();
+    assert!(err.to_string().contains("full row rank"), "{err}");
+    let g = ik(&planar_robot(), &[0.5, 0.4, 0.0]);
+    let err = closed_form(g.structure(), 3, 4, &[0.0; 3], &[5.0; 4], &[1.0; 4]).unwrap_err();
+    assert!(err.to_string().contains("f_max[0]"), "{err}");
+    let err = closed_form(
+        g.structure(),
+        3,
+        4,
+        &[f64::NAN, 0.0, 0.0],
+        &[0.0; 4],
+        &[1.0; 4],
+    )
+    .unwrap_err();
+    assert!(matches!(err, CableError::NotFinite { .. }), "{err}");
+    let mut cables = planar_robot().cables;
+    cables[1].f_min = -1.0;
+    let p = planar_robot().platform;
+    let err = Robot::new("x", Motion::Planar, cables, p, [0.0; 3]).unwrap_err();
+    assert!(err.to_string().contains("cables[1].f_min"), "{err}");
+}
+
+use crate::error::CableError;
+
+/// Where the closed form is feasible it is the QP's optimum (same objective, no active bound):
+/// the QP must agree; where it is not, the QP's answer holds the wrench within the bounds
+/// exactly; warm solves give the cold answers; an impossible wrench is flagged with the least
+/// wrench error, within the bounds.
+#[test]
+fn the_qp_agrees_with_the_closed_form_and_stays_feasible() {
+    let robot = box_robot(false);
+    let (n, m) = (6, 8);
+    let (lo, hi) = ([1.0; 8], [50.0; 8]);
+    let mut warm = Distributor::new(n, m, None).unwrap();
+    let poses = [
+        [0.0; 6],
+        [0.2, 0.1, -0.15, 0.05, 0.03, -0.1],
+        [0.3, 0.2, 0.3, 0.0, 0.0, 0.0],
+        [0.1, -0.05, 0.08, 0.05, -0.05, 0.1],
+    ];
+    for q in &poses {
+        let g = ik(&robot, q);
+        let pose = Pose::from_coordinates(robot.motion, q).unwrap();
+        let mut w = [0.0; 6];
+        robot.gravity_wrench(&pose.rotation, &mut w);
+        let d = warm
+            .distribute(g.structure(), &w, &lo, &hi, Method::Qp)
+            .unwrap();
+        assert!(d.feasible && d.method == Method::Qp, "{d:?}");
+        assert!(d.residual <= 1e-9, "{}", d.residual);
+        assert!(d.tensions().iter().all(|f| (1.0..=50.0).contains(f)));
+        let cold = Distributor::new(n, m, None)
+            .unwrap()
+            .distribute(g.structure(), &w, &lo, &hi, Method::Qp)
+            .unwrap();
+        for (a, b) in d.tensions().iter().zip(cold.tensions()) {
+            assert!((a - b).abs() < 1e-7, "warm {a} vs cold {b}");
+        }
+        let cf = closed_form(g.structure(), n, m, &w, &lo, &hi).unwrap();
+        if cf.feasible {
+            for (a, b) in d.tensions().iter().zip(cf.tensions()) {
+                assert!((a - b).abs() < 1e-6, "qp {a} vs closed form {b}");
+            }
+        }
+        let auto = warm
+            .distribute(g.structure(), &w, &lo, &hi, Method::Auto)
+            .unwrap();
+        assert!(auto.feasible && auto.method == Method::ImprovedClosedForm);
+    }
+    assert!(
+        warm.is_warm() && warm.solves == 4,
+        "auto answered by the closed form"
+    );
+    let g = ik(&robot, &[0.0; 6]);
+    let huge = [0.0, 0.0, -1e4, 0.0, 0.0, 0.0];
+    let d = warm
+        .distribute(g.structure(), &huge, &lo, &hi, Method::Auto)
+        .unwrap();
+    assert!(!d.feasible && d.method == Method::LeastWrenchError, "{d:?}");
+    assert!(d.tensions().iter().all(|f| (1.0..=50.0).contains(f)));
+    // the least error pulls the platform up as hard as the bounds allow: the upper cables
+    // (the last four, anchored above) at their maximum
+    assert!(
+        d.tensions()[4..].iter().all(|f| *f > 49.0),
+        "{:?}",
+        d.tensions()
+    );
+}
