@@ -141,6 +141,26 @@ def _calls() -> dict[str, Call]:
         ),
         (1e-3 * np.sin(6 * t), np.zeros((200, 1)), 1e-3),
     )
+    from cablekit.cdpr import Robot, shipped
+
+    robot = shipped("seed003_planar")
+    pose = np.array([[0.6, 0.5, 0.0]])
+    out["Robot.distribute"] = Call(robot.distribute, (pose, np.zeros((1, 3))), dict(method="auto"))
+    out["Robot.inverse_kinematics"] = Call(robot.inverse_kinematics, (pose,))
+    out["Robot.forward_kinematics"] = Call(
+        robot.forward_kinematics, (robot.inverse_kinematics(pose).length[0], pose[0] + 0.01)
+    )
+    out["Robot.gravity_wrench"] = Call(robot.gravity_wrench, (pose[0],))
+    anchors, attachments = robot.points()
+    out["Robot"] = Call(
+        Robot,
+        (),
+        dict(
+            name="r", motion="planar", anchors=anchors, attachments=attachments, f_min=np.ones(4),
+            f_max=np.full(4, 50.0), ea=np.full(4, 1e5), mass=1.0, com=np.zeros(3), inertia=np.eye(3),
+            gravity=np.array([0.0, -9.8, 0.0]),
+        ),
+    )  # fmt: skip
     out["JointProblem.fit"] = Call(
         lambda th, ftol, max_iter: _problem().fit(th, ftol=ftol, max_iter=max_iter),
         (_problem().reference(), 1e-8, 3),

@@ -553,3 +553,14 @@ def test_state_indices_come_from_the_core_layout():
             assert [names[i] for i in idx] == [f"{q}{j}" for j in range(1, links + 1)]
     with pytest.raises(ck.ParameterError, match="no state"):
         state_indices(ck.CableTransmission.raven2(1), "tension")
+
+
+def test_an_innovation_whose_nis_overflows_is_rejected_not_reported_as_inf():
+    """Found by the property suite (issue #20 follow-up): a 1e154 encoder spike made the NIS
+    overflow to inf. It is now an outlier by any gate: rejected, counted, NIS at the float max."""
+    r1 = ck.CableTransmission.raven2(1)
+    q_m = np.full((30, 1), 0.1)
+    q_m[5, 0] = 1e154
+    est = ck.estimate_joint_states(r1, q_m, np.full((30, 1), 0.1), 1e-3)
+    assert np.all(np.isfinite(est.nis)) and est.nis[5] == np.finfo(float).max
+    assert np.all(np.isfinite(est.q_l)) and abs(est.q_l[-1, 0]) < 1.0, "the spike left the estimate alone"

@@ -19,10 +19,13 @@ __all__ = [
     "FitReport",
     "JointProblem",
     "JointRun",
+    "Kinematics",
     "Mlp",
     "Model",
     "ParamSpec",
+    "Robot",
     "SrUkf",
+    "Tensions",
     "__version__",
     "cable_tension",
     "capstan_ratio",
@@ -522,6 +525,73 @@ class DualSrUkf:
         kappa: float = 0.0,
     ) -> DualSrUkf: ...
     def run(self, U: _F, Y: _F, mask: NDArray[np.bool_] | None = None) -> DualRun: ...
+
+@disjoint_base
+class Robot:
+    """A cable-driven parallel robot (seeds 002, 003); see ``cablekit.cdpr`` for loading files."""
+
+    def __new__(
+        cls,
+        *,
+        name: str,
+        motion: str,
+        anchors: _F,
+        attachments: _F,
+        f_min: _F,
+        f_max: _F,
+        ea: _F,
+        mass: float,
+        com: _F,
+        inertia: _F,
+        gravity: _F,
+        pulleys: Sequence[tuple[int, float, tuple[float, float, float]]] | None = None,
+    ) -> Robot: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def motion(self) -> str: ...
+    @property
+    def dof(self) -> int: ...
+    @property
+    def n_cables(self) -> int: ...
+    @property
+    def bounds(self) -> tuple[_F, _F]:
+        """(f_min, f_max) per cable (N)."""
+    def inverse_kinematics(self, poses: _F) -> Kinematics:
+        """Cable lengths (T, m) and structure matrices Aᵀ (T, n, m) of poses (T, n)."""
+    def distribute(
+        self, poses: _F, wrenches: _F | None = None, *, method: str = "auto", gravity: bool = True
+    ) -> Tensions:
+        """Tensions holding the platform's weight plus external wrenches (T, n)."""
+    def forward_kinematics(
+        self, lengths: _F, seed: _F, tolerance: float = 1e-10
+    ) -> tuple[_F, float, int, bool]:
+        """(pose, rms_error, iterations, converged) for cable lengths (m,) from a seed pose."""
+    def gravity_wrench(self, pose: _F) -> _F: ...
+    def points(self) -> tuple[_F, _F]:
+        """Anchors and attachments (m, 3)."""
+
+@final
+class Kinematics:
+    """Inverse kinematics of T poses (``Robot.inverse_kinematics``)."""
+
+    @property
+    def length(self) -> _F: ...
+    @property
+    def structure(self) -> _F: ...
+
+@final
+class Tensions:
+    """Tensions at T poses (``Robot.distribute``)."""
+
+    @property
+    def f(self) -> _F: ...
+    @property
+    def method(self) -> list[str]: ...
+    @property
+    def feasible(self) -> NDArray[np.bool_]: ...
+    @property
+    def residual(self) -> _F: ...
 
 @final
 class Mlp:

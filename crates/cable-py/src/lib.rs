@@ -3,6 +3,7 @@
 //! Each file mirrors a core module and only converts, releases the GIL, calls the core and
 //! converts back. No algorithm lives here.
 
+mod cdpr;
 mod convert;
 mod dynamics;
 mod errors;
@@ -42,5 +43,8 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<results::ParamSpec>()?;
     m.add_function(wrap_pyfunction!(identify::effect_catalogue, m)?)?;
     m.add_class::<nn::Mlp>()?;
+    m.add_class::<cdpr::Robot>()?;
+    m.add_class::<results::Kinematics>()?;
+    m.add_class::<results::Tensions>()?;
     Ok(())
 }

@@ -300,3 +300,58 @@ impl ParamSpec {
         )
     }
 }
+
+/// Inverse kinematics of `T` poses (`Robot.inverse_kinematics`): cable `length` `(T, m)` (m)
+/// and the structure matrices `structure` `(T, n, m)` (`Aᵀ`).
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct Kinematics {
+    length: Py<PyArray2<f64>>,
+    structure: Py<PyArray3<f64>>,
+}
+
+impl Kinematics {
+    pub fn new(
+        py: Python<'_>,
+        length: Vec<f64>,
+        structure: Vec<f64>,
+        (t, n, m): (usize, usize, usize),
+    ) -> Self {
+        let structure = Array3::from_shape_vec((t, n, m), structure)
+            .expect("buffer length matches the shape by construction")
+            .into_pyarray(py)
+            .unbind();
+        Self {
+            length: to_matrix(py, length, t, m).unbind(),
+            structure,
+        }
+    }
+}
+
+/// Tensions at `T` poses (`Robot.distribute`): `f` `(T, m)` (N), per pose the `method` that
+/// answered, whether the tensions are `feasible` (equilibrium and bounds) and the `residual`
+/// wrench norm `‖Aᵀf + w‖`.
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct Tensions {
+    f: Py<PyArray2<f64>>,
+    method: Vec<&'static str>,
+    feasible: Py<PyArray1<bool>>,
+    residual: Py<PyArray1<f64>>,
+}
+
+impl Tensions {
+    pub fn new(
+        py: Python<'_>,
+        f: Vec<f64>,
+        (t, m): (usize, usize),
+        method: &[cable_core::cdpr::Method],
+        feasible: Vec<bool>,
+        residual: Vec<f64>,
+    ) -> Self {
+        Self {
+            f: to_matrix(py, f, t, m).unbind(),
+            method: method.iter().map(|k| k.name()).collect(),
+            feasible: feasible.into_pyarray(py).unbind(),
+            residual: residual.into_pyarray(py).unbind(),
+        }
+    }
+}

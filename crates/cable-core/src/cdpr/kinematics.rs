@@ -272,6 +272,9 @@ pub fn forward_kinematics(
     let (n, m) = (robot.dof(), robot.n_cables());
     check::len("lengths", lengths, m)?;
     check::all_finite("lengths", lengths, 1)?;
+    for (i, l) in lengths.iter().enumerate() {
+        check::non_negative(&format!("lengths[{i}]"), *l)?;
+    }
     check::positive("tolerance", tolerance)?;
     let mut pose = Pose::from_coordinates(robot.motion, seed)?;
     let mut geo = CableGeometry::default();
@@ -282,7 +285,14 @@ pub fn forward_kinematics(
             r[i] = geo.length[i] - lengths[i];
             ss += r[i] * r[i];
         }
-        Ok((ss / m as f64).sqrt())
+        let rms = (ss / m as f64).sqrt();
+        check::result_finite(
+            "length error",
+            &[rms],
+            1,
+            "the lengths are far beyond the robot",
+        )?;
+        Ok(rms)
     };
     let mut r = [0.0; MAX_CABLES];
     let mut rms = residual(&pose, &mut geo, &mut r)?;

@@ -4,11 +4,15 @@
 //! Sign convention (seed 002 eq. 5): tensions `f ≥ 0` hold the platform against an external
 //! wrench `w` (gravity included) when `Aᵀ·f + w = 0`.
 
+mod batch;
 mod kinematics;
 mod qp;
 mod robot;
 mod tension;
 
+pub use batch::{
+    distribute_batch, inverse_kinematics_batch, KinematicsMut, TensionsMut, PARALLEL_MIN_POSES,
+};
 pub use kinematics::{
     coordinates, elongation, forward_kinematics, inverse_kinematics, rpy, CableGeometry,
     ForwardKinematics, Pose, FK_MAX_ITER,

@@ -1,6 +1,7 @@
 //! Tension distribution as a quadratic programme solved by clarabel: `min ½‖f − f_ref‖²_W`
 //! subject to `Aᵀ·f + w = 0` and `f_min ≤ f ≤ f_max`, and, when that has no solution, the
-//! least wrench error `min ‖Aᵀ·f + w‖² + ε‖f − f_ref‖²_W` within the bounds.
+//! least wrench error `min ‖Aᵀ·f + w‖² + ε‖f − f_ref‖²_W` within the bounds (the error as
+//! its own variable).
 //!
 //! A [`QpDistributor`] keeps both clarabel solvers between poses: the first pose builds them
 //! (clarabel's setup: equilibration, symbolic factorisation, allocation), later poses only
@@ -30,18 +31,24 @@ pub const QP_MAX_ITER: u32 = 100;
 /// strictly convex, so its answer is unique and continuous along a trajectory).
 pub const LEAST_ERROR_REGULARISATION: f64 = 1e-6;
 
-/// A tension below or above its bound by at most this (N, relative) is set on the bound.
-const POLISH_BAND: f64 = 1e-7;
+/// Bands (relative to `1 + f_max`) within which an interior-point tension is taken to sit on
+/// its bound; each gives a candidate active set, and the feasible candidate of least objective
+/// is the answer (the optimum lies on the face of the true active set, and every other
+/// feasible candidate is a feasible point, so it cannot do better).
+const POLISH_BANDS: [f64; 4] = [1e-8, 1e-6, 1e-4, 1e-2];
 
-fn settings() -> Result<DefaultSettings<f64>> {
+/// Clarabel's settings: data updates allowed; `tight` asks for 1e-10 gaps (the QP, whose
+/// answer is then polished), else clarabel's defaults (the least-error fallback).
+fn settings(tight: bool) -> Result<DefaultSettings<f64>> {
+    let tol = if tight { 1e-10 } else { 1e-8 };
     DefaultSettingsBuilder::default()
         .verbose(false)
         .presolve_enable(false)
         .input_sparse_dropzeros(false)
         .max_iter(QP_MAX_ITER)
-        .tol_gap_abs(1e-10)
-        .tol_gap_rel(1e-10)
-        .tol_feas(1e-10)
+        .tol_gap_abs(tol)
+        .tol_gap_rel(tol)
+        .tol_feas(tol)
         .build()
         .map_err(|e| CableError::InvalidOption {
             name: "clarabel settings".into(),
@@ -81,25 +88,6 @@ fn constraint_matrix(at: &[f64], n: usize, m: usize) -> CscMatrix<f64> {
     CscMatrix::new(n + 2 * m, m, colptr, rowval, nzval)
 }
 
-/// `[I; −I]` (bounds only), CSC.
-fn bounds_matrix(m: usize) -> CscMatrix<f64> {
-    let colptr = (0..=m).map(|j| 2 * j).collect();
-    let rowval = (0..m).flat_map(|j| [j, m + j]).collect();
-    let nzval = (0..m).flat_map(|_| [1.0, -1.0]).collect();
-    CscMatrix::new(2 * m, m, colptr, rowval, nzval)
-}
-
-/// The upper triangle of a dense symmetric `m × m` matrix, CSC (all entries structural).
-fn upper_dense(m: usize) -> (Vec<usize>, Vec<usize>) {
-    let mut colptr = vec![0];
-    let mut rowval = Vec::new();
-    for j in 0..m {
-        rowval.extend(0..=j);
-        colptr.push(rowval.len());
-    }
-    (colptr, rowval)
-}
-
 /// Tension distribution for one robot by any [`Method`], keeping the clarabel solvers warm.
 pub struct Distributor {
     n: usize,
@@ -110,7 +98,6 @@ pub struct Distributor {
     a_vals: Vec<f64>,
     b: Vec<f64>,
     q: Vec<f64>,
-    p_vals: Vec<f64>,
     /// Solves since construction (cold ones included).
     pub solves: u64,
 }
@@ -156,7 +143,6 @@ impl Distributor {
             a_vals: Vec::new(),
             b: Vec::new(),
             q: Vec::new(),
-            p_vals: Vec::new(),
             solves: 0,
         })
     }
@@ -231,7 +217,7 @@ impl Distributor {
                 let p = diagonal(&self.weights);
                 let a = constraint_matrix(at, n, m);
                 let cones = [ZeroConeT(n), NonnegativeConeT(2 * m)];
-                let s = DefaultSolver::new(&p, &self.q, &a, &self.b, &cones, settings()?)
+                let s = DefaultSolver::new(&p, &self.q, &a, &self.b, &cones, settings(true)?)
                     .map_err(|e| solver_error("qp", e))?;
                 self.qp.insert(s)
             }
@@ -241,16 +227,32 @@ impl Distributor {
         if matches!(status, SolverStatus::Solved | SolverStatus::AlmostSolved) {
             let mut f = [0.0; MAX_CABLES];
             f[..m].copy_from_slice(&solver.solution.x[..m]);
-            if let Some(d) = polish(at, n, m, w, f_min, f_max, f)? {
-                if d.feasible {
-                    return Ok(d);
+            let objective = |d: &Distribution| -> f64 {
+                let t = d.tensions();
+                (0..m)
+                    .map(|i| self.weights[i] * (t[i] - 0.5 * (f_min[i] + f_max[i])).powi(2))
+                    .sum()
+            };
+            let mut best: Option<(f64, Distribution)> = None;
+            for band in POLISH_BANDS {
+                let Some(d) = polish(at, n, m, w, (f_min, f_max), &self.weights, f, band)? else {
+                    continue;
+                };
+                let obj = objective(&d);
+                if d.feasible && best.as_ref().is_none_or(|(b, _)| obj < *b) {
+                    best = Some((obj, d));
                 }
+            }
+            if let Some((_, d)) = best {
+                return Ok(d);
             }
         }
         self.least_error(at, w, f_min, f_max)
     }
 
-    /// `min ‖Aᵀ·f + w‖² + ε‖f − f_ref‖²_W` within the bounds (reported infeasible).
+    /// `min ½‖e‖² + ½ε‖f − f_ref‖²_W` subject to `Aᵀ·f + w = e` and the bounds: the least
+    /// wrench error `e` (reported infeasible). The error as its own variable keeps the problem
+    /// well conditioned (`P = diag(εW, I)`).
     fn least_error(
         &mut self,
         at: &[f64],
@@ -260,40 +262,40 @@ impl Distributor {
     ) -> Result<Distribution> {
         let (n, m) = (self.n, self.m);
         let eps = LEAST_ERROR_REGULARISATION;
-        // P = 2(A·Aᵀ + εW) (upper triangle, column by column), q = 2(A·w − εW·f_ref)
-        self.p_vals.clear();
-        for j in 0..m {
-            for i in 0..=j {
-                let g: f64 = (0..n).map(|r| at[r * m + i] * at[r * m + j]).sum();
-                let reg = if i == j { eps * self.weights[i] } else { 0.0 };
-                self.p_vals.push(2.0 * (g + reg));
-            }
-        }
         self.q.clear();
-        for i in 0..m {
-            let aw: f64 = (0..n).map(|r| at[r * m + i] * w[r]).sum();
-            let f_ref = 0.5 * (f_min[i] + f_max[i]);
-            self.q.push(2.0 * (aw - eps * self.weights[i] * f_ref));
-        }
+        self.q
+            .extend((0..m).map(|i| -eps * self.weights[i] * 0.5 * (f_min[i] + f_max[i])));
+        self.q.extend(std::iter::repeat_n(0.0, n));
         self.b.clear();
+        self.b.extend(w.iter().map(|v| -v));
         self.b.extend_from_slice(f_max);
         self.b.extend(f_min.iter().map(|v| -v));
+        constraint_values(at, n, m, &mut self.a_vals);
+        self.a_vals.extend(std::iter::repeat_n(-1.0, n));
         let solver = match self.least.as_mut() {
             Some(s) => {
-                s.update_P(&self.p_vals)
-                    .map_err(|e| solver_error("least error", e))?;
-                s.update_q(&self.q)
+                s.update_A(&self.a_vals)
                     .map_err(|e| solver_error("least error", e))?;
                 s.update_b(&self.b)
+                    .map_err(|e| solver_error("least error", e))?;
+                s.update_q(&self.q)
                     .map_err(|e| solver_error("least error", e))?;
                 s
             }
             None => {
-                let (colptr, rowval) = upper_dense(m);
-                let p = CscMatrix::new(m, m, colptr, rowval, self.p_vals.clone());
-                let a = bounds_matrix(m);
-                let cones = [NonnegativeConeT(2 * m)];
-                let s = DefaultSolver::new(&p, &self.q, &a, &self.b, &cones, settings()?)
+                let mut diag: Vec<f64> = self.weights.iter().map(|v| eps * v).collect();
+                diag.extend(std::iter::repeat_n(1.0, n));
+                let p = diagonal(&diag);
+                let mut a = constraint_matrix(at, n, m);
+                // the error columns: −I on the equality rows
+                a.n += n;
+                for r in 0..n {
+                    a.rowval.push(r);
+                    a.nzval.push(-1.0);
+                    a.colptr.push(a.rowval.len());
+                }
+                let cones = [ZeroConeT(n), NonnegativeConeT(2 * m)];
+                let s = DefaultSolver::new(&p, &self.q, &a, &self.b, &cones, settings(false)?)
                     .map_err(|e| solver_error("least error", e))?;
                 self.least.insert(s)
             }
@@ -332,21 +334,28 @@ fn diagonal(weights: &[f64]) -> CscMatrix<f64> {
     CscMatrix::new(m, m, (0..=m).collect(), (0..m).collect(), weights.to_vec())
 }
 
-/// Tensions within [`POLISH_BAND`] of a bound set on it, the others moved by the least-norm
-/// correction of the equilibrium (`None` if the free cables cannot carry it).
+/// The interior-point answer made exact: tensions within `band` of a bound are set on it (the
+/// active set), and the others are the exact optimum of the equality-constrained
+/// problem on the free cables (the closed form with the active cables' forces in the wrench;
+/// weighted by `W`). If that leaves the bounds (a wrong active set), the interior-point answer
+/// gets the least-norm equilibrium correction instead. `None` if the free cables cannot hold
+/// the wrench.
+#[allow(clippy::too_many_arguments)]
 fn polish(
     at: &[f64],
     n: usize,
     m: usize,
     w: &[f64],
-    f_min: &[f64],
-    f_max: &[f64],
-    mut f: [f64; MAX_CABLES],
+    (f_min, f_max): (&[f64], &[f64]),
+    weights: &[f64],
+    ipm: [f64; MAX_CABLES],
+    band: f64,
 ) -> Result<Option<Distribution>> {
+    let mut f = ipm;
     let mut free = [0usize; MAX_CABLES];
     let mut k = 0;
     for i in 0..m {
-        let band = POLISH_BAND * (1.0 + f_max[i].abs());
+        let band = band * (1.0 + f_max[i].abs());
         if f[i] <= f_min[i] + band {
             f[i] = f_min[i];
         } else if f[i] >= f_max[i] - band {
@@ -356,34 +365,63 @@ fn polish(
             k += 1;
         }
     }
-    if k >= n {
-        // residual r = Aᵀf + w; correct the free tensions by −M⁺ᵀ·r (M: the free columns)
-        let mut r = [0.0; 6];
+    if k < n {
+        return tension::finish(at, n, m, w, f, Method::Qp, Some((f_min, f_max))).map(Some);
+    }
+    let free = &free[..k];
+    let mut sub = [0.0; 6 * MAX_CABLES];
+    tension::columns(at, n, m, free, &mut sub);
+    // w_eff = w + the active cables' forces; scaled variables g = W^½·f make the weighted
+    // problem the plain closed form
+    let mut w_eff = [0.0; 6];
+    for a in 0..n {
+        let active: f64 = (0..m)
+            .filter(|i| !free.contains(i))
+            .map(|i| at[a * m + i] * f[i])
+            .sum();
+        w_eff[a] = w[a] + active;
+    }
+    let mut g_ref = [0.0; MAX_CABLES];
+    for (c, &j) in free.iter().enumerate() {
+        let s = weights[j].sqrt().recip();
         for a in 0..n {
-            r[a] = w[a] + (0..m).map(|i| at[a * m + i] * f[i]).sum::<f64>();
+            sub[a * k + c] *= s;
         }
-        let mut sub = [0.0; 6 * MAX_CABLES];
-        for a in 0..n {
-            for (c, &j) in free[..k].iter().enumerate() {
-                sub[a * k + c] = at[a * m + j];
-            }
-        }
-        let mut delta = [0.0; MAX_CABLES];
-        if tension::project(
-            &sub[..n * k],
-            n,
-            k,
-            &r[..n],
-            &[0.0; MAX_CABLES][..k],
-            &mut delta[..k],
-        )
-        .is_err()
-        {
-            return Ok(None);
-        }
-        for (c, &j) in free[..k].iter().enumerate() {
-            f[j] += delta[c];
-        }
+        g_ref[c] = 0.5 * (f_min[j] + f_max[j]) / s;
+    }
+    let mut g = [0.0; MAX_CABLES];
+    if tension::project(&sub[..n * k], n, k, &w_eff[..n], &g_ref[..k], &mut g[..k]).is_err() {
+        return Ok(None);
+    }
+    let mut exact = f;
+    for (c, &j) in free.iter().enumerate() {
+        exact[j] = g[c] * weights[j].sqrt().recip();
+    }
+    let d = tension::finish(at, n, m, w, exact, Method::Qp, Some((f_min, f_max)))?;
+    if d.feasible {
+        return Ok(Some(d));
+    }
+    // a wrong active set: correct the interior-point answer's equilibrium by least norm
+    let mut r = [0.0; 6];
+    for a in 0..n {
+        r[a] = w[a] + (0..m).map(|i| at[a * m + i] * f[i]).sum::<f64>();
+    }
+    tension::columns(at, n, m, free, &mut sub);
+    let mut delta = [0.0; MAX_CABLES];
+    if tension::project(
+        &sub[..n * k],
+        n,
+        k,
+        &r[..n],
+        &[0.0; MAX_CABLES][..k],
+        &mut delta[..k],
+    )
+    .is_err()
+    {
+        return Ok(None);
+    }
+    for (c, &j) in free.iter().enumerate() {
+        f[j] += delta[c];
     }
     tension::finish(at, n, m, w, f, Method::Qp, Some((f_min, f_max))).map(Some)
 }

@@ -193,6 +193,47 @@ impl Robot {
         })
     }
 
+    /// A robot from per-cable columns, as front ends and files give them: `anchors` and
+    /// `attachments` `(m, 3)` row-major, `f_min`, `f_max`, `ea` `(m,)`, and the pulleys as
+    /// `(cable, radius, axis)`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_columns(
+        name: &str,
+        motion: Motion,
+        anchors: &[f64],
+        attachments: &[f64],
+        (f_min, f_max, ea): (&[f64], &[f64], &[f64]),
+        pulleys: &[(usize, f64, [f64; 3])],
+        platform: Platform,
+        gravity: [f64; 3],
+    ) -> Result<Self> {
+        let m = f_min.len();
+        check::len("anchors", anchors, 3 * m)?;
+        check::len("attachments", attachments, 3 * m)?;
+        check::len("f_max", f_max, m)?;
+        check::len("ea", ea, m)?;
+        let xyz = |v: &[f64], i: usize| [v[3 * i], v[3 * i + 1], v[3 * i + 2]];
+        let mut cables: Vec<Cable> = (0..m)
+            .map(|i| Cable {
+                anchor: xyz(anchors, i),
+                attachment: xyz(attachments, i),
+                f_min: f_min[i],
+                f_max: f_max[i],
+                ea: ea[i],
+                pulley: None,
+            })
+            .collect();
+        for &(i, radius, axis) in pulleys {
+            let cable = cables.get_mut(i).ok_or_else(|| CableError::InvalidOption {
+                name: "pulleys".into(),
+                value: format!("cable {i}"),
+                allowed: format!("cables 0 to {}", m.saturating_sub(1)),
+            })?;
+            cable.pulley = Some(Pulley { radius, axis });
+        }
+        Self::new(name, motion, cables, platform, gravity)
+    }
+
     /// Cables `m`.
     pub fn n_cables(&self) -> usize {
         self.cables.len()

@@ -92,7 +92,7 @@ impl Distribution {
 }
 
 /// The structure matrix restricted to the cables in `cols`, row-major `n × k`.
-fn columns(at: &[f64], n: usize, m: usize, cols: &[usize], out: &mut [f64]) {
+pub(super) fn columns(at: &[f64], n: usize, m: usize, cols: &[usize], out: &mut [f64]) {
     let k = cols.len();
     for r in 0..n {
         for (c, &j) in cols.iter().enumerate() {
@@ -179,6 +179,17 @@ pub(super) fn finish(
     method: Method,
     bounds: Option<(&[f64], &[f64])>,
 ) -> Result<Distribution> {
+    let mut f = f;
+    if let Some((lo, hi)) = bounds {
+        // a tension within the tolerance of its bound is put on it (bounds hold exactly)
+        for i in 0..m {
+            if f[i] < lo[i] && within(f[i], lo[i], hi[i]) {
+                f[i] = lo[i];
+            } else if f[i] > hi[i] && within(f[i], lo[i], hi[i]) {
+                f[i] = hi[i];
+            }
+        }
+    }
     let mut res = 0.0;
     for a in 0..n {
         let e = w[a] + (0..m).map(|i| at[a * m + i] * f[i]).sum::<f64>();
@@ -195,7 +206,7 @@ pub(super) fn finish(
         + w.iter().map(|v| v.abs()).fold(0.0, f64::max)
         + f[..m].iter().map(|v| v.abs()).fold(0.0, f64::max);
     let feasible = residual <= 1e-9 * scale
-        && bounds.is_none_or(|(lo, hi)| (0..m).all(|i| within(f[i], lo[i], hi[i])));
+        && bounds.is_none_or(|(lo, hi)| (0..m).all(|i| f[i] >= lo[i] && f[i] <= hi[i]));
     Ok(Distribution {
         f,
         m,

@@ -84,7 +84,8 @@ impl Weights {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Health {
     /// Normalised innovation squared `νᵀ·P_yy⁻¹·ν` of the last update (NaN without one); its
-    /// mean is the number of measured channels when the filter is consistent.
+    /// mean is the number of measured channels when the filter is consistent. An NIS beyond
+    /// the float range is reported as `f64::MAX` and its update rejected (`gated`).
     pub nis: f64,
     /// Measured channels in the last update.
     pub measured: usize,
@@ -674,8 +675,12 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         }
         row[..q].copy_from_slice(&self.nu[..q]);
         solve_lower(sy, q, &mut row[..q]);
-        self.health.nis = row[..q].iter().map(|v| v * v).sum();
-        if self.health.nis > self.gate {
+        let nis: f64 = row[..q].iter().map(|v| v * v).sum();
+        // an innovation whose NIS overflows is an outlier by any gate: rejected, and its NIS
+        // reported as the largest float (it is at least that)
+        let overflow = !nis.is_finite();
+        self.health.nis = if overflow { f64::MAX } else { nis };
+        if overflow || self.health.nis > self.gate {
             // rejected: keep the prediction (with the 0th point's pending downdate applied)
             self.dev = row;
             self.health.gated = true;

@@ -1,0 +1,221 @@
+//! `Robot`: a cable-driven parallel robot, its kinematics and tension distribution.
+
+use cable_core::cdpr::{self as core, KinematicsMut, Method, Motion, Platform, TensionsMut};
+use numpy::{PyArray1, PyArray2};
+use pyo3::prelude::*;
+
+use crate::convert::{any_vector, matrix, to_vector, vector};
+use crate::errors::guarded;
+use crate::results::{Kinematics, Tensions};
+
+/// `(cable, radius, axis)` of each pulley.
+type Pulleys = Vec<(usize, f64, [f64; 3])>;
+
+/// A cable-driven parallel robot (seeds 002, 003): `motion` `"planar"` (pose `[x, y, θ]`) or
+/// `"spatial"` (pose `[x, y, z, roll, pitch, yaw]`), per cable an anchor and a platform
+/// attachment `(m, 3)`, tension bounds and axial stiffness `E·A` `(m,)`, optional pulleys
+/// `(cable, radius, axis)`, the platform's mass, centre of mass `(3,)` and inertia `(3, 3)`, and
+/// gravity `(3,)`. Immutable; calls on many poses release the GIL and run in parallel.
+#[pyclass(subclass, frozen, module = "cablekit._cablekit")]
+pub struct Robot {
+    inner: core::Robot,
+}
+
+#[pymethods]
+impl Robot {
+    #[new]
+    #[pyo3(signature = (*, name, motion, anchors, attachments, f_min, f_max, ea, mass, com, inertia, gravity, pulleys = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        name: &str,
+        motion: &str,
+        anchors: &Bound<'_, PyAny>,
+        attachments: &Bound<'_, PyAny>,
+        f_min: &Bound<'_, PyAny>,
+        f_max: &Bound<'_, PyAny>,
+        ea: &Bound<'_, PyAny>,
+        mass: f64,
+        com: &Bound<'_, PyAny>,
+        inertia: &Bound<'_, PyAny>,
+        gravity: &Bound<'_, PyAny>,
+        pulleys: Option<Pulleys>,
+    ) -> PyResult<Self> {
+        let (a, _) = matrix(anchors, "anchors", Some(3))?;
+        let (b, _) = matrix(attachments, "attachments", Some(3))?;
+        let bounds = (any_vector(f_min, "f_min")?, any_vector(f_max, "f_max")?);
+        let ea = any_vector(ea, "ea")?;
+        let (j, _) = matrix(inertia, "inertia", Some(3))?;
+        let platform = Platform {
+            mass,
+            com: xyz(com, "com")?,
+            inertia: j.as_slice()?.try_into().map_err(|_| shape("inertia"))?,
+        };
+        let gravity = xyz(gravity, "gravity")?;
+        let (a, b) = (a.as_slice()?, b.as_slice()?);
+        let pulleys = pulleys.unwrap_or_default();
+        let inner = guarded(|| {
+            let columns = (bounds.0.as_slice(), bounds.1.as_slice(), ea.as_slice());
+            let motion = Motion::from_name(motion)?;
+            core::Robot::from_columns(name, motion, a, b, columns, &pulleys, platform, gravity)
+        })?;
+        Ok(Self { inner })
+    }
+
+    #[getter]
+    fn name(&self) -> &str {
+        &self.inner.name
+    }
+    #[getter]
+    fn motion(&self) -> &'static str {
+        self.inner.motion.name()
+    }
+    /// Degrees of freedom `n`.
+    #[getter]
+    fn dof(&self) -> usize {
+        self.inner.dof()
+    }
+    /// Cables `m`.
+    #[getter]
+    fn n_cables(&self) -> usize {
+        self.inner.n_cables()
+    }
+    /// `(f_min, f_max)` per cable (N).
+    #[getter]
+    fn bounds<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>) {
+        let c = &self.inner.cables;
+        let lo = c.iter().map(|c| c.f_min).collect();
+        (
+            to_vector(py, lo),
+            to_vector(py, c.iter().map(|c| c.f_max).collect()),
+        )
+    }
+
+    /// Inverse kinematics of poses `(T, n)`: a `Kinematics` with cable lengths `(T, m)` and
+    /// structure matrices `Aᵀ` `(T, n, m)` (GIL released, parallel for many poses).
+    fn inverse_kinematics(&self, py: Python<'_>, poses: &Bound<'_, PyAny>) -> PyResult<Kinematics> {
+        let (n, m) = (self.inner.dof(), self.inner.n_cables());
+        let (p, t) = matrix(poses, "poses", Some(n))?;
+        let (mut length, mut structure) = (vec![0.0; t * m], vec![0.0; t * n * m]);
+        let out = KinematicsMut {
+            length: &mut length,
+            structure: &mut structure,
+        };
+        let p = p.as_slice()?;
+        py.detach(|| guarded(|| core::inverse_kinematics_batch(&self.inner, p, out)))?;
+        Ok(Kinematics::new(py, length, structure, (t, n, m)))
+    }
+
+    /// Tensions at poses `(T, n)` holding the platform's weight (unless `gravity=False`) plus
+    /// the external `wrenches` `(T, n)`, by `method` (`"auto"`: improved closed form → QP →
+    /// least wrench error; or one of `"minimum_norm"`, `"closed_form"`,
+    /// `"improved_closed_form"`, `"qp"`): a `Tensions` (GIL released, parallel).
+    #[pyo3(signature = (poses, wrenches = None, *, method = "auto", gravity = true))]
+    fn distribute(
+        &self,
+        py: Python<'_>,
+        poses: &Bound<'_, PyAny>,
+        wrenches: Option<&Bound<'_, PyAny>>,
+        method: &str,
+        gravity: bool,
+    ) -> PyResult<Tensions> {
+        let (n, m) = (self.inner.dof(), self.inner.n_cables());
+        let method = guarded(|| Method::from_name(method))?;
+        let (p, t) = matrix(poses, "poses", Some(n))?;
+        let ext = wrenches
+            .filter(|w| !w.is_none())
+            .map(|w| matrix(w, "wrenches", Some(n)))
+            .transpose()?;
+        let ext = ext
+            .map(|(e, _)| e.as_slice().map(<[f64]>::to_vec))
+            .transpose()?;
+        let mut f = vec![0.0; t * m];
+        let (mut used, mut feasible, mut residual) =
+            (vec![Method::Auto; t], vec![false; t], vec![0.0; t]);
+        let out = TensionsMut {
+            f: &mut f,
+            method: &mut used,
+            feasible: &mut feasible,
+            residual: &mut residual,
+        };
+        let p = p.as_slice()?;
+        py.detach(|| {
+            guarded(|| core::distribute_batch(&self.inner, p, ext.as_deref(), gravity, method, out))
+        })?;
+        Ok(Tensions::new(py, f, (t, m), &used, feasible, residual))
+    }
+
+    /// The pose whose cable lengths are `lengths` `(m,)`, from `seed` `(n,)` (damped
+    /// Gauss–Newton): `(pose, rms_error, iterations, converged)`.
+    #[pyo3(signature = (lengths, seed, tolerance = 1e-10))]
+    fn forward_kinematics<'py>(
+        &self,
+        py: Python<'py>,
+        lengths: &Bound<'py, PyAny>,
+        seed: &Bound<'py, PyAny>,
+        tolerance: f64,
+    ) -> PyResult<(Bound<'py, PyArray1<f64>>, f64, usize, bool)> {
+        let l = vector(lengths, "lengths", self.inner.n_cables())?;
+        let s = vector(seed, "seed", self.inner.dof())?;
+        let fk = guarded(|| core::forward_kinematics(&self.inner, &l, &s, tolerance))?;
+        Ok((
+            to_vector(py, fk.pose),
+            fk.rms_error,
+            fk.iterations,
+            fk.converged,
+        ))
+    }
+
+    /// The platform's weight as a wrench `(n,)` at `pose`.
+    fn gravity_wrench<'py>(
+        &self,
+        py: Python<'py>,
+        pose: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let q = vector(pose, "pose", self.inner.dof())?;
+        let p = guarded(|| core::Pose::from_coordinates(self.inner.motion, &q))?;
+        let mut w = [0.0; 6];
+        self.inner.gravity_wrench(&p.rotation, &mut w);
+        Ok(to_vector(py, w[..self.inner.dof()].to_vec()))
+    }
+
+    /// Anchors and attachments `(m, 3)` as given.
+    fn points<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>) {
+        let c = &self.inner.cables;
+        let m = c.len();
+        let a = c.iter().flat_map(|c| c.anchor).collect();
+        let b = c.iter().flat_map(|c| c.attachment).collect();
+        (
+            crate::convert::to_matrix(py, a, m, 3),
+            crate::convert::to_matrix(py, b, m, 3),
+        )
+    }
+
+    fn __repr__(&self) -> String {
+        let r = &self.inner;
+        format!(
+            "Robot(name={:?}, motion={:?}, cables={})",
+            r.name,
+            r.motion.name(),
+            r.n_cables()
+        )
+    }
+}
+
+fn shape(name: &str) -> PyErr {
+    crate::errors::arg_error(
+        crate::errors::Class::Shape,
+        name,
+        format!("{name} must have shape (3, 3)"),
+    )
+}
+
+fn xyz(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 3]> {
+    let v = vector(obj, name, 3)?;
+    Ok([v[0], v[1], v[2]])
+}

@@ -1,0 +1,174 @@
+"""Cable-driven parallel robots (seeds 002 and 003): robot files, kinematics, tension distribution.
+
+* :class:`Robot` — a robot from a TOML file (:meth:`Robot.load`, :meth:`Robot.from_toml`,
+  :meth:`Robot.from_dict`) or a shipped one by name (:func:`shipped`); inverse and forward
+  kinematics, the structure matrix, and tension distribution (:meth:`Robot.distribute`) are the
+  Rust core's (see docs/cdpr.md).
+
+Conventions: a pose is ``[x, y, θ]`` (planar) or ``[x, y, z, roll, pitch, yaw]`` (spatial,
+``R = R_z(yaw) R_y(pitch) R_x(roll)``); tensions ``f`` hold an external wrench ``w`` when
+``Aᵀ f + w = 0`` (seed 002 eq. 5).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cablekit._cablekit import Kinematics, Tensions
+from cablekit._cablekit import Robot as _Robot
+from cablekit.errors import DataError
+
+__all__ = ["Kinematics", "Robot", "Tensions", "shipped"]
+
+_TOP = {"name", "motion", "gravity", "platform", "cable", "cables", "description"}
+_PLATFORM = {"mass", "com", "inertia"}
+_CABLE = {
+    "anchor",
+    "attachment",
+    "f_min",
+    "f_max",
+    "ea",
+    "youngs_modulus",
+    "area",
+    "stiffness",
+    "length",
+    "pulley",
+}
+_PULLEY = {"radius", "axis"}
+_GRAVITY = {"planar": [0.0, -9.80665, 0.0], "spatial": [0.0, 0.0, -9.80665]}
+
+
+def _keys(table: Any, allowed: set[str], where: str) -> dict[str, Any]:
+    if not isinstance(table, dict):
+        raise DataError(f"{where} must be a table, got {type(table).__name__}")
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise DataError(f"{where}: unknown key(s) {unknown}; known: {sorted(allowed)}")
+    return table
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise DataError(f"{where} must be a number, got {value!r}")
+    return float(value)
+
+
+def _vector(value: Any, n: int, where: str) -> list[float]:
+    if not isinstance(value, list) or len(value) != n:
+        raise DataError(f"{where} must be a list of {n} numbers, got {value!r}")
+    return [_number(v, f"{where}[{i}]") for i, v in enumerate(value)]
+
+
+def _inertia(value: Any, where: str) -> np.ndarray:
+    if isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) for r in value):
+        return np.array([_vector(r, 3, f"{where}[{i}]") for i, r in enumerate(value)])
+    return np.diag(_vector(value, 3, where))
+
+
+def _ea(c: dict[str, Any], where: str) -> float:
+    """Axial stiffness E·A from ``ea``, ``youngs_modulus`` and ``area``, or ``stiffness``
+    (k = EA/L) and the unstrained ``length``."""
+    given = [k for k in ("ea", "youngs_modulus", "stiffness") if k in c]
+    if given == ["ea"]:
+        return _number(c["ea"], f"{where}.ea")
+    if given == ["youngs_modulus"] and "area" in c:
+        return _number(c["youngs_modulus"], f"{where}.youngs_modulus") * _number(c["area"], f"{where}.area")
+    if given == ["stiffness"] and "length" in c:
+        return _number(c["stiffness"], f"{where}.stiffness") * _number(c["length"], f"{where}.length")
+    got = sorted(k for k in c if k in {"ea", "youngs_modulus", "area", "stiffness", "length"})
+    raise DataError(
+        f"{where}: give the cable's elasticity once, as ea, as youngs_modulus and area, or as stiffness "
+        f"(k = EA/L) and length; got {got}"
+    )
+
+
+class Robot(_Robot):
+    """A cable-driven parallel robot. Build one from a robot file (:meth:`load`) or a shipped
+    robot (:func:`shipped`); the keyword constructor takes the arrays the file describes."""
+
+    @classmethod
+    def load(cls, path: str | Path) -> Robot:
+        """A robot from a TOML robot file (format: docs/cdpr.md)."""
+        p = Path(path)
+        try:
+            text = p.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as e:
+            raise DataError(f"{p}: cannot read the robot file ({e})") from e
+        return cls.from_toml(text, source=str(p))
+
+    @classmethod
+    def from_toml(cls, text: str, source: str = "<robot>") -> Robot:
+        """A robot from the text of a TOML robot file."""
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as e:
+            raise DataError(f"{source}: not valid TOML ({e})") from e
+        return cls.from_dict(doc, source)
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any], source: str = "<robot>") -> Robot:
+        """A robot from the parsed robot file."""
+        doc = _keys(doc, _TOP, source)
+        motion = doc.get("motion")
+        if motion not in _GRAVITY:
+            raise DataError(f"{source}: motion must be 'planar' or 'spatial', got {motion!r}")
+        name = doc.get("name", Path(source).stem)
+        if not isinstance(name, str):
+            raise DataError(f"{source}: name must be a string, got {name!r}")
+        platform = _keys(doc.get("platform", {}), _PLATFORM, f"{source}: [platform]")
+        defaults = _keys(doc.get("cable", {}), _CABLE - {"anchor", "attachment"}, f"{source}: [cable]")
+        cables = doc.get("cables")
+        if not isinstance(cables, list) or not cables:
+            raise DataError(f"{source}: [[cables]] must list the cables, got {cables!r}")
+        columns: dict[str, list[Any]] = {k: [] for k in ("anchors", "attachments", "f_min", "f_max", "ea")}
+        pulleys = []
+        for i, raw in enumerate(cables):
+            where = f"{source}: cables[{i}]"
+            c = {**defaults, **_keys(raw, _CABLE, where)}
+            for key in ("anchor", "attachment", "f_min", "f_max"):
+                if key not in c:
+                    raise DataError(f"{where}.{key} is missing (give it per cable or in [cable])")
+            columns["anchors"].append(_vector(c["anchor"], 3, f"{where}.anchor"))
+            columns["attachments"].append(_vector(c["attachment"], 3, f"{where}.attachment"))
+            columns["f_min"].append(_number(c["f_min"], f"{where}.f_min"))
+            columns["f_max"].append(_number(c["f_max"], f"{where}.f_max"))
+            columns["ea"].append(_ea(c, where))
+            if "pulley" in c:
+                pl = _keys(c["pulley"], _PULLEY, f"{where}.pulley")
+                if set(pl) != _PULLEY:
+                    raise DataError(f"{where}.pulley needs radius and axis, got {sorted(pl)}")
+                axis = np.array(_vector(pl["axis"], 3, f"{where}.pulley.axis"))
+                norm = float(np.linalg.norm(axis))
+                if not np.isfinite(norm) or norm == 0.0:
+                    raise DataError(f"{where}.pulley.axis must be a non-zero direction, got {pl['axis']!r}")
+                pulleys.append((i, _number(pl["radius"], f"{where}.pulley.radius"), tuple(axis / norm)))
+        arrays = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in columns.items()}
+        return cls(
+            name=name,
+            motion=motion,
+            mass=_number(platform.get("mass", 0.0), f"{source}: platform.mass"),
+            com=np.asarray(_vector(platform.get("com", [0.0, 0.0, 0.0]), 3, f"{source}: platform.com")),
+            inertia=np.ascontiguousarray(
+                _inertia(platform.get("inertia", [0.0, 0.0, 0.0]), f"{source}: platform.inertia")
+            ),
+            gravity=np.asarray(_vector(doc.get("gravity", _GRAVITY[motion]), 3, f"{source}: gravity")),
+            pulleys=pulleys,
+            **arrays,
+        )
+
+
+def shipped(name: str | None = None) -> Robot | list[str]:
+    """The shipped robot ``name`` (``"seed002_mini"``, ``"seed003_planar"``, ``"ipanema_like"``),
+    or the list of names without an argument."""
+    folder = resources.files("cablekit.cdpr") / "robots"
+    names = sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
+    if name is None:
+        return names
+    if name not in names:
+        raise DataError(f"no shipped robot {name!r}; shipped: {names}")
+    return Robot.from_toml((folder / f"{name}.toml").read_text(encoding="utf-8"), source=f"{name}.toml")
