@@ -54,3 +54,57 @@ pub fn mlp_fixture(sizes: &[usize]) -> cable_core::nn::Mlp {
     )
     .expect("fixture network is valid")
 }
+
+/// The IPAnema-like 8-cable robot of `python/cablekit/cdpr/robots/ipanema_like.toml` (the same
+/// numbers; `tests/test_cdpr.py` loads the file), and `count` poses spread over the central
+/// 70 % of its frame with rotations up to 0.1 rad.
+pub fn ipanema_fixture(count: usize) -> (cable_core::cdpr::Robot, Vec<f64>) {
+    use cable_core::cdpr::{Cable, Motion, Platform, Robot};
+    let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
+    let mut cables = Vec::new();
+    for (z, pz) in [(0.0, 0.15), (3.0, -0.15)] {
+        for &(sx, sy) in &corners {
+            cables.push(Cable {
+                anchor: [2.0 * sx, 1.5 * sy, z],
+                attachment: [0.15 * sx, 0.2 * sy, pz],
+                f_min: 10.0,
+                f_max: 3000.0,
+                ea: 30e9 * 2.827e-5,
+                pulley: None,
+            });
+        }
+    }
+    let platform = Platform {
+        mass: 10.0,
+        com: [0.0; 3],
+        inertia: [0.2083, 0.0, 0.0, 0.0, 0.15, 0.0, 0.0, 0.0, 0.2083],
+    };
+    let robot = Robot::new(
+        "ipanema-like",
+        Motion::Spatial,
+        cables,
+        platform,
+        [0.0, 0.0, -9.80665],
+    )
+    .expect("the fixture is valid");
+    let mut s: u64 = 0x2545_F491_4F6C_DD1D;
+    let mut next = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let poses = (0..count)
+        .flat_map(|_| {
+            [
+                1.4 * next(),
+                1.05 * next(),
+                1.5 + 1.05 * next(),
+                0.1 * next(),
+                0.1 * next(),
+                0.1 * next(),
+            ]
+        })
+        .collect();
+    (robot, poses)
+}

@@ -115,7 +115,7 @@ class Robot(_Robot):
         """A robot from the parsed robot file."""
         doc = _keys(doc, _TOP, source)
         motion = doc.get("motion")
-        if motion not in _GRAVITY:
+        if not isinstance(motion, str) or motion not in _GRAVITY:
             raise DataError(f"{source}: motion must be 'planar' or 'spatial', got {motion!r}")
         name = doc.get("name", Path(source).stem)
         if not isinstance(name, str):

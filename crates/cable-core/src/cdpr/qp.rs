@@ -32,15 +32,13 @@ pub const QP_MAX_ITER: u32 = 100;
 pub const LEAST_ERROR_REGULARISATION: f64 = 1e-6;
 
 /// Bands (relative to `1 + f_max`) within which an interior-point tension is taken to sit on
-/// its bound; each gives a candidate active set, and the feasible candidate of least objective
-/// is the answer (the optimum lies on the face of the true active set, and every other
-/// feasible candidate is a feasible point, so it cannot do better).
+/// its bound; each gives a candidate face, tried tightest first.
 const POLISH_BANDS: [f64; 4] = [1e-8, 1e-6, 1e-4, 1e-2];
 
 /// Clarabel's settings: data updates allowed; `tight` asks for 1e-10 gaps (the QP, whose
 /// answer is then polished), else clarabel's defaults (the least-error fallback).
 fn settings(tight: bool) -> Result<DefaultSettings<f64>> {
-    let tol = if tight { 1e-10 } else { 1e-8 };
+    let tol = if tight { 1e-8 } else { 1e-7 };
     DefaultSettingsBuilder::default()
         .verbose(false)
         .presolve_enable(false)
@@ -98,8 +96,12 @@ pub struct Distributor {
     a_vals: Vec<f64>,
     b: Vec<f64>,
     q: Vec<f64>,
-    /// Solves since construction (cold ones included).
+    /// The last QP answer's face (which cables sat on which bound): the warm start.
+    face: Option<Face>,
+    /// Interior-point solves since construction.
     pub solves: u64,
+    /// QP answers found on the previous answer's face, without an interior-point solve.
+    pub warm_hits: u64,
 }
 
 impl std::fmt::Debug for Distributor {
@@ -143,7 +145,9 @@ impl Distributor {
             a_vals: Vec::new(),
             b: Vec::new(),
             q: Vec::new(),
+            face: None,
             solves: 0,
+            warm_hits: 0,
         })
     }
 
@@ -152,10 +156,11 @@ impl Distributor {
         self.qp.is_some()
     }
 
-    /// Forget the built solvers (the next solve is cold).
+    /// Forget the built solvers and the last face (the next solve is cold).
     pub fn reset(&mut self) {
         self.qp = None;
         self.least = None;
+        self.face = None;
     }
 
     /// Tensions at the pose of structure matrix `at` (`n × m`, row-major) for wrench `w` by
@@ -195,6 +200,17 @@ impl Distributor {
         let (n, m) = (self.n, self.m);
         tension::checked(at, n, m, w)?;
         tension::bounds_checked(m, f_min, f_max)?;
+        // warm path: the previous answer's face, if its exact optimum passes the KKT test here
+        // (neighbouring poses of a trajectory share a face), is this pose's optimum
+        if let Some(face) = self.face {
+            if let Some(f) = solve_on_face(at, n, m, w, (f_min, f_max), &self.weights, &face) {
+                let d = tension::finish(at, n, m, w, f, Method::Qp, Some((f_min, f_max)))?;
+                if d.feasible {
+                    self.warm_hits += 1;
+                    return Ok(d);
+                }
+            }
+        }
         // b = [−w; f_max; −f_min], q = −W·f_ref
         self.b.clear();
         self.b.extend(w.iter().map(|v| -v));
@@ -227,24 +243,11 @@ impl Distributor {
         if matches!(status, SolverStatus::Solved | SolverStatus::AlmostSolved) {
             let mut f = [0.0; MAX_CABLES];
             f[..m].copy_from_slice(&solver.solution.x[..m]);
-            let objective = |d: &Distribution| -> f64 {
-                let t = d.tensions();
-                (0..m)
-                    .map(|i| self.weights[i] * (t[i] - 0.5 * (f_min[i] + f_max[i])).powi(2))
-                    .sum()
-            };
-            let mut best: Option<(f64, Distribution)> = None;
-            for band in POLISH_BANDS {
-                let Some(d) = polish(at, n, m, w, (f_min, f_max), &self.weights, f, band)? else {
-                    continue;
-                };
-                let obj = objective(&d);
-                if d.feasible && best.as_ref().is_none_or(|(b, _)| obj < *b) {
-                    best = Some((obj, d));
+            if let Some(d) = polish(at, n, m, w, (f_min, f_max), &self.weights, f)? {
+                if d.feasible {
+                    self.face = Some(face_of(d.tensions(), f_min, f_max));
+                    return Ok(d);
                 }
-            }
-            if let Some((_, d)) = best {
-                return Ok(d);
             }
         }
         self.least_error(at, w, f_min, f_max)
@@ -262,14 +265,18 @@ impl Distributor {
     ) -> Result<Distribution> {
         let (n, m) = (self.n, self.m);
         let eps = LEAST_ERROR_REGULARISATION;
+        // in units of the largest force involved (an interior point misjudges feasibility
+        // when the error and the tensions differ by orders of magnitude)
+        let scale = w.iter().chain(f_max).fold(1.0_f64, |a, v| a.max(v.abs()));
+        let mid = |i: usize| 0.5 * (f_min[i] + f_max[i]) / scale;
         self.q.clear();
         self.q
-            .extend((0..m).map(|i| -eps * self.weights[i] * 0.5 * (f_min[i] + f_max[i])));
+            .extend((0..m).map(|i| -eps * self.weights[i] * mid(i)));
         self.q.extend(std::iter::repeat_n(0.0, n));
         self.b.clear();
-        self.b.extend(w.iter().map(|v| -v));
-        self.b.extend_from_slice(f_max);
-        self.b.extend(f_min.iter().map(|v| -v));
+        self.b.extend(w.iter().map(|v| -v / scale));
+        self.b.extend(f_max.iter().map(|v| v / scale));
+        self.b.extend(f_min.iter().map(|v| -v / scale));
         constraint_values(at, n, m, &mut self.a_vals);
         self.a_vals.extend(std::iter::repeat_n(-1.0, n));
         let solver = match self.least.as_mut() {
@@ -301,10 +308,16 @@ impl Distributor {
             }
         };
         solver.solve();
-        if !matches!(
+        // the fallback's answer is reported infeasible with its residual, so an interior point
+        // stopped early (iteration cap, slow progress) still serves if it is finite
+        let usable = matches!(
             solver.solution.status,
-            SolverStatus::Solved | SolverStatus::AlmostSolved
-        ) {
+            SolverStatus::Solved
+                | SolverStatus::AlmostSolved
+                | SolverStatus::MaxIterations
+                | SolverStatus::InsufficientProgress
+        ) && solver.solution.x[..m].iter().all(|v| v.is_finite());
+        if !usable {
             return Err(CableError::NotConverged {
                 what: "least-wrench-error tension distribution".into(),
                 limit: QP_MAX_ITER as usize,
@@ -313,7 +326,7 @@ impl Distributor {
         }
         let mut f = [0.0; MAX_CABLES];
         for i in 0..m {
-            f[i] = solver.solution.x[i].clamp(f_min[i], f_max[i]);
+            f[i] = (scale * solver.solution.x[i]).clamp(f_min[i], f_max[i]);
         }
         let mut d = tension::finish(
             at,
@@ -334,52 +347,50 @@ fn diagonal(weights: &[f64]) -> CscMatrix<f64> {
     CscMatrix::new(m, m, (0..=m).collect(), (0..m).collect(), weights.to_vec())
 }
 
-/// The interior-point answer made exact: tensions within `band` of a bound are set on it (the
-/// active set), and the others are the exact optimum of the equality-constrained
-/// problem on the free cables (the closed form with the active cables' forces in the wrench;
-/// weighted by `W`). If that leaves the bounds (a wrong active set), the interior-point answer
-/// gets the least-norm equilibrium correction instead. `None` if the free cables cannot hold
-/// the wrench.
-#[allow(clippy::too_many_arguments)]
-fn polish(
+/// Per cable: `-1` held at `f_min`, `1` at `f_max`, `0` free.
+type Face = [i8; MAX_CABLES];
+
+/// The exact optimum of `min ½‖f − f_ref‖²_W, Aᵀf + w = 0` with the cables of `face` held at
+/// their bounds, if it satisfies every KKT condition of the bounded problem — the free
+/// tensions within their bounds and the held cables' multipliers non-negative — and is then
+/// the QP's global optimum (the problem is convex). `None` otherwise.
+fn solve_on_face(
     at: &[f64],
     n: usize,
     m: usize,
     w: &[f64],
     (f_min, f_max): (&[f64], &[f64]),
     weights: &[f64],
-    ipm: [f64; MAX_CABLES],
-    band: f64,
-) -> Result<Option<Distribution>> {
-    let mut f = ipm;
+    face: &Face,
+) -> Option<[f64; MAX_CABLES]> {
+    let mut f = [0.0; MAX_CABLES];
     let mut free = [0usize; MAX_CABLES];
     let mut k = 0;
     for i in 0..m {
-        let band = band * (1.0 + f_max[i].abs());
-        if f[i] <= f_min[i] + band {
-            f[i] = f_min[i];
-        } else if f[i] >= f_max[i] - band {
-            f[i] = f_max[i];
-        } else {
-            free[k] = i;
-            k += 1;
+        match face[i] {
+            -1 => f[i] = f_min[i],
+            1 => f[i] = f_max[i],
+            _ => {
+                free[k] = i;
+                k += 1;
+            }
         }
     }
     if k < n {
-        return tension::finish(at, n, m, w, f, Method::Qp, Some((f_min, f_max))).map(Some);
+        return None;
     }
     let free = &free[..k];
     let mut sub = [0.0; 6 * MAX_CABLES];
     tension::columns(at, n, m, free, &mut sub);
-    // w_eff = w + the active cables' forces; scaled variables g = W^½·f make the weighted
-    // problem the plain closed form
+    // w_eff = w + the held cables' forces; scaled variables g = W^½·f make the weighted
+    // problem the plain closed form (multipliers unchanged)
     let mut w_eff = [0.0; 6];
     for a in 0..n {
-        let active: f64 = (0..m)
-            .filter(|i| !free.contains(i))
-            .map(|i| at[a * m + i] * f[i])
-            .sum();
-        w_eff[a] = w[a] + active;
+        w_eff[a] = w[a]
+            + (0..m)
+                .filter(|&i| face[i] != 0)
+                .map(|i| at[a * m + i] * f[i])
+                .sum::<f64>();
     }
     let mut g_ref = [0.0; MAX_CABLES];
     for (c, &j) in free.iter().enumerate() {
@@ -390,38 +401,105 @@ fn polish(
         g_ref[c] = 0.5 * (f_min[j] + f_max[j]) / s;
     }
     let mut g = [0.0; MAX_CABLES];
-    if tension::project(&sub[..n * k], n, k, &w_eff[..n], &g_ref[..k], &mut g[..k]).is_err() {
-        return Ok(None);
-    }
-    let mut exact = f;
+    let y = tension::project(&sub[..n * k], n, k, &w_eff[..n], &g_ref[..k], &mut g[..k]).ok()?;
     for (c, &j) in free.iter().enumerate() {
-        exact[j] = g[c] * weights[j].sqrt().recip();
+        f[j] = g[c] * weights[j].sqrt().recip();
+        if f[j] < f_min[j] || f[j] > f_max[j] {
+            return None;
+        }
     }
-    let d = tension::finish(at, n, m, w, exact, Method::Qp, Some((f_min, f_max)))?;
-    if d.feasible {
-        return Ok(Some(d));
+    // held cables: W_j(f_j − r_j) + a_jᵀy is the lower bound's multiplier (≥ 0), its negative
+    // the upper bound's
+    for i in (0..m).filter(|&i| face[i] != 0) {
+        let r = 0.5 * (f_min[i] + f_max[i]);
+        let grad = weights[i] * (f[i] - r) + (0..n).map(|a| at[a * m + i] * y[a]).sum::<f64>();
+        let tol = 1e-9 * (1.0 + weights[i] * (f_max[i] - f_min[i]));
+        if f64::from(face[i]) * grad > tol {
+            return None;
+        }
     }
-    // a wrong active set: correct the interior-point answer's equilibrium by least norm
-    let mut r = [0.0; 6];
-    for a in 0..n {
-        r[a] = w[a] + (0..m).map(|i| at[a * m + i] * f[i]).sum::<f64>();
+    Some(f)
+}
+
+/// The face of a distribution: the cables exactly at a bound.
+fn face_of(f: &[f64], f_min: &[f64], f_max: &[f64]) -> Face {
+    let mut face = [0; MAX_CABLES];
+    for (i, v) in f.iter().enumerate() {
+        face[i] = if *v <= f_min[i] {
+            -1
+        } else if *v >= f_max[i] {
+            1
+        } else {
+            0
+        };
     }
-    tension::columns(at, n, m, free, &mut sub);
-    let mut delta = [0.0; MAX_CABLES];
-    if tension::project(
-        &sub[..n * k],
-        n,
-        k,
-        &r[..n],
-        &[0.0; MAX_CABLES][..k],
-        &mut delta[..k],
-    )
-    .is_err()
-    {
-        return Ok(None);
+    face
+}
+
+/// The interior-point answer made exact: for each band, the tensions within it of a bound are
+/// held there, and the first such face whose exact optimum passes the KKT test
+/// ([`solve_on_face`]) is the answer. If none does, the interior-point answer gets the
+/// least-norm equilibrium correction on its free cables instead. `None` if the free cables
+/// cannot hold the wrench.
+fn polish(
+    at: &[f64],
+    n: usize,
+    m: usize,
+    w: &[f64],
+    bounds: (&[f64], &[f64]),
+    weights: &[f64],
+    ipm: [f64; MAX_CABLES],
+) -> Result<Option<Distribution>> {
+    let (f_min, f_max) = bounds;
+    let face_at = |band: f64| {
+        let mut face = [0; MAX_CABLES];
+        for i in 0..m {
+            let b = band * (1.0 + f_max[i].abs());
+            face[i] = if ipm[i] <= f_min[i] + b {
+                -1
+            } else if ipm[i] >= f_max[i] - b {
+                1
+            } else {
+                0
+            };
+        }
+        face
+    };
+    for band in POLISH_BANDS {
+        if let Some(f) = solve_on_face(at, n, m, w, bounds, weights, &face_at(band)) {
+            return tension::finish(at, n, m, w, f, Method::Qp, Some(bounds)).map(Some);
+        }
     }
-    for (c, &j) in free.iter().enumerate() {
-        f[j] += delta[c];
+    // no face passed: correct the interior-point answer's equilibrium by least norm
+    let face = face_at(POLISH_BANDS[0]);
+    let mut f = ipm;
+    let mut free = [0usize; MAX_CABLES];
+    let mut k = 0;
+    for i in 0..m {
+        match face[i] {
+            -1 => f[i] = f_min[i],
+            1 => f[i] = f_max[i],
+            _ => {
+                free[k] = i;
+                k += 1;
+            }
+        }
     }
-    tension::finish(at, n, m, w, f, Method::Qp, Some((f_min, f_max))).map(Some)
+    if k >= n {
+        let mut r = [0.0; 6];
+        for a in 0..n {
+            r[a] = w[a] + (0..m).map(|i| at[a * m + i] * f[i]).sum::<f64>();
+        }
+        let mut sub = [0.0; 6 * MAX_CABLES];
+        tension::columns(at, n, m, &free[..k], &mut sub);
+        let mut delta = [0.0; MAX_CABLES];
+        let zero = [0.0; MAX_CABLES];
+        if tension::project(&sub[..n * k], n, k, &r[..n], &zero[..k], &mut delta[..k]).is_err() {
+            return Ok(None);
+        }
+        for (c, &j) in free[..k].iter().enumerate() {
+            f[j] += delta[c];
+        }
+    }
+    tension::finish(at, n, m, w, f, Method::Qp, Some(bounds)).map(Some)
 }

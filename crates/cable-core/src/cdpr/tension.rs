@@ -101,7 +101,8 @@ pub(super) fn columns(at: &[f64], n: usize, m: usize, cols: &[usize], out: &mut 
     }
 }
 
-/// `f = f_ref − Mᵀ·(M·Mᵀ)⁻¹·(w + M·f_ref)` for `M` `n × k` row-major (`f_ref = 0`: least norm).
+/// `f = f_ref − Mᵀ·y` with `y = (M·Mᵀ)⁻¹·(w + M·f_ref)` for `M` `n × k` row-major (`f_ref = 0`:
+/// least norm); returns `y`, the equality's multipliers.
 pub(super) fn project(
     mat: &[f64],
     n: usize,
@@ -109,7 +110,7 @@ pub(super) fn project(
     w: &[f64],
     f_ref: &[f64],
     f: &mut [f64],
-) -> Result<()> {
+) -> Result<[f64; 6]> {
     let mut mmt = [0.0; 36];
     let mut r = [0.0; 6];
     for a in 0..n {
@@ -131,7 +132,7 @@ pub(super) fn project(
     for c in 0..k {
         f[c] = f_ref[c] - (0..n).map(|a| mat[a * k + c] * y[a]).sum::<f64>();
     }
-    Ok(())
+    Ok(y)
 }
 
 pub(super) fn checked(at: &[f64], n: usize, m: usize, w: &[f64]) -> Result<()> {
@@ -151,13 +152,19 @@ pub(super) fn checked(at: &[f64], n: usize, m: usize, w: &[f64]) -> Result<()> {
 pub(super) fn bounds_checked(m: usize, f_min: &[f64], f_max: &[f64]) -> Result<()> {
     check::len("f_min", f_min, m)?;
     check::len("f_max", f_max, m)?;
+    // names are built only for an error: the check allocates nothing on the controller path
     for i in 0..m {
-        check::non_negative(&format!("f_min[{i}]"), f_min[i])?;
-        check::finite(&format!("f_max[{i}]"), f_max[i])?;
-        if f_max[i] < f_min[i] {
+        let (lo, hi) = (f_min[i], f_max[i]);
+        if !(lo.is_finite() && lo >= 0.0) {
+            check::non_negative(&format!("f_min[{i}]"), lo)?;
+        }
+        if !hi.is_finite() {
+            check::finite(&format!("f_max[{i}]"), hi)?;
+        }
+        if hi < lo {
             return Err(CableError::InvalidParameter {
                 name: format!("f_max[{i}]"),
-                value: f_max[i],
+                value: hi,
                 requirement: "at least f_min",
             });
         }
@@ -279,7 +286,7 @@ pub fn improved_closed_form(
             f_ref[c] = 0.5 * (f_min[j] + f_max[j]);
         }
         match project(&sub[..n * k], n, k, &w_eff[..n], &f_ref[..k], &mut fa[..k]) {
-            Ok(()) => {}
+            Ok(_) => {}
             // the cables left after fixing some cannot hold the wrench: infeasible, and the
             // previous tensions still hold it
             Err(_) if k < m => {
