@@ -365,17 +365,7 @@ fn solve_on_face(
 ) -> Option<[f64; MAX_CABLES]> {
     let mut f = [0.0; MAX_CABLES];
     let mut free = [0usize; MAX_CABLES];
-    let mut k = 0;
-    for i in 0..m {
-        match face[i] {
-            -1 => f[i] = f_min[i],
-            1 => f[i] = f_max[i],
-            _ => {
-                free[k] = i;
-                k += 1;
-            }
-        }
-    }
+    let k = hold(face, (f_min, f_max), &mut f[..m], &mut free);
     if k < n {
         return None;
     }
@@ -419,6 +409,23 @@ fn solve_on_face(
         }
     }
     Some(f)
+}
+
+/// Set the held cables of `face` on their bounds in `f`; the free cables' indices go to `free`,
+/// and their count is returned.
+fn hold(face: &Face, (f_min, f_max): (&[f64], &[f64]), f: &mut [f64], free: &mut [usize]) -> usize {
+    let mut k = 0;
+    for (i, v) in f.iter_mut().enumerate() {
+        match face[i] {
+            -1 => *v = f_min[i],
+            1 => *v = f_max[i],
+            _ => {
+                free[k] = i;
+                k += 1;
+            }
+        }
+    }
+    k
 }
 
 /// The face of a distribution: the cables exactly at a bound.
@@ -474,17 +481,7 @@ fn polish(
     let face = face_at(POLISH_BANDS[0]);
     let mut f = ipm;
     let mut free = [0usize; MAX_CABLES];
-    let mut k = 0;
-    for i in 0..m {
-        match face[i] {
-            -1 => f[i] = f_min[i],
-            1 => f[i] = f_max[i],
-            _ => {
-                free[k] = i;
-                k += 1;
-            }
-        }
-    }
+    let k = hold(&face, (f_min, f_max), &mut f[..m], &mut free);
     if k >= n {
         let mut r = [0.0; 6];
         for a in 0..n {

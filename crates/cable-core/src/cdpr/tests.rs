@@ -341,3 +341,49 @@ fn the_qp_agrees_with_the_closed_form_and_stays_feasible() {
         d.tensions()
     );
 }
+
+/// Neighbouring poses of a trajectory share their face: the warm start answers them without an
+/// interior-point solve, with the same tensions a cold solve gives.
+#[test]
+fn warm_faces_answer_a_trajectory_without_interior_point_solves() {
+    let robot = box_robot(false);
+    let (lo, hi) = ([1.0; 8], [50.0; 8]);
+    let mut d = Distributor::new(6, 8, None).unwrap();
+    let mut feasible = 0;
+    for k in 0..500 {
+        let s = k as f64 / 499.0;
+        let q = [
+            -0.2 + 0.4 * s,
+            -0.15 + 0.3 * s,
+            -0.1 + 0.2 * s,
+            0.02,
+            -0.02,
+            0.05 * s,
+        ];
+        let g = ik(&robot, &q);
+        let pose = Pose::from_coordinates(robot.motion, &q).unwrap();
+        let mut w = [0.0; 6];
+        robot.gravity_wrench(&pose.rotation, &mut w);
+        w[0] += 8.0;
+        let r = d
+            .distribute(g.structure(), &w, &lo, &hi, Method::Qp)
+            .unwrap();
+        feasible += usize::from(r.feasible);
+        if k % 97 == 0 {
+            let mut cold = Distributor::new(6, 8, None).unwrap();
+            let c = cold
+                .distribute(g.structure(), &w, &lo, &hi, Method::Qp)
+                .unwrap();
+            for (a, b) in r.tensions().iter().zip(c.tensions()) {
+                assert!((a - b).abs() < 1e-9, "warm {a} vs cold {b}");
+            }
+        }
+    }
+    assert_eq!(feasible, 500);
+    assert!(
+        d.solves <= 5 && d.warm_hits >= 495,
+        "{} solves, {} warm",
+        d.solves,
+        d.warm_hits
+    );
+}
