@@ -277,3 +277,35 @@ def test_any_array_to_the_robot_calls_is_a_typed_error_or_finite(rows, cols, fil
             continue
         values = out.f if hasattr(out, "f") else out.length
         assert np.all(np.isfinite(values))
+
+
+@pytest.mark.parametrize(
+    ("name", "start", "end", "load"),
+    [
+        ("seed002_mini", [-0.3, -0.2, 0.2, 0, 0, 0], [0.3, 0.2, 0.75, 0.1, -0.1, 0.2], [8, 0, 0, 0, 0, 0]),
+        (
+            "ipanema_like",
+            [-0.8, -0.6, 1.0, 0.05, -0.05, 0],
+            [0.8, 0.6, 2.0, 0.05, -0.05, 0.1],
+            [1500, 0, 0, 0, 0, 0],
+        ),
+        ("seed003_planar", [0.3, 0.3, -0.2], [0.9, 0.7, 0.2], [10, 0, 0]),
+    ],
+)
+def test_the_auto_chain_is_as_continuous_as_the_qp_along_a_trajectory(name, start, end, load):
+    """2,000 poses on a straight path with a constant side load: between feasible neighbours the
+    auto chain's largest tension jump is the QP optimum's own (a method switch adds none); the
+    jumps are printed for docs/cdpr.md."""
+    robot = shipped(name)
+    s = np.linspace(0.0, 1.0, 2000)[:, None]
+    poses = np.ascontiguousarray((1 - s) * np.array(start, float) + s * np.array(end, float))
+    wrenches = np.tile(np.array(load, float), (2000, 1))
+    jumps = {}
+    for method in ("auto", "qp"):
+        res = robot.distribute(poses, wrenches, method=method)
+        both = res.feasible[:-1] & res.feasible[1:]
+        jumps[method] = np.abs(np.diff(res.f, axis=0)).max(axis=1)[both].max()
+    print(
+        f"{name}: largest jump between feasible neighbours auto {jumps['auto']:.3f} N, qp {jumps['qp']:.3f} N"
+    )
+    assert jumps["auto"] <= jumps["qp"] + 1e-6
