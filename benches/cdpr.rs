@@ -6,8 +6,8 @@ use std::hint::black_box;
 
 use cable_bench::ipanema_fixture;
 use cable_core::cdpr::{
-    distribute_batch, improved_closed_form, inverse_kinematics, CableGeometry, Distributor, Method,
-    Pose, TensionsMut,
+    capacity_batch, capacity_margin, distribute_batch, improved_closed_form, inverse_kinematics,
+    CableGeometry, CapacityMut, Distributor, Method, Pose, Requirement, TensionsMut,
 };
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 
@@ -44,6 +44,15 @@ fn per_pose(c: &mut Criterion) {
             k = (k + 1) % 64;
             let (at, w) = &cases[k];
             black_box(improved_closed_form(black_box(at), n, m, w, &lo, &hi).unwrap());
+        })
+    });
+    g.bench_function("capacity_margin_8x6", |b| {
+        let mut k = 0;
+        let req = Requirement::default();
+        b.iter(|| {
+            k = (k + 1) % 64;
+            let (at, w) = &cases[k];
+            black_box(capacity_margin(black_box(at), n, m, &lo, &hi, w, &req).unwrap());
         })
     });
     g.bench_function("qp_cold_8x6", |b| {
@@ -132,6 +141,45 @@ fn batch(c: &mut Criterion) {
             black_box(&feasible);
         })
     });
+    // the workspace: a 50 x 50 x 50 grid over the frame at a fixed orientation
+    let k = 50;
+    let grid: Vec<f64> = (0..t)
+        .flat_map(|i| {
+            let (a, b, c) = (i % k, (i / k) % k, i / (k * k));
+            let at = |j: usize, half: f64| -half + 2.0 * half * j as f64 / (k - 1) as f64;
+            [
+                at(a, 1.9),
+                at(b, 1.4),
+                0.05 + 2.9 * c as f64 / (k - 1) as f64,
+                0.0,
+                0.0,
+                0.1,
+            ]
+        })
+        .collect();
+    let (mut margin, mut degenerate, mut weakest) =
+        (vec![0.0; t], vec![false; t], vec![0.0; 6 * t]);
+    let boxed = Requirement {
+        half_width: [20.0, 20.0, 20.0, 2.0, 2.0, 2.0],
+        ..Requirement::default()
+    };
+    for (name, req) in [
+        ("workspace_static_125k", Requirement::default()),
+        ("workspace_wrench_box_125k", boxed),
+    ] {
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                let out = CapacityMut {
+                    margin: &mut margin,
+                    feasible: &mut feasible,
+                    degenerate: &mut degenerate,
+                    weakest: &mut weakest,
+                };
+                capacity_batch(&robot, black_box(&grid), &req, out).unwrap();
+                black_box(&margin);
+            })
+        });
+    }
     g.finish();
 }
 

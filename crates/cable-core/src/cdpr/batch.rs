@@ -7,6 +7,7 @@ use super::kinematics::{inverse_kinematics, CableGeometry, Pose};
 use super::qp::Distributor;
 use super::robot::Robot;
 use super::tension::Method;
+use super::workspace::{capacity, Requirement};
 use crate::error::{check, CableError, Result};
 
 /// Poses below this count run on the calling thread (thread start-up costs more).
@@ -205,5 +206,69 @@ pub fn distribute_batch(
             .zip(out.residual.par_iter_mut())
             .enumerate()
             .try_for_each_init(init, one)
+    }
+}
+
+/// Outputs of [`capacity_batch`], one entry per pose.
+#[derive(Debug)]
+pub struct CapacityMut<'a> {
+    /// Capacity margin.
+    pub margin: &'a mut [f64],
+    /// Inside the workspace.
+    pub feasible: &'a mut [bool],
+    /// Rank-deficient structure matrix.
+    pub degenerate: &'a mut [bool],
+    /// The weakest external wrench direction `(T, n)` (see [`super::Capacity::weakest`]).
+    pub weakest: &'a mut [f64],
+}
+
+/// Capacity margins at the poses `(T, n)` (row-major) for the requirement: a grid of poses
+/// gives the static (`Requirement::default()`) or wrench-feasible workspace.
+pub fn capacity_batch(
+    robot: &Robot,
+    poses: &[f64],
+    req: &Requirement,
+    out: CapacityMut<'_>,
+) -> Result<()> {
+    let n = robot.dof();
+    let t = rows(robot, poses)?;
+    req.validate(n)?;
+    for (what, len) in [
+        ("margin buffer", out.margin.len()),
+        ("feasible buffer", out.feasible.len()),
+        ("degenerate buffer", out.degenerate.len()),
+    ] {
+        buffer(what, len, t)?;
+    }
+    buffer("weakest buffer", out.weakest.len(), t * n)?;
+    type Row<'b> = (
+        usize,
+        (((&'b mut f64, &'b mut bool), &'b mut bool), &'b mut [f64]),
+    );
+    let one = |geo: &mut CableGeometry, (row, (((s, fe), de), wk)): Row<'_>| -> Result<()> {
+        let pose = Pose::from_coordinates(robot.motion, &poses[row * n..(row + 1) * n])?;
+        let c = capacity(robot, &pose, req, geo).map_err(|e| at_row(e, row))?;
+        (*s, *fe, *de) = (c.margin, c.feasible, c.degenerate);
+        wk.copy_from_slice(&c.weakest[..n]);
+        Ok(())
+    };
+    if t < PARALLEL_MIN_POSES {
+        let mut geo = CableGeometry::default();
+        out.margin
+            .iter_mut()
+            .zip(out.feasible.iter_mut())
+            .zip(out.degenerate.iter_mut())
+            .zip(out.weakest.chunks_mut(n))
+            .enumerate()
+            .try_for_each(|r| one(&mut geo, r))
+    } else {
+        out.margin
+            .par_iter_mut()
+            .zip(out.feasible.par_iter_mut())
+            .zip(out.degenerate.par_iter_mut())
+            .zip(out.weakest.par_chunks_mut(n))
+            .enumerate()
+            .with_min_len(64)
+            .try_for_each_init(CableGeometry::default, one)
     }
 }

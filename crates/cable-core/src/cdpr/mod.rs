@@ -5,14 +5,18 @@
 //! wrench `w` (gravity included) when `Aᵀ·f + w = 0`.
 
 mod batch;
+mod controller;
 mod kinematics;
 mod qp;
 mod robot;
 mod tension;
+mod workspace;
 
 pub use batch::{
-    distribute_batch, inverse_kinematics_batch, KinematicsMut, TensionsMut, PARALLEL_MIN_POSES,
+    capacity_batch, distribute_batch, inverse_kinematics_batch, CapacityMut, KinematicsMut,
+    TensionsMut, PARALLEL_MIN_POSES,
 };
+pub use controller::{Controller, Step};
 pub use kinematics::{
     coordinates, elongation, forward_kinematics, inverse_kinematics, rpy, CableGeometry,
     ForwardKinematics, Pose, FK_MAX_ITER,
@@ -22,6 +26,8 @@ pub use robot::{Cable, Motion, Platform, Pulley, Robot, MAX_CABLES};
 pub use tension::{
     closed_form, improved_closed_form, minimum_norm, Distribution, Method, BOUND_TOLERANCE,
 };
+
+pub use workspace::{capacity, capacity_margin, Capacity, Requirement, RANK_TOLERANCE};
 
 #[cfg(test)]
 mod tests;

@@ -387,3 +387,167 @@ fn warm_faces_answer_a_trajectory_without_interior_point_solves() {
         d.warm_hits
     );
 }
+
+/// A small deterministic generator for test poses (xorshift).
+struct Rng(u64);
+
+impl Rng {
+    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        lo + (hi - lo) * ((self.0 >> 11) as f64 / (1u64 << 53) as f64)
+    }
+}
+
+fn holds(robot: &Robot, q: &[f64], w: &[f64]) -> bool {
+    let (n, m) = (robot.dof(), robot.n_cables());
+    let lo: Vec<f64> = robot.cables.iter().map(|c| c.f_min).collect();
+    let hi: Vec<f64> = robot.cables.iter().map(|c| c.f_max).collect();
+    let g = ik(robot, q);
+    Distributor::new(n, m, None)
+        .unwrap()
+        .distribute(g.structure(), w, &lo, &hi, Method::Qp)
+        .unwrap()
+        .feasible
+}
+
+/// The capacity margin's sign is the QP's feasibility; inside, every wrench within the margin
+/// is held and the weakest direction leaves the set just past it; a wrench box is inside
+/// exactly when all its corners are held; the moment length changes the margin, not the sign.
+#[test]
+fn capacity_margin_is_the_distance_to_the_edge_of_the_available_wrenches() {
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    for robot in [box_robot(false), box_robot(true), planar_robot()] {
+        let n = robot.dof();
+        let (mut inside, mut outside) = (0, 0);
+        let mut geo = CableGeometry::default();
+        for _ in 0..100 {
+            let q: Vec<f64> = (0..n)
+                .map(|k| match (n, k) {
+                    (3, 0) => rng.uniform(0.0, 1.0),
+                    (3, 1) => rng.uniform(0.0, 0.8),
+                    (3, _) => rng.uniform(-0.4, 0.4),
+                    (_, 0) => rng.uniform(-0.5, 0.5),
+                    (_, 1) => rng.uniform(-0.35, 0.35),
+                    (_, 2) => rng.uniform(-0.4, 0.4),
+                    _ => rng.uniform(-0.3, 0.3),
+                })
+                .collect();
+            let pose = Pose::from_coordinates(robot.motion, &q).unwrap();
+            let req = Requirement::default();
+            let c = capacity(&robot, &pose, &req, &mut geo).unwrap();
+            assert!(!c.degenerate);
+            let facets = if n == 3 { 6 } else { 56 };
+            assert_eq!(c.facets, facets);
+            let mut w = [0.0; 6];
+            robot.gravity_wrench(&pose.rotation, &mut w);
+            let w = &w[..n];
+            if c.margin.abs() > 1e-6 {
+                assert_eq!(holds(&robot, &q, w), c.margin > 0.0, "{q:?}: {c:?}");
+            }
+            let scaled = Requirement {
+                moment_length: 0.1,
+                ..req
+            };
+            let c2 = capacity(&robot, &pose, &scaled, &mut geo).unwrap();
+            if c.margin.abs() > 1e-6 {
+                assert_eq!(c2.feasible, c.feasible);
+            }
+            if c.margin > 1e-3 {
+                inside += 1;
+                let at = |t: f64| -> Vec<f64> {
+                    w.iter()
+                        .zip(&c.weakest)
+                        .map(|(a, b)| a + t * c.margin * b)
+                        .collect()
+                };
+                assert!(holds(&robot, &q, &at(0.99)), "{q:?}: {c:?}");
+                assert!(!holds(&robot, &q, &at(1.01)), "{q:?}: {c:?}");
+                for _ in 0..5 {
+                    let e: Vec<f64> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
+                    let len = e.iter().map(|v| v * v).sum::<f64>().sqrt();
+                    let w2: Vec<f64> = w
+                        .iter()
+                        .zip(&e)
+                        .map(|(a, b)| a + 0.99 * c.margin * b / len)
+                        .collect();
+                    assert!(holds(&robot, &q, &w2), "{q:?}: {c:?}");
+                }
+                // a box of half width h per component: inside iff all corners are held
+                let h = 0.5 * c.margin / (n as f64).sqrt() * rng.uniform(0.5, 3.0);
+                let boxed = Requirement {
+                    half_width: [h; 6],
+                    ..req
+                };
+                let cb = capacity(&robot, &pose, &boxed, &mut geo).unwrap();
+                let all = (0..1usize << n).all(|corner| {
+                    let wc: Vec<f64> = (0..n)
+                        .map(|k| w[k] + if corner >> k & 1 == 1 { h } else { -h })
+                        .collect();
+                    holds(&robot, &q, &wc)
+                });
+                if cb.margin.abs() > 1e-6 {
+                    assert_eq!(all, cb.feasible, "{q:?}: box {h}: {cb:?}");
+                }
+                assert!(cb.margin <= c.margin);
+            } else if c.margin < -1e-3 {
+                outside += 1;
+            }
+        }
+        assert!(
+            inside > 10 && outside > 10,
+            "{inside} inside, {outside} outside"
+        );
+    }
+}
+
+/// The controller's steps are the batch's answers, pose by pose, and report the jumps.
+#[test]
+fn the_controller_answers_like_the_batch_and_reports_jumps() {
+    let robot = box_robot(false);
+    let poses: Vec<f64> = (0..40)
+        .flat_map(|k| {
+            let s = k as f64 / 39.0;
+            [0.3 * s, -0.2 * s, 0.1, 0.0, 0.05 * s, 0.0]
+        })
+        .collect();
+    let t = 40;
+    let (mut f, mut method, mut feasible, mut residual) = (
+        vec![0.0; t * 8],
+        vec![Method::Auto; t],
+        vec![false; t],
+        vec![0.0; t],
+    );
+    let out = TensionsMut {
+        f: &mut f,
+        method: &mut method,
+        feasible: &mut feasible,
+        residual: &mut residual,
+    };
+    distribute_batch(&robot, &poses, None, true, Method::Auto, out).unwrap();
+    let mut ctl = Controller::new(&robot, Method::Auto, true).unwrap();
+    let mut prev: Option<Vec<f64>> = None;
+    for (k, q) in poses.chunks(6).enumerate() {
+        let s = ctl.step(q, None).unwrap();
+        let d = s.distribution;
+        assert_eq!(d.method, method[k]);
+        for (a, b) in d.tensions().iter().zip(&f[k * 8..(k + 1) * 8]) {
+            assert!((a - b).abs() < 1e-9, "{a} vs {b}");
+        }
+        let want = prev.map_or(0.0, |p| {
+            p.iter()
+                .zip(d.tensions())
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max)
+        });
+        assert!(
+            (s.jump - want).abs() <= 1e-12 * want.max(1.0),
+            "{} vs {want}",
+            s.jump
+        );
+        prev = Some(d.tensions().to_vec());
+    }
+    assert!(ctl.step(&[0.0; 5], None).is_err());
+    assert!(ctl.step(&[0.0; 6], Some(&[f64::NAN; 6])).is_err());
+}

@@ -1,0 +1,589 @@
+//! Wrench-feasible and static workspace: the capacity margin of a pose by hyperplane shifting.
+//!
+//! The tensions `f_min ≤ f ≤ f_max` generate the available wrench set, the zonotope
+//! `Z = {Aᵀ·f}`; a pose holds the wrench `w` when `−w ∈ Z`. Every facet of `Z` is normal to
+//! `n − 1` columns of `Aᵀ` (Bouchard, Gosselin and Moore 2010, the hyperplane shifting method),
+//! and the support of `Z` in a direction `c` is `h(c) = Σᵢ max(f_minᵢ·c·aᵢ, f_maxᵢ·c·aᵢ)`.
+//! The **capacity margin** (Guay, Cardou, Ruiz and Caro 2014) is the signed distance from the
+//! required wrench set to the nearest facet: with the weight `w_g`, a required wrench box
+//! `w_c ± δ` and the facet normals `c`,
+//!
+//! ```text
+//! s = min_c (h(c) + c·(w_g + w_c) − Σₖ |cₖ|·δₖ) / ‖c‖
+//! ```
+//!
+//! `s ≥ 0` is exact membership of the wrench-feasible workspace (every wrench of the box can
+//! be held within the bounds); `s` is then the radius of the largest wrench ball that can be
+//! added. With no box (`δ = 0`, `w_c = 0`) it is the static workspace, and `s` is how far the
+//! weight is from the nearest wrench the cables can no longer hold.
+//!
+//! The facet normals come cheaply from one Gauss–Jordan elimination with complete pivoting:
+//! with `M = B⁻¹` for a basis `B` of `n` columns, `T = M·Aᵀ` has unit columns on the basis and
+//! `r = m − n` other columns, and a normal `c = Mᵀ·d` orthogonal to `n − 1` columns has a `d`
+//! supported on the `q + 1` basis coordinates its set leaves out (`q` of the set being
+//! non-basis columns): `d` is a generalised cross product of size `q + 1 ≤ n`, `c·aᵢ = d·tᵢ`
+//! and `‖c‖² = dᵀ·(M·Mᵀ)·d` touch only those coordinates. All in fixed-size stack buffers.
+//!
+//! Moments enter the distance divided by a characteristic length (`moment_length`), so that
+//! the margin is a force (N) when it is set to the platform's size; 1 m by default.
+
+use super::kinematics::{inverse_kinematics, CableGeometry, Pose};
+use super::robot::{Motion, Robot, MAX_CABLES};
+use crate::error::{check, CableError, Result};
+
+/// Largest pivot (relative to the largest `|Aᵀ|` entry) below which the structure matrix
+/// counts as rank deficient: the pose is degenerate.
+pub const RANK_TOLERANCE: f64 = 1e-10;
+
+/// The wrench set a pose must hold: the platform's weight (if `gravity`) plus every wrench of
+/// the box `center ± half_width` (per component, the robot's `n` entries).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Requirement {
+    /// Add the platform's weight.
+    pub gravity: bool,
+    /// Centre of the required external wrench box (N, N·m).
+    pub center: [f64; 6],
+    /// Half widths of the box, each `≥ 0` (N, N·m).
+    pub half_width: [f64; 6],
+    /// Moments count in the distance as `moment / moment_length` (m, `> 0`).
+    pub moment_length: f64,
+}
+
+impl Default for Requirement {
+    /// The static workspace: the weight only, moments in N·m as they are.
+    fn default() -> Self {
+        Self {
+            gravity: true,
+            center: [0.0; 6],
+            half_width: [0.0; 6],
+            moment_length: 1.0,
+        }
+    }
+}
+
+impl Requirement {
+    /// Checks the values for a robot of `n` degrees of freedom.
+    pub fn validate(&self, n: usize) -> Result<()> {
+        check::all_finite("wrench centre", &self.center[..n], n)?;
+        check::all_finite("wrench half widths", &self.half_width[..n], n)?;
+        if let Some((k, &v)) = self.half_width[..n]
+            .iter()
+            .enumerate()
+            .find(|(_, v)| **v < 0.0)
+        {
+            return Err(CableError::InvalidParameter {
+                name: format!("wrench half widths[{k}]"),
+                value: v,
+                requirement: ">= 0",
+            });
+        }
+        if !(self.moment_length.is_finite() && self.moment_length > 0.0) {
+            return Err(CableError::InvalidParameter {
+                name: "moment_length".into(),
+                value: self.moment_length,
+                requirement: "finite and > 0",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The capacity of one pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Capacity {
+    /// Capacity margin (N with moments divided by the moment length): `≥ 0` inside the
+    /// workspace, the distance to the nearest facet of the available wrench set; `0` at a
+    /// degenerate pose.
+    pub margin: f64,
+    /// Every required wrench can be held within the bounds (`margin ≥ 0`, not degenerate).
+    pub feasible: bool,
+    /// `Aᵀ` is rank deficient (the cables cannot span the wrench space at this pose).
+    pub degenerate: bool,
+    /// Facet normals examined (`C(m, n − 1)` at a regular pose).
+    pub facets: usize,
+    /// The external wrench direction the pose resists least (N, N·m; unit in the margin's
+    /// norm, the first `n` entries): adding `margin · weakest` to the required wrench reaches
+    /// the boundary of the available wrench set. Zero at a degenerate pose.
+    pub weakest: [f64; 6],
+}
+
+/// First `k`-combination of `0..`.
+fn first_combination(idx: &mut [usize], k: usize) {
+    for (i, v) in idx[..k].iter_mut().enumerate() {
+        *v = i;
+    }
+}
+
+/// Next `k`-combination of `0..n` in lexicographic order; `false` after the last.
+fn next_combination(idx: &mut [usize], k: usize, n: usize) -> bool {
+    let mut i = k;
+    while i > 0 {
+        i -= 1;
+        if idx[i] < n - k + i {
+            idx[i] += 1;
+            for j in i + 1..k {
+                idx[j] = idx[j - 1] + 1;
+            }
+            return true;
+        }
+    }
+    false
+}
+
+/// Determinant of the leading `q × q` block of `a` (partial pivoting; `a` is overwritten).
+fn determinant(a: &mut [[f64; 6]; 6], q: usize) -> f64 {
+    let mut det = 1.0;
+    for k in 0..q {
+        let p = (k..q)
+            .max_by(|&x, &y| a[x][k].abs().total_cmp(&a[y][k].abs()))
+            .unwrap_or(k);
+        if a[p][k] == 0.0 {
+            return 0.0;
+        }
+        if p != k {
+            a.swap(p, k);
+            det = -det;
+        }
+        det *= a[k][k];
+        for r in k + 1..q {
+            let f = a[r][k] / a[k][k];
+            for c in k + 1..q {
+                a[r][c] -= f * a[k][c];
+            }
+        }
+    }
+    det
+}
+
+/// The generalised cross product of the `q` rows of `k` (`q × (q + 1)`): the vector of signed
+/// maximal minors, orthogonal to every row.
+fn cross_rows(k: &[[f64; 6]; 6], q: usize, d: &mut [f64; 6]) {
+    match q {
+        0 => d[0] = 1.0,
+        1 => {
+            d[0] = k[0][1];
+            d[1] = -k[0][0];
+        }
+        2 => {
+            d[0] = k[0][1] * k[1][2] - k[0][2] * k[1][1];
+            d[1] = k[0][2] * k[1][0] - k[0][0] * k[1][2];
+            d[2] = k[0][0] * k[1][1] - k[0][1] * k[1][0];
+        }
+        _ => {
+            for (b, db) in d[..=q].iter_mut().enumerate() {
+                let mut minor = [[0.0; 6]; 6];
+                for r in 0..q {
+                    let mut c2 = 0;
+                    for c in 0..=q {
+                        if c != b {
+                            minor[r][c2] = k[r][c];
+                            c2 += 1;
+                        }
+                    }
+                }
+                let sign = if (b + q).is_multiple_of(2) { 1.0 } else { -1.0 };
+                *db = sign * determinant(&mut minor, q);
+            }
+        }
+    }
+}
+
+/// A facet normal's `d` counts only when `‖d‖² > SINE_TOLERANCE · Π‖rows‖²` (its columns are
+/// not dependent to within a sine of 1e-12; a dependent set has no facet).
+const SINE_TOLERANCE: f64 = 1e-24;
+
+/// The eliminated structure matrix of one pose.
+struct Kernel {
+    n: usize,
+    /// Non-basis columns.
+    r: usize,
+    /// `T`'s non-basis columns, column-major.
+    tx: [[f64; 6]; MAX_CABLES],
+    lo_x: [f64; MAX_CABLES],
+    hi_x: [f64; MAX_CABLES],
+    /// Bounds of the basis cables, by coordinate.
+    lo_b: [f64; 6],
+    hi_b: [f64; 6],
+    /// `M·w`.
+    u: [f64; 6],
+    /// `M·Mᵀ`.
+    h: [[f64; 6]; 6],
+    /// `M = B⁻¹`.
+    mm: [[f64; 6]; 6],
+    /// Required box half widths (scaled).
+    delta: [f64; 6],
+    boxed: bool,
+}
+
+/// The nearest facet so far.
+struct Best {
+    margin: f64,
+    d: [f64; 6],
+    f: [usize; 6],
+    len: usize,
+    /// The cables' wrench leaves through `+c` (else `−c`).
+    up: bool,
+    facets: usize,
+}
+
+impl Kernel {
+    /// The facet pair `±c` with `c = Mᵀ·d`, `d` on the free coordinates `f`; the non-basis
+    /// columns in `skip` (a bit set) are orthogonal to it.
+    #[inline(always)]
+    fn facet<const L: usize>(&self, d: [f64; L], f: [usize; L], skip: u32, best: &mut Best) {
+        let (mut up, mut down) = (0.0, 0.0);
+        let mut add = |p: f64, lo: f64, hi: f64| {
+            let (a, b) = (lo * p, hi * p);
+            up += a.max(b);
+            down -= a.min(b);
+        };
+        let mut s = 0.0;
+        let mut norm2 = 0.0;
+        for a in 0..L {
+            add(d[a], self.lo_b[f[a]], self.hi_b[f[a]]);
+            s += d[a] * self.u[f[a]];
+            let ha = &self.h[f[a]];
+            let mut row = 0.0;
+            for b in 0..L {
+                row += ha[f[b]] * d[b];
+            }
+            norm2 += d[a] * row;
+        }
+        for x in 0..self.r {
+            if skip & (1 << x) == 0 {
+                let tx = &self.tx[x];
+                let mut p = 0.0;
+                for a in 0..L {
+                    p += d[a] * tx[f[a]];
+                }
+                add(p, self.lo_x[x], self.hi_x[x]);
+            }
+        }
+        let width = if self.boxed {
+            (0..self.n)
+                .map(|j| {
+                    let mut c = 0.0;
+                    for a in 0..L {
+                        c += d[a] * self.mm[f[a]][j];
+                    }
+                    c.abs() * self.delta[j]
+                })
+                .sum()
+        } else {
+            0.0
+        };
+        best.facets += 1;
+        let (num_up, num_down) = (up + s - width, down - s - width);
+        let num = num_up.min(num_down);
+        if norm2 > 0.0 && num < best.margin * norm2.sqrt() {
+            best.margin = num / norm2.sqrt();
+            best.d[..L].copy_from_slice(&d);
+            best.f[..L].copy_from_slice(&f);
+            best.len = L;
+            best.up = num_up <= num_down;
+        }
+    }
+}
+
+/// Capacity margin of the structure matrix `at` (`n × m`, row-major) for tensions within
+/// `f_min ≤ f ≤ f_max` against the external wrench `weight` (gravity, or zeros) plus the
+/// requirement's box. No allocation.
+pub fn capacity_margin(
+    at: &[f64],
+    n: usize,
+    m: usize,
+    f_min: &[f64],
+    f_max: &[f64],
+    weight: &[f64],
+    req: &Requirement,
+) -> Result<Capacity> {
+    if !(1..=6).contains(&n) || m < n || m > MAX_CABLES || at.len() != n * m {
+        return Err(CableError::Shape {
+            what: "structure matrix".into(),
+            expected: format!("n x m with 1 <= n <= 6, n <= m <= {MAX_CABLES}"),
+            got: format!("{} values for n = {n}, m = {m}", at.len()),
+        });
+    }
+    for (what, v, len) in [
+        ("f_min", f_min, m),
+        ("f_max", f_max, m),
+        ("wrench", weight, n),
+    ] {
+        if v.len() != len {
+            return Err(CableError::Shape {
+                what: what.into(),
+                expected: format!("{len} values"),
+                got: format!("{}", v.len()),
+            });
+        }
+    }
+    // Moment rows are divided by the moment length (planar: row 2; spatial: rows 3..6).
+    let first_moment = if n == 3 { 2 } else { 3.min(n) };
+    let row_scale = |r: usize| {
+        if r >= first_moment && n >= 3 {
+            1.0 / req.moment_length
+        } else {
+            1.0
+        }
+    };
+    let mut t = [[0.0; MAX_CABLES]; 6];
+    let mut u = [0.0; 6];
+    let mut mm = [[0.0; 6]; 6];
+    let mut delta = [0.0; 6];
+    let mut largest: f64 = 0.0;
+    for r in 0..n {
+        let s = row_scale(r);
+        for j in 0..m {
+            t[r][j] = at[r * m + j] * s;
+            largest = largest.max(t[r][j].abs());
+        }
+        u[r] = (weight[r] + req.center[r]) * s;
+        delta[r] = req.half_width[r] * s;
+        mm[r][r] = 1.0;
+    }
+    // Gauss–Jordan with complete pivoting: `basis[k]` is the column made the unit vector e_k.
+    let mut basis = [0usize; 6];
+    let mut chosen = [false; MAX_CABLES];
+    for k in 0..n {
+        let (mut pr, mut pc, mut best) = (k, 0, -1.0);
+        for (r, row) in t.iter().enumerate().take(n).skip(k) {
+            for (j, v) in row[..m].iter().enumerate() {
+                if v.abs() > best && !chosen[j] {
+                    (pr, pc, best) = (r, j, v.abs());
+                }
+            }
+        }
+        // (also catches NaN)
+        if best.partial_cmp(&(RANK_TOLERANCE * largest)) != Some(std::cmp::Ordering::Greater) {
+            return Ok(Capacity {
+                margin: 0.0,
+                feasible: false,
+                degenerate: true,
+                facets: 0,
+                weakest: [0.0; 6],
+            });
+        }
+        t.swap(pr, k);
+        u.swap(pr, k);
+        mm.swap(pr, k);
+        basis[k] = pc;
+        chosen[pc] = true;
+        let inv = 1.0 / t[k][pc];
+        t[k][..m].iter_mut().for_each(|v| *v *= inv);
+        mm[k][..n].iter_mut().for_each(|v| *v *= inv);
+        u[k] *= inv;
+        let (pivot_t, pivot_m, pivot_u) = (t[k], mm[k], u[k]);
+        for r in (0..n).filter(|&r| r != k) {
+            let f = t[r][pc];
+            if f != 0.0 {
+                for j in 0..m {
+                    t[r][j] -= f * pivot_t[j];
+                }
+                for j in 0..n {
+                    mm[r][j] -= f * pivot_m[j];
+                }
+                u[r] -= f * pivot_u;
+            }
+        }
+    }
+    // The non-basis columns (column-major copies) and the bounds in basis order.
+    let mut k = Kernel {
+        n,
+        r: 0,
+        tx: [[0.0; 6]; MAX_CABLES],
+        lo_x: [0.0; MAX_CABLES],
+        hi_x: [0.0; MAX_CABLES],
+        lo_b: [0.0; 6],
+        hi_b: [0.0; 6],
+        u,
+        h: [[0.0; 6]; 6],
+        mm,
+        delta,
+        boxed: delta[..n].iter().any(|&v| v > 0.0),
+    };
+    for (j, &c) in chosen[..m].iter().enumerate() {
+        if !c {
+            for row in 0..n {
+                k.tx[k.r][row] = t[row][j];
+            }
+            (k.lo_x[k.r], k.hi_x[k.r]) = (f_min[j], f_max[j]);
+            k.r += 1;
+        }
+    }
+    for (b, &j) in basis[..n].iter().enumerate() {
+        (k.lo_b[b], k.hi_b[b]) = (f_min[j], f_max[j]);
+    }
+    // H = M·Mᵀ, for ‖c‖² = dᵀ·H·d.
+    for a in 0..n {
+        for b in 0..=a {
+            let s: f64 = (0..n).map(|j| mm[a][j] * mm[b][j]).sum();
+            k.h[a][b] = s;
+            k.h[b][a] = s;
+        }
+    }
+    let mut best = Best {
+        margin: f64::INFINITY,
+        d: [0.0; 6],
+        f: [0; 6],
+        len: 0,
+        up: true,
+        facets: 0,
+    };
+    let r = k.r;
+    // q = 0: the n − 1 other basis columns; d = e_f.
+    for f in 0..n {
+        k.facet([1.0], [f], 0, &mut best);
+    }
+    // q = 1: one non-basis column x and two free coordinates.
+    for x in (0..r).filter(|_| n >= 2) {
+        let tx = k.tx[x];
+        for f0 in 0..n {
+            for f1 in f0 + 1..n {
+                let d = [tx[f1], -tx[f0]];
+                let size = tx[f0] * tx[f0] + tx[f1] * tx[f1];
+                if d[0] * d[0] + d[1] * d[1] > SINE_TOLERANCE * size {
+                    k.facet(d, [f0, f1], 1 << x, &mut best);
+                }
+            }
+        }
+    }
+    // q = 2: two non-basis columns and three free coordinates.
+    if n >= 3 {
+        for x in 0..r {
+            for y in x + 1..r {
+                let (a, b) = (k.tx[x], k.tx[y]);
+                for f0 in 0..n {
+                    for f1 in f0 + 1..n {
+                        for f2 in f1 + 1..n {
+                            let (a, b) = ([a[f0], a[f1], a[f2]], [b[f0], b[f1], b[f2]]);
+                            let d = [
+                                a[1] * b[2] - a[2] * b[1],
+                                a[2] * b[0] - a[0] * b[2],
+                                a[0] * b[1] - a[1] * b[0],
+                            ];
+                            let size = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+                                * (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+                            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > SINE_TOLERANCE * size {
+                                k.facet(d, [f0, f1, f2], (1 << x) | (1 << y), &mut best);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // q ≥ 3 (more than two redundant cables): signed maximal minors.
+    let mut qset = [0usize; 6];
+    let mut fset = [0usize; 6];
+    for q in 3..=r.min(n - 1) {
+        first_combination(&mut qset, q);
+        loop {
+            first_combination(&mut fset, q + 1);
+            loop {
+                let mut rows = [[0.0; 6]; 6];
+                let mut size = 1.0;
+                let mut skip = 0u32;
+                for a in 0..q {
+                    let x = qset[a];
+                    skip |= 1 << x;
+                    let mut norm2 = 0.0;
+                    for b in 0..=q {
+                        rows[a][b] = k.tx[x][fset[b]];
+                        norm2 += rows[a][b] * rows[a][b];
+                    }
+                    size *= norm2;
+                }
+                let mut d = [0.0; 6];
+                cross_rows(&rows, q, &mut d);
+                if d[..=q].iter().map(|v| v * v).sum::<f64>() > SINE_TOLERANCE * size {
+                    match q {
+                        3 => k.facet(
+                            [d[0], d[1], d[2], d[3]],
+                            [fset[0], fset[1], fset[2], fset[3]],
+                            skip,
+                            &mut best,
+                        ),
+                        4 => k.facet(
+                            [d[0], d[1], d[2], d[3], d[4]],
+                            [fset[0], fset[1], fset[2], fset[3], fset[4]],
+                            skip,
+                            &mut best,
+                        ),
+                        _ => k.facet(d, fset, skip, &mut best),
+                    }
+                }
+                if !next_combination(&mut fset, q + 1, n) {
+                    break;
+                }
+            }
+            if !next_combination(&mut qset, q, r) {
+                break;
+            }
+        }
+    }
+    let margin = best.margin;
+    // The weakest external direction: −c (the cables' wrench leaves through +c) or +c.
+    let mut weakest = [0.0; 6];
+    if margin.is_finite() {
+        let sign = if best.up { -1.0 } else { 1.0 };
+        let mut norm2 = 0.0;
+        for a in 0..best.len {
+            for b in 0..best.len {
+                norm2 += best.d[a] * best.d[b] * k.h[best.f[a]][best.f[b]];
+            }
+        }
+        let norm = norm2.sqrt();
+        for (j, wj) in weakest[..n].iter_mut().enumerate() {
+            let c: f64 = (0..best.len).map(|b| best.d[b] * mm[best.f[b]][j]).sum();
+            *wj = sign * c / norm / row_scale(j);
+        }
+    }
+    let facets = best.facets;
+    if !margin.is_finite() {
+        return Err(CableError::NonFiniteResult {
+            what: "capacity margin".into(),
+            index: 0,
+            value: margin,
+            location: String::new(),
+            hint: "the wrench or the bounds overflow",
+        });
+    }
+    Ok(Capacity {
+        margin,
+        feasible: margin >= 0.0,
+        degenerate: false,
+        facets,
+        weakest,
+    })
+}
+
+/// Capacity margin of the robot at one pose (inverse kinematics, the weight if required, the
+/// requirement's box), reusing `geometry` as work space.
+pub fn capacity(
+    robot: &Robot,
+    pose: &Pose,
+    req: &Requirement,
+    geometry: &mut CableGeometry,
+) -> Result<Capacity> {
+    let (n, m) = (robot.dof(), robot.n_cables());
+    inverse_kinematics(robot, pose, geometry)?;
+    let mut w = [0.0; 6];
+    if req.gravity {
+        robot.gravity_wrench(&pose.rotation, &mut w);
+    }
+    let mut f_min = [0.0; MAX_CABLES];
+    let mut f_max = [0.0; MAX_CABLES];
+    for (i, c) in robot.cables.iter().enumerate() {
+        (f_min[i], f_max[i]) = (c.f_min, c.f_max);
+    }
+    debug_assert!(matches!(robot.motion, Motion::Planar | Motion::Spatial));
+    capacity_margin(
+        geometry.structure(),
+        n,
+        m,
+        &f_min[..m],
+        &f_max[..m],
+        &w[..n],
+        req,
+    )
+}
