@@ -77,6 +77,51 @@ def main() -> None:
     print(f"tension distribution, IPAnema-like 8 cables x 6 DOF, {t} poses (peers: {few}), per pose")
     for name, us in rows:
         print(f"  {name:32s} {us:10.2f} us   {us / base:8.1f}x improved closed form   {us / qp:6.2f}x QP")
+    workspace_peers(robot)
+
+
+def workspace_peers(robot) -> None:
+    """The static workspace of a 50 x 50 x 50 grid (capacity margins, Rust, 2 threads) against
+    per-pose membership by an LP (HiGHS) and the NumPy hyperplane-shifting reference (SVD per
+    column set), each on a subset; ratios per pose."""
+    import sys
+    from pathlib import Path
+
+    from scipy.optimize import linprog
+
+    from cablekit.cdpr import workspace
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests.reference import cdpr as ref
+
+    t0 = time.perf_counter()
+    ws = workspace(robot, counts=50)
+    ours = (time.perf_counter() - t0) / ws.margin.size * 1e6
+    x, y, z = ws.axes
+    rng = np.random.default_rng(1)
+    pick = rng.integers(0, 50, (200, 3))
+    poses = np.column_stack([x[pick[:, 0]], y[pick[:, 1]], z[pick[:, 2]], np.zeros((200, 3))])
+    kin = robot.inverse_kinematics(poses)
+    f_min, f_max = robot.bounds
+    bounds = list(zip(f_min, f_max, strict=True))
+    w = [robot.gravity_wrench(q) for q in poses]
+
+    def lp():
+        for at, wi in zip(kin.structure, w, strict=True):
+            linprog(np.zeros(robot.n_cables), A_eq=at, b_eq=-wi, bounds=bounds, method="highs")
+
+    def svd():
+        for at, wi in zip(kin.structure[:50], w[:50], strict=True):
+            ref.capacity_margin(at, wi, f_min, f_max)
+
+    rows = [
+        ("cablekit capacity margin (grid)", ours),
+        ("scipy HiGHS LP (membership only)", _per_pose(lp, 200)),
+        ("NumPy hyperplane shifting (SVD)", _per_pose(svd, 50)),
+    ]
+    print(f"static workspace, 50^3 grid = {ws.margin.size:,} poses in {ws.seconds * 1e3:.1f} ms, per pose")
+    for name, us in rows:
+        print(f"  {name:34s} {us:10.3f} us   {us / ours:8.0f}x cablekit")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """Coverage-guided fuzzing of cablekit's loaders with atheris (libFuzzer for Python and its
 native extensions): weight files (``Mlp.from_bytes``, the Rust safetensors parser), model files
-(``load_model_spec``, TOML) and run files (``load_run``, CSV).
+(``load_model_spec``, TOML), run files (``load_run``, CSV), CDPR trajectory CSVs
+(``read_trajectory``) and CASPR bodies files (``Robot.from_caspr``, XML).
 
 Every input must load or raise a ``cablekit.CablekitError`` subclass; any other exception, a
 crash or a hang (``-timeout``) is a finding, written by libFuzzer as ``crash-*``/``timeout-*``
@@ -11,6 +12,8 @@ Bounded runs (``pip install '.[fuzz]'``), e.g. 20 000 inputs per target::
     python fuzz/fuzz_loaders.py weights -runs=20000 -timeout=10
     python fuzz/fuzz_loaders.py model -runs=20000 -timeout=10
     python fuzz/fuzz_loaders.py run -runs=20000 -timeout=10
+    python fuzz/fuzz_loaders.py trajectory -runs=20000 -timeout=10
+    python fuzz/fuzz_loaders.py caspr -runs=20000 -timeout=10
 
 or by time: ``-max_total_time=60``. Seeds are valid files built at start-up, so the fuzzer
 mutates real structure from the first input.
@@ -28,6 +31,8 @@ with atheris.instrument_imports():
     import numpy as np
 
     import cablekit as ck
+    from cablekit.cdpr import Robot
+    from cablekit.cdpr.cli import read_trajectory
     from cablekit.diagnose.data import load_run
     from cablekit.diagnose.spec import load_model_spec
     from cablekit.nn import MapMinMax
@@ -102,8 +107,48 @@ def _run(data: bytes) -> None:
     assert len(run) >= 10 and np.isfinite(run.t).all()
 
 
+SEED_TRAJECTORY = "t,x,y,theta,fx,fy,mz\n0,0.5,0.4,0,0,0,0\n0.1,0.55,0.42,0.05,1,0,0.01\n"
+SEED_BODIES = """<links><link_rigid num="1" name="p"><joint type="PLANAR_XY" /><physical><mass>1.0</mass>
+<com_location>0 0 0</com_location><inertia ref="com"><Ixx>0</Ixx><Iyy>0</Iyy><Izz>1e-3</Izz><Ixy>0</Ixy>
+<Ixz>0</Ixz><Iyz>0</Iyz></inertia></physical></link_rigid></links>"""
+SEED_CABLES = "".join(
+    f'<cable_ideal name="c{i}" attachment_reference="joint"><properties><force_min>1</force_min>'
+    f"<force_max>50</force_max></properties><attachments><attachment><link>0</link><location>{a}</location>"
+    f"</attachment><attachment><link>1</link><location>{b}</location></attachment></attachments></cable_ideal>"
+    for i, (a, b) in enumerate(
+        [
+            ("0 1 0", "-0.05 0.05 0"),
+            ("1 1 0", "0.05 0.05 0"),
+            ("0 0 0", "-0.05 -0.05 0"),
+            ("1 0 0", "0.05 -0.05 0"),
+        ]
+    )
+)
+
+
+def _trajectory(data: bytes) -> None:
+    path = TMP / "trajectory.csv"
+    path.write_bytes(data)
+    try:
+        tr = read_trajectory(path, "planar")
+    except ck.CablekitError:
+        return
+    assert tr.poses.shape[1] == 3 and np.isfinite(tr.poses).all()
+
+
+def _caspr(data: bytes) -> None:
+    bodies, cables = TMP / "bodies.xml", TMP / "cables.xml"
+    bodies.write_bytes(data)
+    cables.write_text(f'<cables default_cable_set="a"><cable_set id="a">{SEED_CABLES}</cable_set></cables>')
+    try:
+        Robot.from_caspr(bodies, cables)
+    except ck.CablekitError:
+        return
+
+
 TARGETS = {"weights": (_weights, _seed_weights), "model": (_model, lambda: SEED_MODEL),
-           "run": (_run, lambda: SEED_RUN.encode())}  # fmt: skip
+           "run": (_run, lambda: SEED_RUN.encode()), "trajectory": (_trajectory, SEED_TRAJECTORY.encode),
+           "caspr": (_caspr, SEED_BODIES.encode)}  # fmt: skip
 
 
 def main() -> None:

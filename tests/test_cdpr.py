@@ -309,3 +309,339 @@ def test_the_auto_chain_is_as_continuous_as_the_qp_along_a_trajectory(name, star
         f"{name}: largest jump between feasible neighbours auto {jumps['auto']:.3f} N, qp {jumps['qp']:.3f} N"
     )
     assert jumps["auto"] <= jumps["qp"] + 1e-6
+
+
+# --- capacity margin and workspace ---------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_capacity_margin_matches_the_reference_with_and_without_a_wrench_box(name):
+    """The core's margins (elimination + generalised cross products) equal the SVD reference
+    over every (n − 1)-column set to 1e-9 N relative, for the weight, a wrench box and a
+    moment length."""
+    robot = shipped(name)
+    rng = np.random.default_rng(11)
+    poses = _poses(robot, 60, rng, rotation=0.2)
+    kin = robot.inverse_kinematics(poses)
+    f_min, f_max = robot.bounds
+    n = robot.dof
+    scale = f_max.max()
+    center = rng.uniform(-0.05, 0.05, n) * scale
+    half = rng.uniform(0.0, 0.05, n) * scale
+    for kwargs, args in [({}, {}), ({"moment_length": 0.2}, {"moment_length": 0.2})]:
+        plain = robot.capacity(poses, **kwargs)
+        boxed = robot.capacity(poses, center, half, **kwargs)
+        for i, q in enumerate(poses):
+            w = robot.gravity_wrench(q)
+            want = ref.capacity_margin(kin.structure[i], w, f_min, f_max, **args)
+            np.testing.assert_allclose(plain.margin[i], want, rtol=1e-9, atol=1e-9 * scale)
+            want_box = ref.capacity_margin(kin.structure[i], w, f_min, f_max, center, half, **args)
+            np.testing.assert_allclose(boxed.margin[i], want_box, rtol=1e-9, atol=1e-9 * scale)
+        assert np.array_equal(plain.feasible, plain.margin >= 0)
+        assert not plain.degenerate.any()
+
+
+def test_capacity_sign_is_lp_feasibility_and_the_weakest_direction_is_tight():
+    """1,000 random poses and wrenches of the IPAnema-like robot: margin > 0 exactly where
+    HiGHS finds tensions; inside, the wrench moved by 0.99 × margin along the weakest
+    direction is still held and by 1.01 × margin is not."""
+    robot = shipped("ipanema_like")
+    rng = np.random.default_rng(12)
+    poses = _poses(robot, 1000, rng)
+    kin = robot.inverse_kinematics(poses)
+    f_min, f_max = robot.bounds
+    inside = outside = 0
+    for i, q in enumerate(poses):
+        wc = np.concatenate([rng.uniform(-1500, 1500, 3), rng.uniform(-150, 150, 3)])
+        cap = robot.capacity(q[None, :], wc)
+        s, weak = cap.margin[0], cap.weakest[0]
+        w = robot.gravity_wrench(q) + wc
+        at = kin.structure[i]
+        if abs(s) < 1e-6:
+            continue
+        assert _lp_feasible(at, w, f_min, f_max) == (s > 0), (i, s)
+        if s > 1.0 and inside < 150:
+            inside += 1
+            assert _lp_feasible(at, w + 0.99 * s * weak, f_min, f_max)
+            assert not _lp_feasible(at, w + 1.01 * s * weak, f_min, f_max)
+        outside += s < 0
+    assert inside >= 100 and outside >= 100, (inside, outside)
+
+
+def test_workspace_grid_summary_and_files(tmp_path):
+    """The grid covers the anchors' box; the planar map is the capacity of its poses; the
+    wrench-feasible workspace lies inside the static one; the saved map reads back."""
+    from cablekit.cdpr import Requirement, workspace
+
+    robot = shipped("seed003_planar")
+    ws = workspace(robot, counts=(30, 20))
+    assert ws.margin.shape == (30, 20) and ws.requirement.kind == "static"
+    anchors, _ = robot.points()
+    assert ws.axes[0][0] == anchors[:, 0].min() and ws.axes[1][-1] == anchors[:, 1].max()
+    i, j = 17, 9
+    cap = robot.capacity(np.array([[ws.axes[0][i], ws.axes[1][j], 0.0]]))
+    assert cap.margin[0] == ws.margin[i, j]
+    assert 0.2 < ws.fraction < 1.0
+    assert ws.size == pytest.approx(ws.feasible.sum() * np.diff(ws.axes[0])[0] * np.diff(ws.axes[1])[0])
+    box = workspace(robot, counts=(30, 20), requirement=Requirement(half_width=np.array([5.0, 5.0, 0.2])))
+    assert box.requirement.kind == "wrench-feasible"
+    assert not np.any(box.feasible & ~ws.feasible) and box.feasible.sum() < ws.feasible.sum()
+    assert np.all(box.margin <= ws.margin + 1e-9)
+    d = ws.save(tmp_path / "ws")
+    back = np.load(d / "workspace.npz")
+    assert np.array_equal(back["margin"], ws.margin) and np.array_equal(back["x"], ws.axes[0])
+    assert "static" in (d / "workspace.md").read_text()
+    with pytest.raises(ck.ShapeError):
+        workspace(robot, lower=[0.0, 0.0, 0.0])
+    with pytest.raises(ck.ParameterError):
+        workspace(robot, counts=0)
+    with pytest.raises(ck.ParameterError):
+        workspace(robot, lower=[1.0, 1.0], upper=[0.0, 0.0])
+
+
+def test_capacity_bad_input_is_a_typed_error():
+    robot = shipped("seed002_mini")
+    q = np.zeros((1, 6))
+    q[0, 2] = 0.4
+    with pytest.raises(ck.ShapeError):
+        robot.capacity(q, np.zeros(5))
+    with pytest.raises(ck.NotFiniteError):
+        robot.capacity(q, np.full(6, np.nan))
+    with pytest.raises(ck.ParameterError):
+        robot.capacity(q, None, -np.ones(6))
+    with pytest.raises(ck.ParameterError):
+        robot.capacity(q, moment_length=0.0)
+    with pytest.raises(ck.DTypeError):
+        robot.capacity(q.astype(np.float32))
+
+
+# --- the controller API --------------------------------------------------------------------
+
+
+def test_the_controller_steps_equal_the_batch_and_write_in_place():
+    robot = shipped("seed002_mini")
+    s = np.linspace(0, 1, 60)[:, None]
+    poses = np.column_stack([0.3 * s, -0.2 * s, 0.3 + 0.2 * s, 0 * s, 0.1 * s, 0.05 * s])
+    wrenches = np.column_stack([2.0 * s, 0 * s, 0 * s, 0 * s, 0 * s, 0.1 * s])
+    batch = robot.distribute(poses, wrenches)
+    ctl = robot.controller("auto")
+    out = np.zeros(robot.n_cables)
+    prev = None
+    for k, (q, w) in enumerate(zip(poses, wrenches, strict=True)):
+        st_ = ctl.step(q, w, out)
+        assert st_.f is out
+        np.testing.assert_allclose(out, batch.f[k], rtol=0, atol=1e-9)
+        assert st_.method == batch.method[k] and st_.feasible == batch.feasible[k]
+        want = 0.0 if prev is None else float(np.abs(out - prev).max())
+        assert st_.jump == pytest.approx(want, abs=1e-12)
+        prev = out.copy()
+    fresh = ctl.step(poses[0])
+    np.testing.assert_allclose(fresh.f, robot.distribute(poses[:1]).f[0], atol=1e-9)
+    for bad, err in [
+        (lambda: ctl.step(np.zeros(5)), ck.ShapeError),
+        (lambda: ctl.step(poses[0], np.full(6, np.inf)), ck.NotFiniteError),
+        (lambda: ctl.step(poses[0], None, np.zeros(8, np.float32)), ck.DTypeError),
+        (lambda: ctl.step(poses[0], None, np.zeros(7)), ck.ShapeError),
+        (lambda: robot.controller("simplex"), ck.ParameterError),
+    ]:
+        with pytest.raises(err):
+            bad()
+    ro = np.zeros(8)
+    ro.flags.writeable = False
+    with pytest.raises(ck.CablekitError):
+        ctl.step(poses[0], None, ro)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    rows=st.integers(0, 3),
+    cols=st.integers(0, 7),
+    fill=st.sampled_from([0.0, np.nan, np.inf, 1e308, -1e308, 0.3]),
+    dtype=st.sampled_from([np.float64, np.float32, np.int64]),
+    length=st.sampled_from([1.0, 0.0, -1.0, np.nan, 1e308]),
+)
+def test_any_array_to_capacity_and_the_controller_is_a_typed_error_or_finite(rows, cols, fill, dtype, length):
+    robot = shipped("seed002_mini")
+    with np.errstate(all="ignore"):
+        poses = np.full((rows, cols), fill).astype(dtype)
+        vec = np.full(cols, fill).astype(dtype)
+    try:
+        cap = robot.capacity(poses, vec if cols == 6 else None, moment_length=length)
+        assert np.all(np.isfinite(cap.margin)) and np.all(np.isfinite(cap.weakest))
+    except ck.CablekitError:
+        pass
+    ctl = robot.controller()
+    try:
+        s = ctl.step(vec, vec)
+        assert np.all(np.isfinite(s.f)) and np.isfinite(s.residual)
+    except ck.CablekitError:
+        pass
+
+
+# --- the CLI ------------------------------------------------------------------------------
+
+
+def test_cli_distribute_writes_the_batch_answer_and_rejects_bad_columns(tmp_path, capsys):
+    from cablekit.cli import main
+
+    robot = shipped("seed003_planar")
+    t = np.linspace(0, 1, 25)
+    poses = np.column_stack([0.2 + 0.6 * t, 0.3 + 0.2 * t, 0.1 * np.sin(6 * t)])
+    path = tmp_path / "traj.csv"
+    lines = ["t,x,y,theta,fx,fy,mz"] + [
+        f"{a},{float(q[0])!r},{float(q[1])!r},{float(q[2])!r},1.0,0.0,0.01"
+        for a, q in zip(t, poses, strict=True)
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    assert (
+        main(
+            [
+                "cdpr",
+                "distribute",
+                "seed003_planar",
+                "--trajectory",
+                str(path),
+                "--out",
+                str(tmp_path / "o"),
+                "--no-plots",
+            ]
+        )
+        == 0
+    )
+    rows = (tmp_path / "o" / "tensions.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    assert header[:5] == ["t", "f1", "f2", "f3", "f4"] and header[-4:] == [
+        "method",
+        "feasible",
+        "residual",
+        "jump",
+    ]
+    got = np.array([[float(v) for v in r.split(",")[1:5]] for r in rows[1:]])
+    want = robot.distribute(poses, np.tile([1.0, 0.0, 0.01], (25, 1))).f
+    np.testing.assert_allclose(got, want, rtol=1e-8)
+    jumps = np.array([float(r.split(",")[-1]) for r in rows[1:]])
+    np.testing.assert_allclose(jumps[1:], np.abs(np.diff(want, axis=0)).max(axis=1), rtol=1e-5)
+    for text, needle in [
+        ("t,x,y\n0,0.5,0.4\n", "missing column"),
+        ("x,y,theta,speed\n0.5,0.4,0,1\n", "unknown column"),
+        ("x,y,theta,fx\n0.5,0.4,0,1\n", "all wrench columns"),
+        ("x,y,theta\n0.5,nan,0\n", "not finite"),
+        ("x,y,theta\n0.5,,0\n", "missing"),
+        ("x,y,theta\n0.5,abc,0\n", "not a number"),
+        ("x,y,x\n0.5,0.1,0\n", "duplicated"),
+        ("x,y,theta\n", "no rows"),
+    ]:
+        path.write_text(text)
+        code = main(
+            ["cdpr", "distribute", "seed003_planar", "--trajectory", str(path), "--out", str(tmp_path / "x")]
+        )
+        assert code == 2 and needle in capsys.readouterr().err
+
+
+def test_cli_workspace_writes_the_map_table_and_plots(tmp_path):
+    from cablekit.cli import main
+
+    out = tmp_path / "w"
+    assert main(["cdpr", "workspace", "seed002_mini", "--out", str(out), "--counts", "12"]) == 0
+    back = np.load(out / "workspace.npz")
+    assert back["margin"].shape == (12, 12, 12)
+    assert {"workspace_slices.png", "workspace_3d.png", "workspace.md"} <= {p.name for p in out.iterdir()}
+    assert main(["cdpr", "workspace", "no_such_robot", "--out", str(out)]) == 2
+
+
+# --- CASPR import ---------------------------------------------------------------------------
+
+_BODIES = """<?xml version="1.0" encoding="utf-8"?>
+<links display_range="-3 3 -3 3 0 3">
+  <link_rigid num="1" name="test platform">
+    <joint type="{joint}" />
+    <physical>
+      <mass>{mass}</mass>
+      <com_location>0.0 0.0 0.05</com_location>
+      <end_location>0.0 0.0 0.0</end_location>
+      <inertia ref="com">
+        <Ixx>0.2</Ixx><Iyy>0.3</Iyy><Izz>0.4</Izz><Ixy>0.01</Ixy><Ixz>0.0</Ixz><Iyz>0.0</Iyz>
+      </inertia>
+    </physical>
+    <parent><num>0</num><location>0.0 0.0 0.0</location></parent>
+  </link_rigid>
+</links>
+"""
+
+
+def _caspr_cables(robot: Robot, reference: str, model: str = "cable_ideal") -> str:
+    anchors, attachments = robot.points()
+    anchors, attachments = anchors.tolist(), attachments.tolist()
+    f_min, f_max = robot.bounds
+    shift = np.array([0.0, 0.0, 0.05]) if reference == "com" else np.zeros(3)
+    body = []
+    for i, (a, b) in enumerate(zip(anchors, attachments, strict=True)):
+        b = (np.asarray(b) - shift).tolist()
+        body.append(
+            f'<{model} name="cable {i + 1}" attachment_reference="{reference}">'
+            f"<properties><force_min>{float(f_min[i])!r}</force_min><force_max>{float(f_max[i])!r}</force_max></properties>"
+            "<attachments>"
+            f"<attachment><link>0</link><location>{a[0]!r} {a[1]!r} {a[2]!r}</location></attachment>"
+            f"<attachment><link>1</link><location>{b[0]!r} {b[1]!r} {b[2]!r}</location></attachment>"
+            f"</attachments></{model}>"
+        )
+    return (
+        '<?xml version="1.0" encoding="utf-8"?>\n<cables default_cable_set="main">'
+        f'<cable_set id="other"></cable_set><cable_set id="main">{"".join(body)}</cable_set></cables>\n'
+    )
+
+
+@pytest.mark.parametrize("reference", ["joint", "com"])
+@pytest.mark.parametrize("name", ["ipanema_like", "seed003_planar"])
+def test_a_caspr_robot_imports_with_its_geometry_bounds_and_platform(tmp_path, name, reference):
+    """A robot written in CASPR's format (bodies + cables files, either attachment reference)
+    imports to the same kinematics, bounds and weight as the cablekit file it was written from."""
+    robot = shipped(name)
+    joint = "PLANAR_XY" if robot.motion == "planar" else "SPATIAL_EULER_XYZ"
+    mass = 2.5
+    (tmp_path / "b.xml").write_text(_BODIES.format(joint=joint, mass=mass))
+    (tmp_path / "c.xml").write_text(_caspr_cables(robot, reference))
+    got = Robot.from_caspr(tmp_path / "b.xml", tmp_path / "c.xml", ea=2e6)
+    assert got.motion == robot.motion and got.n_cables == robot.n_cables and got.name == "test platform"
+    poses = _poses(robot, 50, np.random.default_rng(5))
+    np.testing.assert_allclose(
+        got.inverse_kinematics(poses).structure, robot.inverse_kinematics(poses).structure, atol=1e-12
+    )
+    for a, b in zip(got.bounds, robot.bounds, strict=True):
+        np.testing.assert_array_equal(a, b)
+    g = got.gravity_wrench(poses[0])
+    assert g[1 if robot.motion == "planar" else 2] == pytest.approx(-9.80665 * mass)
+    with pytest.raises(ck.DataError, match="no cable set"):
+        Robot.from_caspr(tmp_path / "b.xml", tmp_path / "c.xml", "missing")
+    with pytest.raises(ck.DataError, match="no cables"):
+        Robot.from_caspr(tmp_path / "b.xml", tmp_path / "c.xml", "other")
+
+
+def test_caspr_files_outside_what_is_imported_are_data_errors(tmp_path):
+    robot = shipped("ipanema_like")
+    b, c = tmp_path / "b.xml", tmp_path / "c.xml"
+    c.write_text(_caspr_cables(robot, "joint"))
+    cases = [
+        (_BODIES.format(joint="R_X", mass=1.0), "joint type"),
+        (_BODIES.format(joint="SPATIAL", mass="heavy"), "must be a number"),
+        (
+            _BODIES.format(joint="SPATIAL", mass=1.0).replace("</links>", "<link_rigid num='2'/></links>"),
+            "single-platform",
+        ),
+        ("<links><link_rigid", "cannot read"),
+        ("<bodies/>", "<links> root"),
+    ]
+    for text, needle in cases:
+        b.write_text(text)
+        with pytest.raises(ck.DataError, match=needle):
+            Robot.from_caspr(b, c)
+    b.write_text(_BODIES.format(joint="SPATIAL", mass=1.0))
+    c.write_text(_caspr_cables(robot, "joint", model="cable_vsd"))
+    with pytest.raises(ck.DataError, match="cable model"):
+        Robot.from_caspr(b, c)
+    c.write_text(_caspr_cables(robot, "joint").replace("<link>1</link>", "<link>0</link>", 1))
+    with pytest.raises(ck.DataError, match="link 0 and one on link 1"):
+        Robot.from_caspr(b, c)
+    c.write_text(_caspr_cables(robot, "joint").replace("<force_max>", "<force_max>-", 1))
+    with pytest.raises(ck.ParameterError):
+        Robot.from_caspr(b, c)

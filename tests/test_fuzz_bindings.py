@@ -151,6 +151,11 @@ def _calls() -> dict[str, Call]:
         robot.forward_kinematics, (robot.inverse_kinematics(pose).length[0], pose[0] + 0.01)
     )
     out["Robot.gravity_wrench"] = Call(robot.gravity_wrench, (pose[0],))
+    out["Robot.capacity"] = Call(
+        robot.capacity, (pose, np.zeros(3), np.full(3, 0.5)), dict(moment_length=0.5)
+    )
+    ctl = robot.controller()
+    out["TensionController.step"] = Call(ctl.step, (pose[0], np.zeros(3), np.zeros(4)))
     anchors, attachments = robot.points()
     out["Robot"] = Call(
         Robot,

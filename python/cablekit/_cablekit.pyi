@@ -11,6 +11,7 @@ from typing_extensions import disjoint_base
 __all__ = [
     "AntagonisticJoint",
     "CableTransmission",
+    "Capacity",
     "DahlElement",
     "DualRun",
     "DualSrUkf",
@@ -25,6 +26,8 @@ __all__ = [
     "ParamSpec",
     "Robot",
     "SrUkf",
+    "Step",
+    "TensionController",
     "Tensions",
     "__version__",
     "cable_tension",
@@ -570,6 +573,55 @@ class Robot:
     def gravity_wrench(self, pose: _F) -> _F: ...
     def points(self) -> tuple[_F, _F]:
         """Anchors and attachments (m, 3)."""
+    def capacity(
+        self,
+        poses: _F,
+        wrench: _F | None = None,
+        half_width: _F | None = None,
+        *,
+        gravity: bool = True,
+        moment_length: float = 1.0,
+    ) -> Capacity:
+        """Capacity margins at poses (T, n) for the weight plus the wrench box wrench ± half_width."""
+    def controller(self, method: str = "auto", *, gravity: bool = True) -> TensionController:
+        """One pose per call, the solver kept warm."""
+
+@final
+class Capacity:
+    """Capacity margins at T poses (``Robot.capacity``)."""
+
+    @property
+    def margin(self) -> _F: ...
+    @property
+    def feasible(self) -> NDArray[np.bool_]: ...
+    @property
+    def degenerate(self) -> NDArray[np.bool_]: ...
+    @property
+    def weakest(self) -> _F: ...
+
+@final
+class TensionController:
+    """Tension distribution at a controller's rate (``Robot.controller``)."""
+
+    def step(self, pose: _F, wrench: _F | None = None, out: _F | None = None) -> Step: ...
+    def reset(self) -> None: ...
+    @property
+    def method(self) -> str: ...
+
+@final
+class Step:
+    """One ``TensionController.step``."""
+
+    @property
+    def f(self) -> _F: ...
+    @property
+    def method(self) -> str: ...
+    @property
+    def feasible(self) -> bool: ...
+    @property
+    def residual(self) -> float: ...
+    @property
+    def jump(self) -> float: ...
 
 @final
 class Kinematics:

@@ -312,9 +312,11 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--no-html", action="store_true", help="skip the HTML report (no matplotlib needed)")
     d.add_argument("--quiet", action="store_true", help="no progress bars")
     d.set_defaults(func=_diagnose)
+    from cablekit.cdpr.cli import add_parser as add_cdpr
     from cablekit.nn.cli import add_parser as add_nn
 
     add_nn(sub)
+    add_cdpr(sub)
     return p
 
 

@@ -9,6 +9,8 @@ with complex numbers: ``z_exit = c + r·exp(i(arg(p − c) + arccos(r/|p − c|)
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 
@@ -76,3 +78,34 @@ def closed_form(at: np.ndarray, w: np.ndarray, f_min: np.ndarray, f_max: np.ndar
 def minimum_norm(at: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Seed 003 eq. 8 with the sign of seed 002's eq. 5: f = −A⁺ᵀ w."""
     return -at.T @ np.linalg.solve(at @ at.T, w)
+
+
+def capacity_margin(
+    at: np.ndarray,
+    w: np.ndarray,
+    f_min: np.ndarray,
+    f_max: np.ndarray,
+    center: np.ndarray | None = None,
+    half_width: np.ndarray | None = None,
+    moment_length: float = 1.0,
+) -> float:
+    """Hyperplane shifting written from its definition: for every set of n − 1 columns of Aᵀ
+    (moments divided by the moment length) the unit normal ±c from an SVD, the support
+    h(c) = Σ max(f_min c·aᵢ, f_max c·aᵢ), and the margin min (h(c) + c·(w + w_c) − |c|·δ)."""
+    n, m = at.shape
+    scale = np.ones(n)
+    scale[[2] if n == 3 else [3, 4, 5]] = 1.0 / moment_length
+    a = at * scale[:, None]
+    v = -(w + (0.0 if center is None else center)) * scale
+    delta = (np.zeros(n) if half_width is None else half_width) * scale
+    best = np.inf
+    for cols in itertools.combinations(range(m), n - 1):
+        u, s, _ = np.linalg.svd(a[:, cols])
+        if s[-1] < 1e-9 * s[0]:
+            continue  # dependent columns: no facet
+        c = u[:, -1]
+        for cc in (c, -c):
+            p = cc @ a
+            h = np.sum(np.maximum(f_min * p, f_max * p))
+            best = min(best, h - cc @ v - np.abs(cc) @ delta)
+    return float(best)

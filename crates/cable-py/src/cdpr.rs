@@ -1,12 +1,16 @@
 //! `Robot`: a cable-driven parallel robot, its kinematics and tension distribution.
 
-use cable_core::cdpr::{self as core, KinematicsMut, Method, Motion, Platform, TensionsMut};
+use std::sync::Mutex;
+
+use cable_core::cdpr::{
+    self as core, CapacityMut, KinematicsMut, Method, Motion, Platform, Requirement, TensionsMut,
+};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 
-use crate::convert::{any_vector, matrix, to_vector, vector};
-use crate::errors::guarded;
-use crate::results::{Kinematics, Tensions};
+use crate::convert::{any_vector, matrix, out_vector, to_vector, vector, vector_into};
+use crate::errors::{guarded, lock};
+use crate::results::{Capacity, Kinematics, Step, Tensions};
 
 /// `(cable, radius, axis)` of each pulley.
 type Pulleys = Vec<(usize, f64, [f64; 3])>;
@@ -147,6 +151,69 @@ impl Robot {
         Ok(Tensions::new(py, f, (t, m), &used, feasible, residual))
     }
 
+    /// Capacity margins at poses `(T, n)`: the required wrench set is the platform's weight
+    /// (unless `gravity=False`) plus the box `wrench ± half_width` `(n,)` each; moments count
+    /// in the distance divided by `moment_length` (m). A `Capacity` (GIL released, parallel);
+    /// a grid of poses gives the static or wrench-feasible workspace.
+    #[pyo3(signature = (poses, wrench = None, half_width = None, *, gravity = true, moment_length = 1.0))]
+    fn capacity(
+        &self,
+        py: Python<'_>,
+        poses: &Bound<'_, PyAny>,
+        wrench: Option<&Bound<'_, PyAny>>,
+        half_width: Option<&Bound<'_, PyAny>>,
+        gravity: bool,
+        moment_length: f64,
+    ) -> PyResult<Capacity> {
+        let n = self.inner.dof();
+        let (p, t) = matrix(poses, "poses", Some(n))?;
+        let mut req = Requirement {
+            gravity,
+            moment_length,
+            ..Requirement::default()
+        };
+        for (arg, name, into) in [
+            (wrench, "wrench", &mut req.center),
+            (half_width, "half_width", &mut req.half_width),
+        ] {
+            if let Some(v) = arg.filter(|v| !v.is_none()) {
+                vector_into(v, name, &mut into[..n])?;
+            }
+        }
+        let (mut margin, mut feasible, mut degenerate, mut weakest) = (
+            vec![0.0; t],
+            vec![false; t],
+            vec![false; t],
+            vec![0.0; t * n],
+        );
+        let out = CapacityMut {
+            margin: &mut margin,
+            feasible: &mut feasible,
+            degenerate: &mut degenerate,
+            weakest: &mut weakest,
+        };
+        let p = p.as_slice()?;
+        py.detach(|| guarded(|| core::capacity_batch(&self.inner, p, &req, out)))?;
+        Ok(Capacity::new(
+            py,
+            margin,
+            feasible,
+            degenerate,
+            weakest,
+            (t, n),
+        ))
+    }
+
+    /// A `TensionController` for this robot: one pose per call, the solver kept warm.
+    #[pyo3(signature = (method = "auto", *, gravity = true))]
+    fn controller(&self, method: &str, gravity: bool) -> PyResult<TensionController> {
+        let inner =
+            guarded(|| core::Controller::new(&self.inner, Method::from_name(method)?, gravity))?;
+        Ok(TensionController {
+            inner: Mutex::new(inner),
+        })
+    }
+
     /// The pose whose cable lengths are `lengths` `(m,)`, from `seed` `(n,)` (damped
     /// Gauss–Newton): `(pose, rms_error, iterations, converged)`.
     #[pyo3(signature = (lengths, seed, tolerance = 1e-10))]
@@ -218,4 +285,70 @@ fn shape(name: &str) -> PyErr {
 fn xyz(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 3]> {
     let v = vector(obj, name, 3)?;
     Ok([v[0], v[1], v[2]])
+}
+
+/// Tension distribution at a controller's rate (`Robot.controller`): `step(pose, wrench, out)`
+/// distributes for one pose, keeping the QP's face warm between calls; with `out` `(m,)` the
+/// tensions are written in place. A call while another thread's is running raises
+/// `ConcurrentUseError`.
+#[pyclass(frozen, module = "cablekit._cablekit")]
+pub struct TensionController {
+    inner: Mutex<core::Controller>,
+}
+
+#[pymethods]
+impl TensionController {
+    /// Tensions at `pose` `(n,)` against the weight plus `wrench` `(n,)`: a `Step` (tensions,
+    /// method, feasible, residual, and the largest change since the last step).
+    #[pyo3(signature = (pose, wrench = None, out = None))]
+    fn step<'py>(
+        &self,
+        py: Python<'py>,
+        pose: &Bound<'py, PyAny>,
+        wrench: Option<&Bound<'py, PyAny>>,
+        out: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Step> {
+        let mut ctl = lock(&self.inner, "TensionController")?;
+        let (n, m) = (ctl.robot().dof(), ctl.robot().n_cables());
+        let (mut q, mut w) = ([0.0; 6], [0.0; 6]);
+        vector_into(pose, "pose", &mut q[..n])?;
+        let wrench = wrench.filter(|v| !v.is_none());
+        if let Some(v) = wrench {
+            vector_into(v, "wrench", &mut w[..n])?;
+        }
+        let mut out = out
+            .filter(|v| !v.is_none())
+            .map(|o| out_vector(o, "out", m).map(|rw| (o.clone(), rw)))
+            .transpose()?;
+        let s = guarded(|| ctl.step(&q[..n], wrench.map(|_| &w[..n])))?;
+        let d = s.distribution;
+        let f = match out.as_mut() {
+            Some((obj, rw)) => {
+                rw.as_slice_mut()?.copy_from_slice(d.tensions());
+                obj.clone().cast_into::<PyArray1<f64>>()?
+            }
+            None => to_vector(py, d.tensions().to_vec()),
+        };
+        Ok(Step::new(f, d.method, d.feasible, d.residual, s.jump))
+    }
+
+    /// Forget the warm solver, its face and the last tensions.
+    fn reset(&self) -> PyResult<()> {
+        lock(&self.inner, "TensionController")?.reset();
+        Ok(())
+    }
+
+    #[getter]
+    fn method(&self) -> PyResult<&'static str> {
+        Ok(lock(&self.inner, "TensionController")?.method().name())
+    }
+
+    fn __repr__(&self) -> PyResult<String> {
+        let c = lock(&self.inner, "TensionController")?;
+        Ok(format!(
+            "TensionController(robot={:?}, method={:?})",
+            c.robot().name,
+            c.method().name()
+        ))
+    }
 }

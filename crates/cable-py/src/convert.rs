@@ -94,6 +94,38 @@ pub fn vector(obj: &Bound<'_, PyAny>, name: &str, len: usize) -> PyResult<Vec<f6
     Ok(arr.as_slice()?.to_vec())
 }
 
+/// A length-`len` float64 vector copied into `out` (no allocation; for per-call APIs).
+pub fn vector_into(obj: &Bound<'_, PyAny>, name: &str, out: &mut [f64]) -> PyResult<()> {
+    let shape = checked(obj, name, 1)?;
+    if shape[0] != out.len() {
+        let msg = format!(
+            "{name} must have shape ({},), got {}",
+            out.len(),
+            shape_str(&shape)
+        );
+        return Err(arg_error(Class::Shape, name, msg));
+    }
+    out.copy_from_slice(obj.cast::<PyArray1<f64>>()?.readonly().as_slice()?);
+    Ok(())
+}
+
+/// A writable length-`len` float64 vector the caller owns (results are written in place).
+pub fn out_vector<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    len: usize,
+) -> PyResult<numpy::PyReadwriteArray1<'py, f64>> {
+    let shape = checked(obj, name, 1)?;
+    if shape[0] != len {
+        let msg = format!("{name} must have shape ({len},), got {}", shape_str(&shape));
+        return Err(arg_error(Class::Shape, name, msg));
+    }
+    obj.cast::<PyArray1<f64>>()?.try_readwrite().map_err(|e| {
+        let msg = format!("{name} must be a writable array not borrowed elsewhere: {e}");
+        arg_error(Class::Layout, name, msg)
+    })
+}
+
 /// Any-length float64 vector.
 pub fn any_vector(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
     checked(obj, name, 1)?;

@@ -46,5 +46,8 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<cdpr::Robot>()?;
     m.add_class::<results::Kinematics>()?;
     m.add_class::<results::Tensions>()?;
+    m.add_class::<results::Capacity>()?;
+    m.add_class::<results::Step>()?;
+    m.add_class::<cdpr::TensionController>()?;
     Ok(())
 }

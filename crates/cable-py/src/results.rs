@@ -355,3 +355,73 @@ impl Tensions {
         }
     }
 }
+
+/// Capacity margins at `T` poses (`Robot.capacity`): the `margin` `(T,)` (N, moments divided
+/// by the moment length; `≥ 0` inside the workspace, the radius of the largest extra wrench
+/// ball), whether each pose is `feasible`, `degenerate` poses (rank-deficient `Aᵀ`, margin 0)
+/// and the `weakest` external wrench direction `(T, n)`.
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct Capacity {
+    margin: Py<PyArray1<f64>>,
+    feasible: Py<PyArray1<bool>>,
+    degenerate: Py<PyArray1<bool>>,
+    weakest: Py<PyArray2<f64>>,
+}
+
+impl Capacity {
+    pub fn new(
+        py: Python<'_>,
+        margin: Vec<f64>,
+        feasible: Vec<bool>,
+        degenerate: Vec<bool>,
+        weakest: Vec<f64>,
+        (t, n): (usize, usize),
+    ) -> Self {
+        Self {
+            margin: margin.into_pyarray(py).unbind(),
+            feasible: feasible.into_pyarray(py).unbind(),
+            degenerate: degenerate.into_pyarray(py).unbind(),
+            weakest: to_matrix(py, weakest, t, n).unbind(),
+        }
+    }
+}
+
+/// One `TensionController.step`: tensions `f` `(m,)` (the `out` array when one was given),
+/// the `method` that answered, `feasible`, the `residual` wrench norm and the `jump`, the
+/// largest tension change since the previous step (N).
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct Step {
+    f: Py<PyArray1<f64>>,
+    method: &'static str,
+    feasible: bool,
+    residual: f64,
+    jump: f64,
+}
+
+impl Step {
+    pub fn new(
+        f: Bound<'_, PyArray1<f64>>,
+        method: cable_core::cdpr::Method,
+        feasible: bool,
+        residual: f64,
+        jump: f64,
+    ) -> Self {
+        Self {
+            f: f.unbind(),
+            method: method.name(),
+            feasible,
+            residual,
+            jump,
+        }
+    }
+}
+
+#[pymethods]
+impl Step {
+    fn __repr__(&self) -> String {
+        format!(
+            "Step(method={:?}, feasible={}, residual={:.3e}, jump={:.3})",
+            self.method, self.feasible, self.residual, self.jump
+        )
+    }
+}

@@ -2,8 +2,11 @@
 
 * :class:`Robot` — a robot from a TOML file (:meth:`Robot.load`, :meth:`Robot.from_toml`,
   :meth:`Robot.from_dict`) or a shipped one by name (:func:`shipped`); inverse and forward
-  kinematics, the structure matrix, and tension distribution (:meth:`Robot.distribute`) are the
-  Rust core's (see docs/cdpr.md).
+  kinematics, the structure matrix, tension distribution (:meth:`Robot.distribute`, and
+  :meth:`Robot.controller` for one pose per call) and capacity margins (:meth:`Robot.capacity`)
+  are the Rust core's (see docs/cdpr.md).
+* :func:`workspace` — the static or wrench-feasible workspace on a grid, :func:`plot_workspace`
+  its slices and 3-D view.
 
 Conventions: a pose is ``[x, y, θ]`` (planar) or ``[x, y, z, roll, pitch, yaw]`` (spatial,
 ``R = R_z(yaw) R_y(pitch) R_x(roll)``); tensions ``f`` hold an external wrench ``w`` when
@@ -19,11 +22,25 @@ from typing import Any
 
 import numpy as np
 
-from cablekit._cablekit import Kinematics, Tensions
+from cablekit._cablekit import Capacity, Kinematics, Step, TensionController, Tensions
 from cablekit._cablekit import Robot as _Robot
+from cablekit.cdpr.workspace import Requirement, Workspace, plot_workspace, workspace
 from cablekit.errors import DataError
 
-__all__ = ["Kinematics", "Robot", "Tensions", "shipped"]
+__all__ = [
+    "Capacity",
+    "Kinematics",
+    "Requirement",
+    "Robot",
+    "Step",
+    "TensionController",
+    "Tensions",
+    "Workspace",
+    "plot_workspace",
+    "shipped",
+    "shipped_names",
+    "workspace",
+]
 
 _TOP = {"name", "motion", "gravity", "platform", "cable", "cables", "description"}
 _PLATFORM = {"mass", "com", "inertia"}
@@ -161,12 +178,48 @@ class Robot(_Robot):
             **arrays,
         )
 
+    @classmethod
+    def from_caspr(
+        cls,
+        bodies: str | Path,
+        cables: str | Path,
+        cable_set: str | None = None,
+        *,
+        ea: float = 1e9,
+    ) -> Robot:
+        """A robot from CASPR's XML files (``*_bodies.xml``, ``*_cables.xml``): a single
+        rigid platform, ideal cables (rigid: their E·A is ``ea``); see
+        :mod:`cablekit.cdpr.caspr` for what is mapped and what is refused."""
+        from cablekit.cdpr.caspr import caspr_document
+
+        return cls.from_dict(caspr_document(bodies, cables, cable_set, ea), str(cables))
+
+    def workspace(
+        self,
+        *,
+        counts: int | tuple[int, ...] = 50,
+        lower: Any = None,
+        upper: Any = None,
+        orientation: Any = None,
+        requirement: Requirement | None = None,
+    ) -> Workspace:
+        """The static (default) or wrench-feasible workspace on a grid: see :func:`workspace`."""
+        return workspace(
+            self, counts=counts, lower=lower, upper=upper, orientation=orientation, requirement=requirement
+        )
+
+
+def shipped_names() -> list[str]:
+    """The names of the shipped robots."""
+    folder = resources.files("cablekit.cdpr") / "robots"
+    return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
+
 
 def shipped(name: str | None = None) -> Robot | list[str]:
     """The shipped robot ``name`` (``"seed002_mini"``, ``"seed003_planar"``, ``"ipanema_like"``),
     or the list of names without an argument."""
     folder = resources.files("cablekit.cdpr") / "robots"
-    names = sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
+    names = shipped_names()
     if name is None:
         return names
     if name not in names:

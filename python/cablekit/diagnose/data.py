@@ -138,12 +138,21 @@ def load_run(path: str | Path, name: str | None = None) -> Run:
     file that is not UTF-8 text (a UTF-8 byte-order mark is skipped), a corrupt gzip or Parquet
     file, a malformed CSV (an unterminated quote, a field over the CSV module's size limit)."""
     path = Path(path)
+    header, data = read_table(path)
+    return from_arrays(name or path.stem, header, data, source=str(path))
+
+
+def read_table(path: str | Path) -> tuple[list[str], NDArray[np.float64]]:
+    """The header and the numbers (rows = samples; an empty cell is NaN) of a CSV, ``.csv.gz``
+    or Parquet table; every defect of the file is a :class:`DataError` naming it (see
+    :func:`load_run`)."""
+    path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: no such file")
     if path.is_dir():
-        raise DataError(f"{path}: is a folder, not a run file (CSV, .csv.gz or Parquet)")
+        raise DataError(f"{path}: is a folder, not a table file (CSV, .csv.gz or Parquet)")
     try:
-        header, data = _read_table(path)
+        return _read_table(path)
     except DataError:
         raise
     except UnicodeDecodeError as exc:
@@ -154,7 +163,6 @@ def load_run(path: str | Path, name: str | None = None) -> Run:
         if type(exc).__module__.startswith("pyarrow"):
             raise DataError(f"{path}: unreadable Parquet file ({exc})") from None
         raise
-    return from_arrays(name or path.stem, header, data, source=str(path))
 
 
 def from_arrays(name: str, header: list[str], data: NDArray[np.float64], source: str = "") -> Run:

@@ -1,0 +1,224 @@
+"""``cablekit cdpr``: the workspace of a robot file, and tensions along a trajectory."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cablekit.cdpr import Robot, shipped, shipped_names
+from cablekit.cdpr.workspace import DEFAULT_COUNTS, Requirement, plot_workspace, workspace
+from cablekit.errors import DataError
+
+#: trajectory CSV columns: the pose, then optional external wrench columns and time
+POSE_COLUMNS = {"planar": ("x", "y", "theta"), "spatial": ("x", "y", "z", "roll", "pitch", "yaw")}
+WRENCH_COLUMNS = {"planar": ("fx", "fy", "mz"), "spatial": ("fx", "fy", "fz", "mx", "my", "mz")}
+
+
+def robot_from(spec: str) -> Robot:
+    """A robot file's path, or the name of a shipped robot."""
+    p = Path(spec)
+    if p.suffix == ".toml" or p.exists():
+        return Robot.load(p)
+    names = shipped_names()
+    if spec in names:
+        r = shipped(spec)
+        assert isinstance(r, Robot)
+        return r
+    raise DataError(f"{spec!r} is neither a robot file nor a shipped robot ({', '.join(names)})")
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Poses ``(T, n)``, optional external wrenches ``(T, n)`` and times ``(T,)``."""
+
+    poses: np.ndarray
+    wrenches: np.ndarray | None
+    t: np.ndarray | None
+
+
+def read_trajectory(path: str | Path, motion: str) -> Trajectory:
+    """A trajectory table (CSV, ``.csv.gz`` or Parquet, read like a run file): the pose columns
+    (planar ``x, y, theta``; spatial ``x, y, z, roll, pitch, yaw``), optionally all the wrench
+    columns (planar ``fx, fy, mz``; spatial ``fx, fy, fz, mx, my, mz``) and ``t``. Other
+    columns, missing ones and cells that are not finite numbers are ``DataError``s naming them."""
+    from cablekit.diagnose.data import read_table
+
+    p = Path(path)
+    header, data = read_table(p)
+    pose_cols, wrench_cols = POSE_COLUMNS[motion], WRENCH_COLUMNS[motion]
+    missing = [c for c in pose_cols if c not in header]
+    if missing:
+        raise DataError(f"{p}: missing column(s) {missing} (a {motion} pose is {', '.join(pose_cols)})")
+    known = {*pose_cols, *wrench_cols, "t"}
+    unknown = [c for c in header if c not in known]
+    if unknown:
+        raise DataError(f"{p}: unknown column(s) {unknown}; known: {sorted(known)}")
+    given = [c for c in wrench_cols if c in header]
+    if given and len(given) != len(wrench_cols):
+        raise DataError(f"{p}: give all wrench columns {list(wrench_cols)} or none, got {given}")
+    if data.shape[0] == 0:
+        raise DataError(f"{p}: no rows after the header")
+    bad = ~np.isfinite(data)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise DataError(f"{p}: row {i + 2}, column {header[j]!r}: missing or not finite")
+    col = {c: data[:, header.index(c)] for c in header}
+    return Trajectory(
+        poses=np.ascontiguousarray(np.column_stack([col[c] for c in pose_cols])),
+        wrenches=np.ascontiguousarray(np.column_stack([col[c] for c in wrench_cols])) if given else None,
+        t=col.get("t"),
+    )
+
+
+def _floats(text: str | None, n: int, name: str) -> np.ndarray | None:
+    if text is None:
+        return None
+    try:
+        v = np.array([float(s) for s in text.split(",")])
+    except ValueError:
+        raise DataError(f"--{name} must be {n} comma-separated numbers, got {text!r}") from None
+    if v.shape != (n,):
+        raise DataError(f"--{name} must be {n} comma-separated numbers, got {text!r}")
+    return v
+
+
+def _workspace(args: argparse.Namespace) -> int:
+    robot = robot_from(args.robot)
+    n = robot.dof
+    k = 2 if robot.motion == "planar" else 3
+    req = Requirement(
+        gravity=not args.no_gravity,
+        wrench=_floats(args.wrench, n, "wrench"),
+        half_width=_floats(args.half_width, n, "half-width"),
+        moment_length=args.moment_length,
+    )
+    ws = workspace(
+        robot,
+        counts=args.counts,
+        lower=_floats(args.lower, k, "lower"),
+        upper=_floats(args.upper, k, "upper"),
+        orientation=_floats(args.orientation, n - k, "orientation"),
+        requirement=req,
+    )
+    out = ws.save(args.out)
+    plots = [] if args.no_plots else plot_workspace(ws, out, robot)
+    print(ws.table(), end="")
+    print(f"wrote {out / 'workspace.npz'}, {out / 'workspace.md'}" + "".join(f", {p}" for p in plots))
+    return 0
+
+
+def _distribute(args: argparse.Namespace) -> int:
+    robot = robot_from(args.robot)
+    tr = read_trajectory(args.trajectory, robot.motion)
+    res = robot.distribute(tr.poses, tr.wrenches, method=args.method, gravity=not args.no_gravity)
+    f = res.f
+    jump = np.concatenate([[0.0], np.abs(np.diff(f, axis=0)).max(axis=1)]) if len(f) else np.zeros(0)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "tensions.csv"
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        lead = ["t"] if tr.t is not None else []
+        w.writerow(
+            [*lead, *(f"f{i + 1}" for i in range(robot.n_cables)), "method", "feasible", "residual", "jump"]
+        )
+        for i in range(len(f)):
+            t = [f"{tr.t[i]:.9g}"] if tr.t is not None else []
+            w.writerow(
+                [
+                    *t,
+                    *(f"{v:.9g}" for v in f[i]),
+                    res.method[i],
+                    int(res.feasible[i]),
+                    f"{res.residual[i]:.3e}",
+                    f"{jump[i]:.6g}",
+                ]
+            )
+    methods = {m: res.method.count(m) for m in dict.fromkeys(res.method)}
+    feasible_jump = jump[1:][res.feasible[1:] & res.feasible[:-1]] if len(f) > 1 else np.zeros(0)
+    largest = feasible_jump.max() if feasible_jump.size else 0.0
+    lines = [
+        "| quantity | value |",
+        "|---|---|",
+        f"| robot | {robot.name} |",
+        f"| poses | {len(f)} |",
+        f"| method asked | {args.method} |",
+        f"| answered by | {', '.join(f'{m}: {c}' for m, c in methods.items())} |",
+        f"| feasible | {int(res.feasible.sum())} of {len(f)} |",
+        f"| largest residual ‖Aᵀf + w‖ | {res.residual.max():.3e} |",
+        f"| largest jump between feasible neighbours (N) | {largest:.4g} |",
+        f"| largest jump overall (N) | {jump.max():.4g} |",
+    ]
+    (out / "tensions.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    print("\n".join(lines))
+    if not args.no_plots:
+        from cablekit.plotting import pyplot_or_none
+
+        plt = pyplot_or_none()
+        if plt is not None:
+            x = tr.t if tr.t is not None else np.arange(len(f))
+            fig, ax = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+            ax[0].plot(x, f)
+            lo, hi = robot.bounds
+            ax[0].axhline(lo.min(), color="k", ls=":")
+            ax[0].axhline(hi.max(), color="k", ls=":")
+            bad = ~res.feasible
+            if bad.any():
+                ax[0].plot(x[bad], f[bad].max(axis=1), "rx", label="infeasible")
+                ax[0].legend()
+            ax[0].set_ylabel("tension (N)")
+            ax[0].set_title(f"{robot.name}: tensions along the trajectory ({args.method})")
+            ax[1].semilogy(x, np.maximum(jump, 1e-12))
+            ax[1].set_ylabel("largest |Δf| (N)")
+            ax[1].set_xlabel("t (s)" if tr.t is not None else "pose")
+            fig.tight_layout()
+            fig.savefig(out / "tensions.png", dpi=100)
+            plt.close(fig)
+    print(f"wrote {path}")
+    return 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """``cablekit cdpr workspace`` and ``cablekit cdpr distribute``."""
+    p = sub.add_parser("cdpr", help="cable-driven parallel robots: workspace, tensions along a trajectory")
+    cs = p.add_subparsers(dest="cdpr_command", required=True)
+    w = cs.add_parser(
+        "workspace",
+        help="static or wrench-feasible workspace on a grid: map (npz), table (md), plots",
+        description="The capacity margin (distance to the edge of the available wrench set) on a grid of "
+        "positions at a fixed orientation; the static workspace by default, the wrench-feasible one with "
+        "--wrench/--half-width.",
+    )
+    w.add_argument("robot", help="robot TOML file, or a shipped robot: " + ", ".join(shipped_names()))
+    w.add_argument("--out", required=True, help="output folder")
+    w.add_argument("--counts", type=int, default=DEFAULT_COUNTS, help="grid points per position axis")
+    w.add_argument("--lower", help="grid's lower corner, comma-separated (default: the anchors' box)")
+    w.add_argument("--upper", help="grid's upper corner, comma-separated")
+    w.add_argument("--orientation", help="fixed orientation: theta (planar) or roll,pitch,yaw (rad)")
+    w.add_argument("--wrench", help="centre of the required external wrench box, n comma-separated values")
+    w.add_argument("--half-width", help="half widths of the required wrench box, n comma-separated values")
+    w.add_argument("--moment-length", type=float, default=1.0, help="moments count as moment / length (m)")
+    w.add_argument("--no-gravity", action="store_true", help="leave out the platform's weight")
+    w.add_argument("--no-plots", action="store_true", help="no PNGs (no matplotlib needed)")
+    w.set_defaults(func=_workspace)
+    d = cs.add_parser(
+        "distribute",
+        help="tensions along a trajectory CSV, the method per pose and the jumps",
+        description="Columns: the pose (planar x,y,theta; spatial x,y,z,roll,pitch,yaw), optionally the "
+        "external wrench (planar fx,fy,mz; spatial fx,fy,fz,mx,my,mz) and t.",
+    )
+    d.add_argument("robot", help="robot TOML file, or a shipped robot")
+    d.add_argument("--trajectory", required=True, help="trajectory CSV")
+    d.add_argument("--out", required=True, help="output folder")
+    d.add_argument(
+        "--method",
+        default="auto",
+        choices=["auto", "improved_closed_form", "closed_form", "qp", "least_wrench_error", "minimum_norm"],
+    )
+    d.add_argument("--no-gravity", action="store_true", help="leave out the platform's weight")
+    d.add_argument("--no-plots", action="store_true")
+    d.set_defaults(func=_distribute)
