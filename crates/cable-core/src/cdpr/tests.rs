@@ -551,3 +551,143 @@ fn the_controller_answers_like_the_batch_and_reports_jumps() {
     assert!(ctl.step(&[0.0; 5], None).is_err());
     assert!(ctl.step(&[0.0; 6], Some(&[f64::NAN; 6])).is_err());
 }
+
+/// Determinant of a small square matrix (partial pivoting), for the reference below.
+fn det(mut a: Vec<Vec<f64>>) -> f64 {
+    let q = a.len();
+    let mut d = 1.0;
+    for k in 0..q {
+        let p = (k..q)
+            .max_by(|&x, &y| a[x][k].abs().total_cmp(&a[y][k].abs()))
+            .unwrap();
+        if a[p][k] == 0.0 {
+            return 0.0;
+        }
+        if p != k {
+            a.swap(p, k);
+            d = -d;
+        }
+        d *= a[k][k];
+        for r in k + 1..q {
+            let f = a[r][k] / a[k][k];
+            for c in k..q {
+                a[r][c] -= f * a[k][c];
+            }
+        }
+    }
+    d
+}
+
+/// The hyperplane shifting method as textbooks write it: for every set of `n − 1` columns of
+/// `Aᵀ` (moment rows divided by the moment length), the normal `c` is their generalised cross
+/// product (signed cofactors), and the margin is the least over `±c` of
+/// `(Σᵢ max(f_minᵢ·c·aᵢ, f_maxᵢ·c·aᵢ) + c·w − Σₖ |cₖ|·δₖ) / ‖c‖`.
+fn brute_force_margin(
+    at: &[f64],
+    n: usize,
+    m: usize,
+    lo: &[f64],
+    hi: &[f64],
+    w: &[f64],
+    req: &Requirement,
+) -> f64 {
+    let first_moment = if n == 3 { 2 } else { 3 };
+    let s = |r: usize| {
+        if n >= 3 && r >= first_moment {
+            1.0 / req.moment_length
+        } else {
+            1.0
+        }
+    };
+    let col = |i: usize| -> Vec<f64> { (0..n).map(|r| at[r * m + i] * s(r)).collect() };
+    let mut best = f64::INFINITY;
+    for set in 0u32..1 << m {
+        if set.count_ones() as usize != n - 1 {
+            continue;
+        }
+        let cols: Vec<Vec<f64>> = (0..m).filter(|i| set >> i & 1 == 1).map(col).collect();
+        let c: Vec<f64> = (0..n)
+            .map(|k| {
+                let minor = (0..n)
+                    .filter(|&r| r != k)
+                    .map(|r| cols.iter().map(|v| v[r]).collect())
+                    .collect();
+                if k % 2 == 0 {
+                    det(minor)
+                } else {
+                    -det(minor)
+                }
+            })
+            .collect();
+        let norm = c.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let size: f64 = cols
+            .iter()
+            .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
+            .product();
+        if norm <= 1e-9 * size {
+            continue;
+        }
+        for sign in [1.0, -1.0] {
+            let support: f64 = (0..m)
+                .filter(|i| set >> i & 1 == 0)
+                .map(|i| {
+                    let p: f64 = col(i).iter().zip(&c).map(|(a, b)| sign * a * b).sum();
+                    (lo[i] * p).max(hi[i] * p)
+                })
+                .sum();
+            let cw: f64 = (0..n)
+                .map(|k| sign * c[k] * (w[k] + req.center[k]) * s(k))
+                .sum();
+            let width: f64 = (0..n).map(|k| c[k].abs() * req.half_width[k] * s(k)).sum();
+            best = best.min((support + cw - width) / norm);
+        }
+    }
+    best
+}
+
+/// The capacity margin (one elimination, facets in basis coordinates) equals the textbook
+/// hyperplane shifting method on random structure matrices, bounds, wrenches and boxes, for
+/// 1 to 4 redundant cables, planar and spatial, with and without a moment length.
+#[test]
+fn capacity_margin_equals_the_textbook_hyperplane_shifting_method() {
+    let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+    let mut checked = 0;
+    for (n, m) in [
+        (2, 3),
+        (3, 4),
+        (3, 5),
+        (3, 7),
+        (6, 7),
+        (6, 8),
+        (6, 9),
+        (6, 10),
+    ] {
+        for case in 0..40 {
+            let at: Vec<f64> = (0..n * m).map(|_| rng.uniform(-1.0, 1.0)).collect();
+            let lo: Vec<f64> = (0..m).map(|_| rng.uniform(0.0, 20.0)).collect();
+            let hi: Vec<f64> = lo.iter().map(|l| l + rng.uniform(1.0, 200.0)).collect();
+            let w: Vec<f64> = (0..n).map(|_| rng.uniform(-100.0, 100.0)).collect();
+            let mut req = Requirement {
+                moment_length: if case % 3 == 0 { 0.2 } else { 1.0 },
+                ..Requirement::default()
+            };
+            if case % 2 == 1 {
+                for k in 0..n {
+                    req.center[k] = rng.uniform(-20.0, 20.0);
+                    req.half_width[k] = rng.uniform(0.0, 10.0);
+                }
+            }
+            let c = capacity_margin(&at, n, m, &lo, &hi, &w, &req).unwrap();
+            let reference = brute_force_margin(&at, n, m, &lo, &hi, &w, &req);
+            let scale = hi.iter().fold(1.0_f64, |a, b| a.max(*b));
+            assert!(
+                (c.margin - reference).abs() <= 1e-9 * scale,
+                "n {n}, m {m}, case {case}: {} against {reference}",
+                c.margin
+            );
+            assert_eq!(c.feasible, c.margin >= 0.0);
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 320);
+}

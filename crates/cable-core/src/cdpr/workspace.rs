@@ -192,27 +192,38 @@ fn cross_rows(k: &[[f64; 6]; 6], q: usize, d: &mut [f64; 6]) {
 /// not dependent to within a sine of 1e-12; a dependent set has no facet).
 const SINE_TOLERANCE: f64 = 1e-24;
 
-/// The eliminated structure matrix of one pose.
+/// The eliminated structure matrix of one pose. Coordinate arrays are 8 wide and indexed
+/// with `& 7`, which lets the compiler drop the bounds checks in the facet loop.
 struct Kernel {
     n: usize,
     /// Non-basis columns.
     r: usize,
     /// `T`'s non-basis columns, column-major.
-    tx: [[f64; 6]; MAX_CABLES],
+    tx: [[f64; 8]; MAX_CABLES],
     lo_x: [f64; MAX_CABLES],
     hi_x: [f64; MAX_CABLES],
     /// Bounds of the basis cables, by coordinate.
-    lo_b: [f64; 6],
-    hi_b: [f64; 6],
+    lo_b: [f64; 8],
+    hi_b: [f64; 8],
     /// `M·w`.
-    u: [f64; 6],
+    u: [f64; 8],
     /// `M·Mᵀ`.
-    h: [[f64; 6]; 6],
+    h: [[f64; 8]; 8],
     /// `M = B⁻¹`.
-    mm: [[f64; 6]; 6],
+    mm: [[f64; 8]; 8],
     /// Required box half widths (scaled).
-    delta: [f64; 6],
+    delta: [f64; 8],
     boxed: bool,
+}
+
+/// `max(a, b)` and `min(a, b)` of numbers known not to be NaN (one instruction each).
+#[inline(always)]
+fn max_min(a: f64, b: f64) -> (f64, f64) {
+    if a > b {
+        (a, b)
+    } else {
+        (b, a)
+    }
 }
 
 /// The nearest facet so far.
@@ -233,28 +244,30 @@ impl Kernel {
     fn facet<const L: usize>(&self, d: [f64; L], f: [usize; L], skip: u32, best: &mut Best) {
         let (mut up, mut down) = (0.0, 0.0);
         let mut add = |p: f64, lo: f64, hi: f64| {
-            let (a, b) = (lo * p, hi * p);
-            up += a.max(b);
-            down -= a.min(b);
+            let (a, b) = max_min(lo * p, hi * p);
+            up += a;
+            down -= b;
         };
         let mut s = 0.0;
         let mut norm2 = 0.0;
         for a in 0..L {
-            add(d[a], self.lo_b[f[a]], self.hi_b[f[a]]);
-            s += d[a] * self.u[f[a]];
-            let ha = &self.h[f[a]];
+            let fa = f[a] & 7;
+            add(d[a], self.lo_b[fa], self.hi_b[fa]);
+            s += d[a] * self.u[fa];
+            let ha = &self.h[fa];
             let mut row = 0.0;
             for b in 0..L {
-                row += ha[f[b]] * d[b];
+                row += ha[f[b] & 7] * d[b];
             }
             norm2 += d[a] * row;
         }
         for x in 0..self.r {
             if skip & (1 << x) == 0 {
+                let x = x & (MAX_CABLES - 1);
                 let tx = &self.tx[x];
                 let mut p = 0.0;
                 for a in 0..L {
-                    p += d[a] * tx[f[a]];
+                    p += d[a] * tx[f[a] & 7];
                 }
                 add(p, self.lo_x[x], self.hi_x[x]);
             }
@@ -264,9 +277,9 @@ impl Kernel {
                 .map(|j| {
                     let mut c = 0.0;
                     for a in 0..L {
-                        c += d[a] * self.mm[f[a]][j];
+                        c += d[a] * self.mm[f[a] & 7][j & 7];
                     }
-                    c.abs() * self.delta[j]
+                    c.abs() * self.delta[j & 7]
                 })
                 .sum()
         } else {
@@ -274,7 +287,7 @@ impl Kernel {
         };
         best.facets += 1;
         let (num_up, num_down) = (up + s - width, down - s - width);
-        let num = num_up.min(num_down);
+        let num = max_min(num_up, num_down).1;
         if norm2 > 0.0 && num < best.margin * norm2.sqrt() {
             best.margin = num / norm2.sqrt();
             best.d[..L].copy_from_slice(&d);
@@ -390,15 +403,15 @@ pub fn capacity_margin(
     let mut k = Kernel {
         n,
         r: 0,
-        tx: [[0.0; 6]; MAX_CABLES],
+        tx: [[0.0; 8]; MAX_CABLES],
         lo_x: [0.0; MAX_CABLES],
         hi_x: [0.0; MAX_CABLES],
-        lo_b: [0.0; 6],
-        hi_b: [0.0; 6],
-        u,
-        h: [[0.0; 6]; 6],
-        mm,
-        delta,
+        lo_b: [0.0; 8],
+        hi_b: [0.0; 8],
+        u: [0.0; 8],
+        h: [[0.0; 8]; 8],
+        mm: [[0.0; 8]; 8],
+        delta: [0.0; 8],
         boxed: delta[..n].iter().any(|&v| v > 0.0),
     };
     for (j, &c) in chosen[..m].iter().enumerate() {
@@ -412,6 +425,9 @@ pub fn capacity_margin(
     }
     for (b, &j) in basis[..n].iter().enumerate() {
         (k.lo_b[b], k.hi_b[b]) = (f_min[j], f_max[j]);
+        k.u[b] = u[b];
+        k.delta[b] = delta[b];
+        k.mm[b][..n].copy_from_slice(&mm[b][..n]);
     }
     // H = M·Mᵀ, for ‖c‖² = dᵀ·H·d.
     for a in 0..n {
@@ -421,6 +437,7 @@ pub fn capacity_margin(
             k.h[b][a] = s;
         }
     }
+    let mm = &k.mm;
     let mut best = Best {
         margin: f64::INFINITY,
         d: [0.0; 6],
