@@ -245,22 +245,25 @@ pub fn capacity_batch(
         usize,
         (((&'b mut f64, &'b mut bool), &'b mut bool), &'b mut [f64]),
     );
-    let one = |geo: &mut CableGeometry, (row, (((s, fe), de), wk)): Row<'_>| -> Result<()> {
-        let pose = Pose::from_coordinates(robot.motion, &poses[row * n..(row + 1) * n])?;
+    // per thread: the geometry's buffers and the last rotation (grids repeat orientations)
+    type Work = (CableGeometry, Option<([u64; 3], [f64; 9])>);
+    let one = |(geo, last): &mut Work, (row, (((s, fe), de), wk)): Row<'_>| -> Result<()> {
+        let q = &poses[row * n..(row + 1) * n];
+        let pose = Pose::from_coordinates_cached(robot.motion, q, last)?;
         let c = capacity(robot, &pose, req, geo).map_err(|e| at_row(e, row))?;
         (*s, *fe, *de) = (c.margin, c.feasible, c.degenerate);
         wk.copy_from_slice(&c.weakest[..n]);
         Ok(())
     };
     if t < PARALLEL_MIN_POSES {
-        let mut geo = CableGeometry::default();
+        let mut work = Work::default();
         out.margin
             .iter_mut()
             .zip(out.feasible.iter_mut())
             .zip(out.degenerate.iter_mut())
             .zip(out.weakest.chunks_mut(n))
             .enumerate()
-            .try_for_each(|r| one(&mut geo, r))
+            .try_for_each(|r| one(&mut work, r))
     } else {
         out.margin
             .par_iter_mut()
@@ -269,6 +272,6 @@ pub fn capacity_batch(
             .zip(out.weakest.par_chunks_mut(n))
             .enumerate()
             .with_min_len(64)
-            .try_for_each_init(CableGeometry::default, one)
+            .try_for_each_init(Work::default, one)
     }
 }

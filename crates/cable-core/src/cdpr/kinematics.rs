@@ -39,6 +39,33 @@ impl Pose {
         })
     }
 
+    /// The pose of coordinates `q`, reusing the rotation of the last call through `cache`
+    /// when the orientation coordinates are the same (bit for bit): a workspace grid at one
+    /// orientation computes its rotation once instead of three sines and cosines per pose.
+    /// Equal to [`Pose::from_coordinates`].
+    pub fn from_coordinates_cached(
+        motion: Motion,
+        q: &[f64],
+        cache: &mut Option<([u64; 3], [f64; 9])>,
+    ) -> Result<Self> {
+        check::len("pose", q, motion.dof())?;
+        check::all_finite("pose", q, 1)?;
+        let (position, angles) = match motion {
+            Motion::Planar => ([q[0], q[1], 0.0], [0.0, 0.0, q[2]]),
+            Motion::Spatial => ([q[0], q[1], q[2]], [q[3], q[4], q[5]]),
+        };
+        let key = angles.map(f64::to_bits);
+        let rotation = match *cache {
+            Some((k, r)) if k == key => r,
+            _ => {
+                let r = rpy(angles[0], angles[1], angles[2]);
+                *cache = Some((key, r));
+                r
+            }
+        };
+        Ok(Self { position, rotation })
+    }
+
     /// `R·v`.
     pub fn rotate(&self, v: &[f64; 3]) -> [f64; 3] {
         let r = &self.rotation;
@@ -195,7 +222,8 @@ pub fn inverse_kinematics(robot: &Robot, pose: &Pose, out: &mut CableGeometry) -
                 len,
             ));
         }
-        let u = l.map(|v| v / len);
+        let inv = 1.0 / len;
+        let u = l.map(|v| v * inv);
         let mom = cross(&rb, &u);
         out.length[i] = arc + len;
         out.free_length[i] = len;

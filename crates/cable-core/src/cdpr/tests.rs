@@ -691,3 +691,36 @@ fn capacity_margin_equals_the_textbook_hyperplane_shifting_method() {
     }
     assert_eq!(checked, 320);
 }
+
+/// A pose built through the rotation cache is the uncached pose, whether the orientation
+/// repeats or changes between calls.
+#[test]
+fn cached_rotation_is_the_uncached_pose() {
+    let mut rng = Rng(0x5851_f42d_4c95_7f2d);
+    let mut cache = None;
+    let mut orientation = [0.1, -0.2, 0.3];
+    for i in 0..200 {
+        if i % 7 == 0 {
+            orientation = [
+                rng.uniform(-1.0, 1.0),
+                rng.uniform(-1.0, 1.0),
+                rng.uniform(-3.0, 3.0),
+            ];
+        }
+        let q = [
+            rng.uniform(-1.0, 1.0),
+            rng.uniform(-1.0, 1.0),
+            rng.uniform(-1.0, 1.0),
+            orientation[0],
+            orientation[1],
+            orientation[2],
+        ];
+        let cached = Pose::from_coordinates_cached(Motion::Spatial, &q, &mut cache).unwrap();
+        assert_eq!(cached, Pose::from_coordinates(Motion::Spatial, &q).unwrap());
+        let planar = [q[0], q[1], q[5]];
+        let mut planar_cache = cache;
+        let p = Pose::from_coordinates_cached(Motion::Planar, &planar, &mut planar_cache).unwrap();
+        assert_eq!(p, Pose::from_coordinates(Motion::Planar, &planar).unwrap());
+    }
+    assert!(Pose::from_coordinates_cached(Motion::Spatial, &[f64::NAN; 6], &mut cache).is_err());
+}

@@ -194,19 +194,23 @@ const SINE_TOLERANCE: f64 = 1e-24;
 
 /// The eliminated structure matrix of one pose. Coordinate arrays are 8 wide and indexed
 /// with `& 7`, which lets the compiler drop the bounds checks in the facet loop.
+///
+/// With the middle tensions `mid = (f_min + f_max)/2` and half ranges `rad = (f_max − f_min)/2`,
+/// `max(f_minᵢ·pᵢ, f_maxᵢ·pᵢ) = midᵢ·pᵢ + radᵢ·|pᵢ|`, so the two facets `±c` of a pair share
+/// the spread `Σᵢ radᵢ·|c·aᵢ|` and their distances are
+/// `(Σᵢ radᵢ·|c·aᵢ| − Σₖ |cₖ|·δₖ ± c·g) / ‖c‖` with `g = Aᵀ·mid + w`: the nearer one is
+/// `(spread − width − |c·g|) / ‖c‖`, and `c·g = d·(M·g)` in basis coordinates.
 struct Kernel {
-    n: usize,
     /// Non-basis columns.
     r: usize,
     /// `T`'s non-basis columns, column-major.
     tx: [[f64; 8]; MAX_CABLES],
-    lo_x: [f64; MAX_CABLES],
-    hi_x: [f64; MAX_CABLES],
-    /// Bounds of the basis cables, by coordinate.
-    lo_b: [f64; 8],
-    hi_b: [f64; 8],
-    /// `M·w`.
-    u: [f64; 8],
+    /// Half ranges of the non-basis cables.
+    rad_x: [f64; MAX_CABLES],
+    /// Half ranges of the basis cables, by coordinate.
+    rad_b: [f64; 8],
+    /// `M·(Aᵀ·mid + w)`.
+    g: [f64; 8],
     /// `M·Mᵀ`.
     h: [[f64; 8]; 8],
     /// `M = B⁻¹`.
@@ -216,19 +220,11 @@ struct Kernel {
     boxed: bool,
 }
 
-/// `max(a, b)` and `min(a, b)` of numbers known not to be NaN (one instruction each).
-#[inline(always)]
-fn max_min(a: f64, b: f64) -> (f64, f64) {
-    if a > b {
-        (a, b)
-    } else {
-        (b, a)
-    }
-}
-
 /// The nearest facet so far.
 struct Best {
-    margin: f64,
+    /// Numerator and `‖c‖²` of the nearest facet's distance `num / ‖c‖`.
+    num: f64,
+    norm2: f64,
     d: [f64; 6],
     f: [usize; 6],
     len: usize,
@@ -242,22 +238,16 @@ impl Kernel {
     /// columns in `skip` (a bit set) are orthogonal to it.
     #[inline(always)]
     fn facet<const L: usize>(&self, d: [f64; L], f: [usize; L], skip: u32, best: &mut Best) {
-        let (mut up, mut down) = (0.0, 0.0);
-        let mut add = |p: f64, lo: f64, hi: f64| {
-            let (a, b) = max_min(lo * p, hi * p);
-            up += a;
-            down -= b;
-        };
-        let mut s = 0.0;
-        let mut norm2 = 0.0;
+        let (mut spread, mut along, mut norm2) = (0.0, 0.0, 0.0);
         for a in 0..L {
             let fa = f[a] & 7;
-            add(d[a], self.lo_b[fa], self.hi_b[fa]);
-            s += d[a] * self.u[fa];
+            spread += self.rad_b[fa] * d[a].abs();
+            along += d[a] * self.g[fa];
+            // ‖c‖² = dᵀ·H·d over the upper triangle
             let ha = &self.h[fa];
-            let mut row = 0.0;
-            for b in 0..L {
-                row += ha[f[b] & 7] * d[b];
+            let mut row = ha[fa] * d[a];
+            for b in 0..a {
+                row += 2.0 * ha[f[b] & 7] * d[b];
             }
             norm2 += d[a] * row;
         }
@@ -269,31 +259,41 @@ impl Kernel {
                 for a in 0..L {
                     p += d[a] * tx[f[a] & 7];
                 }
-                add(p, self.lo_x[x], self.hi_x[x]);
+                spread += self.rad_x[x] * p.abs();
             }
         }
         let width = if self.boxed {
-            (0..self.n)
-                .map(|j| {
-                    let mut c = 0.0;
-                    for a in 0..L {
-                        c += d[a] * self.mm[f[a] & 7][j & 7];
-                    }
-                    c.abs() * self.delta[j & 7]
-                })
-                .sum()
+            let mut c = [0.0; 8];
+            for a in 0..L {
+                let row = &self.mm[f[a] & 7];
+                for j in 0..8 {
+                    c[j] += d[a] * row[j];
+                }
+            }
+            (0..8).map(|j| c[j].abs() * self.delta[j]).sum()
         } else {
             0.0
         };
         best.facets += 1;
-        let (num_up, num_down) = (up + s - width, down - s - width);
-        let num = max_min(num_up, num_down).1;
-        if norm2 > 0.0 && num < best.margin * norm2.sqrt() {
-            best.margin = num / norm2.sqrt();
+        let num = spread - width - along.abs();
+        // num/‖c‖ < best, compared as num·|num|·best‖c‖² < best_num·|best_num|·‖c‖² (no square
+        // root), or with the roots where those products are not finite
+        let (lhs, rhs) = (
+            num * num.abs() * best.norm2,
+            best.num * best.num.abs() * norm2,
+        );
+        let diff = lhs - rhs;
+        let nearer = if diff.is_finite() {
+            diff < 0.0
+        } else {
+            num * best.norm2.sqrt() < best.num * norm2.sqrt()
+        };
+        if nearer & (norm2 > 0.0) {
+            (best.num, best.norm2) = (num, norm2);
             best.d[..L].copy_from_slice(&d);
             best.f[..L].copy_from_slice(&f);
             best.len = L;
-            best.up = num_up <= num_down;
+            best.up = along <= 0.0;
         }
     }
 }
@@ -330,116 +330,66 @@ pub fn capacity_margin(
             });
         }
     }
-    // Moment rows are divided by the moment length (planar: row 2; spatial: rows 3..6).
-    let first_moment = if n == 3 { 2 } else { 3.min(n) };
-    let row_scale = |r: usize| {
-        if r >= first_moment && n >= 3 {
-            1.0 / req.moment_length
-        } else {
-            1.0
-        }
-    };
-    let mut t = [[0.0; MAX_CABLES]; 6];
-    let mut u = [0.0; 6];
-    let mut mm = [[0.0; 6]; 6];
-    let mut delta = [0.0; 6];
-    let mut largest: f64 = 0.0;
-    for r in 0..n {
-        let s = row_scale(r);
-        for j in 0..m {
-            t[r][j] = at[r * m + j] * s;
-            largest = largest.max(t[r][j].abs());
-        }
-        u[r] = (weight[r] + req.center[r]) * s;
-        delta[r] = req.half_width[r] * s;
-        mm[r][r] = 1.0;
+    let args = (at, m, f_min, f_max, weight, req);
+    #[cfg(target_arch = "x86_64")]
+    if crate::lanes::cpu_has_avx2_fma() {
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU reported AVX2 and FMA, all `margin_avx2` requires
+        return unsafe { margin_avx2(n, args) };
     }
-    // Gauss–Jordan with complete pivoting: `basis[k]` is the column made the unit vector e_k.
-    let mut basis = [0usize; 6];
-    let mut chosen = [false; MAX_CABLES];
-    for k in 0..n {
-        let (mut pr, mut pc, mut best) = (k, 0, -1.0);
-        for (r, row) in t.iter().enumerate().take(n).skip(k) {
-            for (j, v) in row[..m].iter().enumerate() {
-                if v.abs() > best && !chosen[j] {
-                    (pr, pc, best) = (r, j, v.abs());
-                }
-            }
-        }
-        // (also catches NaN)
-        if best.partial_cmp(&(RANK_TOLERANCE * largest)) != Some(std::cmp::Ordering::Greater) {
-            return Ok(Capacity {
-                margin: 0.0,
-                feasible: false,
-                degenerate: true,
-                facets: 0,
-                weakest: [0.0; 6],
-            });
-        }
-        t.swap(pr, k);
-        u.swap(pr, k);
-        mm.swap(pr, k);
-        basis[k] = pc;
-        chosen[pc] = true;
-        let inv = 1.0 / t[k][pc];
-        t[k][..m].iter_mut().for_each(|v| *v *= inv);
-        mm[k][..n].iter_mut().for_each(|v| *v *= inv);
-        u[k] *= inv;
-        let (pivot_t, pivot_m, pivot_u) = (t[k], mm[k], u[k]);
-        for r in (0..n).filter(|&r| r != k) {
-            let f = t[r][pc];
-            if f != 0.0 {
-                for j in 0..m {
-                    t[r][j] -= f * pivot_t[j];
-                }
-                for j in 0..n {
-                    mm[r][j] -= f * pivot_m[j];
-                }
-                u[r] -= f * pivot_u;
-            }
-        }
-    }
-    // The non-basis columns (column-major copies) and the bounds in basis order.
+    margin(n, args)
+}
+
+/// [`margin`] compiled for 256-bit lanes (the same operations in the same order).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn margin_avx2(n: usize, args: MarginArgs<'_>) -> Result<Capacity> {
+    margin(n, args)
+}
+
+/// [`capacity_margin`] of checked arguments.
+#[inline(always)]
+fn margin(n: usize, args: MarginArgs<'_>) -> Result<Capacity> {
+    let (_, m, _, _, _, req) = args;
+    let row_scale = |r: usize| row_scale(n, req.moment_length, r);
     let mut k = Kernel {
-        n,
         r: 0,
         tx: [[0.0; 8]; MAX_CABLES],
-        lo_x: [0.0; MAX_CABLES],
-        hi_x: [0.0; MAX_CABLES],
-        lo_b: [0.0; 8],
-        hi_b: [0.0; 8],
-        u: [0.0; 8],
+        rad_x: [0.0; MAX_CABLES],
+        rad_b: [0.0; 8],
+        g: [0.0; 8],
         h: [[0.0; 8]; 8],
         mm: [[0.0; 8]; 8],
         delta: [0.0; 8],
-        boxed: delta[..n].iter().any(|&v| v > 0.0),
+        boxed: false,
     };
-    for (j, &c) in chosen[..m].iter().enumerate() {
-        if !c {
-            for row in 0..n {
-                k.tx[k.r][row] = t[row][j];
-            }
-            (k.lo_x[k.r], k.hi_x[k.r]) = (f_min[j], f_max[j]);
-            k.r += 1;
-        }
-    }
-    for (b, &j) in basis[..n].iter().enumerate() {
-        (k.lo_b[b], k.hi_b[b]) = (f_min[j], f_max[j]);
-        k.u[b] = u[b];
-        k.delta[b] = delta[b];
-        k.mm[b][..n].copy_from_slice(&mm[b][..n]);
-    }
-    // H = M·Mᵀ, for ‖c‖² = dᵀ·H·d.
-    for a in 0..n {
-        for b in 0..=a {
-            let s: f64 = (0..n).map(|j| mm[a][j] * mm[b][j]).sum();
-            k.h[a][b] = s;
-            k.h[b][a] = s;
-        }
+    let regular = match (n, m <= 8) {
+        (1, true) => eliminate::<1, 8>(args, &mut k),
+        (2, true) => eliminate::<2, 8>(args, &mut k),
+        (3, true) => eliminate::<3, 8>(args, &mut k),
+        (4, true) => eliminate::<4, 8>(args, &mut k),
+        (5, true) => eliminate::<5, 8>(args, &mut k),
+        (6, true) => eliminate::<6, 8>(args, &mut k),
+        (1, false) => eliminate::<1, MAX_CABLES>(args, &mut k),
+        (2, false) => eliminate::<2, MAX_CABLES>(args, &mut k),
+        (3, false) => eliminate::<3, MAX_CABLES>(args, &mut k),
+        (4, false) => eliminate::<4, MAX_CABLES>(args, &mut k),
+        (5, false) => eliminate::<5, MAX_CABLES>(args, &mut k),
+        _ => eliminate::<6, MAX_CABLES>(args, &mut k),
+    };
+    if !regular {
+        return Ok(Capacity {
+            margin: 0.0,
+            feasible: false,
+            degenerate: true,
+            facets: 0,
+            weakest: [0.0; 6],
+        });
     }
     let mm = &k.mm;
     let mut best = Best {
-        margin: f64::INFINITY,
+        num: f64::INFINITY,
+        norm2: 1.0,
         d: [0.0; 6],
         f: [0; 6],
         len: 0,
@@ -538,21 +488,15 @@ pub fn capacity_margin(
             }
         }
     }
-    let margin = best.margin;
+    let margin = best.num / best.norm2.sqrt();
     // The weakest external direction: −c (the cables' wrench leaves through +c) or +c.
     let mut weakest = [0.0; 6];
     if margin.is_finite() {
         let sign = if best.up { -1.0 } else { 1.0 };
-        let mut norm2 = 0.0;
-        for a in 0..best.len {
-            for b in 0..best.len {
-                norm2 += best.d[a] * best.d[b] * k.h[best.f[a]][best.f[b]];
-            }
-        }
-        let norm = norm2.sqrt();
+        let scale = sign / best.norm2.sqrt();
         for (j, wj) in weakest[..n].iter_mut().enumerate() {
             let c: f64 = (0..best.len).map(|b| best.d[b] * mm[best.f[b]][j]).sum();
-            *wj = sign * c / norm / row_scale(j);
+            *wj = scale * c / row_scale(j);
         }
     }
     let facets = best.facets;
@@ -572,6 +516,145 @@ pub fn capacity_margin(
         facets,
         weakest,
     })
+}
+
+/// Row `r`'s scale: moment rows are divided by the moment length (planar: row 2; spatial:
+/// rows 3..6).
+fn row_scale(n: usize, moment_length: f64, r: usize) -> f64 {
+    let first_moment = if n == 3 { 2 } else { 3.min(n) };
+    if r >= first_moment && n >= 3 {
+        1.0 / moment_length
+    } else {
+        1.0
+    }
+}
+
+/// `(Aᵀ, m, f_min, f_max, w, requirement)` of [`capacity_margin`], checked.
+type MarginArgs<'a> = (
+    &'a [f64],
+    usize,
+    &'a [f64],
+    &'a [f64],
+    &'a [f64],
+    &'a Requirement,
+);
+
+/// The kernel of an `N × m` structure matrix (`m ≤ W` cables, padded with zeros to `W`):
+/// Gauss–Jordan with complete pivoting on fixed-size rows, into `k` (zeroed); `false` at a
+/// rank-deficient pose.
+#[inline(always)]
+fn eliminate<const N: usize, const W: usize>(
+    (at, m, f_min, f_max, weight, req): MarginArgs<'_>,
+    k: &mut Kernel,
+) -> bool {
+    let mut t = [[0.0; W]; N];
+    let mut u = [0.0; N];
+    let mut mm = [[0.0; N]; N];
+    let mut delta = [0.0; N];
+    let mut largest: f64 = 0.0;
+    for r in 0..N {
+        let s = row_scale(N, req.moment_length, r);
+        for j in 0..m {
+            t[r][j] = at[r * m + j] * s;
+            largest = largest.max(t[r][j].abs());
+        }
+        u[r] = (weight[r] + req.center[r]) * s;
+        delta[r] = req.half_width[r] * s;
+        mm[r][r] = 1.0;
+    }
+    // Gauss–Jordan with complete pivoting: `basis[k]` is the column made the unit vector e_k
+    // (exactly: its other entries are set to zero, so the remaining rows never pick it again;
+    // the padding lanes are zeros and never picked either).
+    let mut basis = [0usize; N];
+    let mut chosen = [false; W];
+    for k in 0..N {
+        let mut colmax = [0.0_f64; W];
+        for row in &t[k..] {
+            for j in 0..W {
+                let v = row[j].abs();
+                colmax[j] = if v > colmax[j] { v } else { colmax[j] };
+            }
+        }
+        let (mut pc, mut best) = (0, -1.0);
+        for (j, &v) in colmax.iter().enumerate() {
+            if v > best {
+                (pc, best) = (j, v);
+            }
+        }
+        // (also catches NaN)
+        if best.partial_cmp(&(RANK_TOLERANCE * largest)) != Some(std::cmp::Ordering::Greater) {
+            return false;
+        }
+        // the row that holds the column's largest entry (the same bits as `best`)
+        let pr = (k..N)
+            .find(|&r| t[r][pc].abs().to_bits() == best.to_bits())
+            .unwrap_or(k);
+        t.swap(pr, k);
+        u.swap(pr, k);
+        mm.swap(pr, k);
+        basis[k] = pc;
+        chosen[pc] = true;
+        // (the pivot column is written by lane selects, not a store into a row that is read
+        // back at once as a vector: that store would stall the load)
+        let inv = 1.0 / t[k][pc];
+        for (j, v) in t[k].iter_mut().enumerate() {
+            *v = if j == pc { 1.0 } else { *v * inv };
+        }
+        for v in &mut mm[k] {
+            *v *= inv;
+        }
+        u[k] *= inv;
+        let (pivot_t, pivot_m, pivot_u) = (t[k], mm[k], u[k]);
+        for r in 0..N {
+            if r != k {
+                let f = t[r][pc];
+                for j in 0..W {
+                    let v = t[r][j] - f * pivot_t[j];
+                    t[r][j] = if j == pc { 0.0 } else { v };
+                }
+                for j in 0..N {
+                    mm[r][j] -= f * pivot_m[j];
+                }
+                u[r] -= f * pivot_u;
+            }
+        }
+    }
+    // The non-basis columns (column-major copies), the half ranges in basis order, and
+    // g = M·(Aᵀ·mid + w) = T·mid + M·w.
+    k.boxed = delta.iter().any(|&v| v > 0.0);
+    let mut mid = [0.0; W];
+    for j in 0..m {
+        mid[j] = 0.5 * (f_min[j] + f_max[j]);
+        if !chosen[j] {
+            for row in 0..N {
+                k.tx[k.r][row] = t[row][j];
+            }
+            k.rad_x[k.r] = 0.5 * (f_max[j] - f_min[j]);
+            k.r += 1;
+        }
+    }
+    for (b, &j) in basis.iter().enumerate() {
+        k.rad_b[b] = 0.5 * (f_max[j] - f_min[j]);
+        let mut g = [0.0; W];
+        for i in 0..W {
+            g[i] = t[b][i] * mid[i];
+        }
+        k.g[b] = u[b] + g.iter().sum::<f64>();
+        k.delta[b] = delta[b];
+        k.mm[b][..N].copy_from_slice(&mm[b]);
+    }
+    // H = M·Mᵀ, for ‖c‖² = dᵀ·H·d.
+    for a in 0..N {
+        for b in 0..=a {
+            let mut s = 0.0;
+            for j in 0..N {
+                s += mm[a][j] * mm[b][j];
+            }
+            k.h[a][b] = s;
+            k.h[b][a] = s;
+        }
+    }
+    true
 }
 
 /// Capacity margin of the robot at one pose (inverse kinematics, the weight if required, the
