@@ -575,11 +575,12 @@ fn eliminate<const N: usize, const W: usize>(
                 colmax[j] = if v > colmax[j] { v } else { colmax[j] };
             }
         }
+        // (conditional moves: a data-dependent branch here mispredicts)
         let (mut pc, mut best) = (0, -1.0);
         for (j, &v) in colmax.iter().enumerate() {
-            if v > best {
-                (pc, best) = (j, v);
-            }
+            let larger = v > best;
+            pc = if larger { j } else { pc };
+            best = if larger { v } else { best };
         }
         // (also catches NaN)
         if best.partial_cmp(&(RANK_TOLERANCE * largest)) != Some(std::cmp::Ordering::Greater) {
