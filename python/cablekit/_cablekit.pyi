@@ -12,6 +12,8 @@ __all__ = [
     "AntagonisticJoint",
     "CableTransmission",
     "Capacity",
+    "ClampRun",
+    "ClampStep",
     "DahlElement",
     "DualRun",
     "DualSrUkf",
@@ -20,6 +22,7 @@ __all__ = [
     "FitReport",
     "JointProblem",
     "JointRun",
+    "Jtdo",
     "Kinematics",
     "Mlp",
     "Model",
@@ -598,6 +601,60 @@ class Capacity:
     def degenerate(self) -> NDArray[np.bool_]: ...
     @property
     def weakest(self) -> _F: ...
+
+@final
+class Jtdo:
+    """Joint torque disturbance observer of a two-forceps end-effector (seed 000 eqs 8, 15–17)."""
+
+    def __new__(
+        cls,
+        *,
+        r2: float,
+        arm_a: float,
+        arm_b: float,
+        threshold: float = ...,  # 0.11 N, the seed's collision threshold
+        bias: tuple[float, float] = ...,  # (0.0, 0.0)
+    ) -> Jtdo: ...
+    def with_bias(self, bias: tuple[float, float]) -> Jtdo: ...
+    def calibrated(self, measured: _F, free: _F, external: _F) -> Jtdo: ...
+    @property
+    def geometry(self) -> tuple[float, float, float]: ...
+    @property
+    def threshold(self) -> float: ...
+    @property
+    def bias(self) -> tuple[float, float]: ...
+    def step(self, measured: _F, free: _F) -> ClampStep: ...
+    def estimate(self, measured: _F, free: _F) -> ClampRun: ...
+
+@final
+class ClampStep:
+    """One ``Jtdo.step``."""
+
+    @property
+    def disturbance(self) -> tuple[float, float, float, float]: ...
+    @property
+    def torque(self) -> tuple[float, float]: ...
+    @property
+    def external(self) -> tuple[float, float]: ...
+    @property
+    def clamping(self) -> float: ...
+    @property
+    def contact(self) -> tuple[bool, bool]: ...
+
+@final
+class ClampRun:
+    """A ``Jtdo.estimate`` log."""
+
+    @property
+    def disturbance(self) -> _F: ...
+    @property
+    def torque(self) -> _F: ...
+    @property
+    def external(self) -> _F: ...
+    @property
+    def clamping(self) -> _F: ...
+    @property
+    def contact(self) -> NDArray[np.bool_]: ...
 
 @final
 class TensionController:

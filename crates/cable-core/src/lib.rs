@@ -19,6 +19,7 @@ pub mod control;
 pub mod dynamics;
 pub mod error;
 pub mod estimate;
+pub mod forceps;
 pub mod friction;
 pub mod identify;
 pub mod integrate;

@@ -8,6 +8,7 @@ mod convert;
 mod dynamics;
 mod errors;
 mod estimate;
+mod forceps;
 mod friction;
 mod identify;
 mod integrate;
@@ -49,5 +50,8 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<results::Capacity>()?;
     m.add_class::<results::Step>()?;
     m.add_class::<cdpr::TensionController>()?;
+    m.add_class::<forceps::Jtdo>()?;
+    m.add_class::<forceps::ClampStep>()?;
+    m.add_class::<forceps::ClampRun>()?;
     Ok(())
 }

@@ -197,10 +197,11 @@ pub(super) fn finish(
             }
         }
     }
-    let mut res = 0.0;
+    // ‖Aᵀ·f + w‖ scaled by its largest entry, so that a wrench near the float range (1e154
+    // per component) gives its finite norm, not an overflowed square
+    let mut e = [0.0; 6];
     for a in 0..n {
-        let e = w[a] + (0..m).map(|i| at[a * m + i] * f[i]).sum::<f64>();
-        res += e * e;
+        e[a] = w[a] + (0..m).map(|i| at[a * m + i] * f[i]).sum::<f64>();
     }
     check::result_finite(
         "tensions",
@@ -208,7 +209,23 @@ pub(super) fn finish(
         1,
         "the wrench or the geometry is too extreme",
     )?;
-    let residual = res.sqrt();
+    let largest = e[..n].iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+    let residual = if largest > 0.0 && largest.is_finite() {
+        largest
+            * e[..n]
+                .iter()
+                .map(|v| (v / largest).powi(2))
+                .sum::<f64>()
+                .sqrt()
+    } else {
+        largest
+    };
+    check::result_finite(
+        "residual wrench",
+        &[residual],
+        1,
+        "the wrench or the geometry is too extreme",
+    )?;
     let scale = 1.0
         + w.iter().map(|v| v.abs()).fold(0.0, f64::max)
         + f[..m].iter().map(|v| v.abs()).fold(0.0, f64::max);
