@@ -46,5 +46,30 @@ fn single(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, single);
+/// Seed 000's estimator at control rate: the 4-10-4 free-motion network (PSO-BPNN, Table 1)
+/// and the joint torque disturbance observer, one sample (issue #22: ≤ 1 µs excluding I/O).
+fn forceps(c: &mut Criterion) {
+    use cable_core::forceps::{Geometry, Jtdo, SEED_THRESHOLD};
+    let mut g = c.benchmark_group("forceps");
+    g.throughput(Throughput::Elements(1));
+    let mut m = mlp_fixture(&[4, 10, 4]);
+    let geometry = Geometry {
+        r2: 4e-3,
+        arm_a: 12e-3,
+        arm_b: 14e-3,
+    };
+    let jtdo = Jtdo::new(geometry, SEED_THRESHOLD, [0.0; 2]).unwrap();
+    let motors = [0.5e-3, 0.8e-3, -0.5e-3, -0.8e-3];
+    let measured = [12.3, 6.9, 14.2, 5.8];
+    let mut free = [0.0; 4];
+    g.bench_function("jtdo_step_with_4_10_4", |b| {
+        b.iter(|| {
+            m.forward(black_box(&motors), &mut free).unwrap();
+            black_box(jtdo.estimate(black_box(&measured), &free).unwrap());
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, single, forceps);
 criterion_main!(benches);
