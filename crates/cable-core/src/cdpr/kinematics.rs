@@ -25,18 +25,7 @@ pub struct Pose {
 impl Pose {
     /// The pose of coordinates `q` (`n` of them, see the module docs).
     pub fn from_coordinates(motion: Motion, q: &[f64]) -> Result<Self> {
-        check::len("pose", q, motion.dof())?;
-        check::all_finite("pose", q, 1)?;
-        Ok(match motion {
-            Motion::Planar => Self {
-                position: [q[0], q[1], 0.0],
-                rotation: rpy(0.0, 0.0, q[2]),
-            },
-            Motion::Spatial => Self {
-                position: [q[0], q[1], q[2]],
-                rotation: rpy(q[3], q[4], q[5]),
-            },
-        })
+        Self::from_coordinates_cached(motion, q, &mut None)
     }
 
     /// The pose of coordinates `q`, reusing the rotation of the last call through `cache`

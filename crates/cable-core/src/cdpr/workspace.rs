@@ -540,12 +540,12 @@ type MarginArgs<'a> = (
 );
 
 /// The kernel of an `N × m` structure matrix (`m ≤ W` cables, padded with zeros to `W`):
-/// Gauss–Jordan with complete pivoting on fixed-size rows, into `k` (zeroed); `false` at a
+/// Gauss–Jordan with complete pivoting on fixed-size rows, into `out` (zeroed); `false` at a
 /// rank-deficient pose.
 #[inline(always)]
 fn eliminate<const N: usize, const W: usize>(
     (at, m, f_min, f_max, weight, req): MarginArgs<'_>,
-    k: &mut Kernel,
+    out: &mut Kernel,
 ) -> bool {
     let mut t = [[0.0; W]; N];
     let mut u = [0.0; N];
@@ -622,27 +622,27 @@ fn eliminate<const N: usize, const W: usize>(
     }
     // The non-basis columns (column-major copies), the half ranges in basis order, and
     // g = M·(Aᵀ·mid + w) = T·mid + M·w.
-    k.boxed = delta.iter().any(|&v| v > 0.0);
+    out.boxed = delta.iter().any(|&v| v > 0.0);
     let mut mid = [0.0; W];
     for j in 0..m {
         mid[j] = 0.5 * (f_min[j] + f_max[j]);
         if !chosen[j] {
             for row in 0..N {
-                k.tx[k.r][row] = t[row][j];
+                out.tx[out.r][row] = t[row][j];
             }
-            k.rad_x[k.r] = 0.5 * (f_max[j] - f_min[j]);
-            k.r += 1;
+            out.rad_x[out.r] = 0.5 * (f_max[j] - f_min[j]);
+            out.r += 1;
         }
     }
     for (b, &j) in basis.iter().enumerate() {
-        k.rad_b[b] = 0.5 * (f_max[j] - f_min[j]);
+        out.rad_b[b] = 0.5 * (f_max[j] - f_min[j]);
         let mut g = [0.0; W];
         for i in 0..W {
             g[i] = t[b][i] * mid[i];
         }
-        k.g[b] = u[b] + g.iter().sum::<f64>();
-        k.delta[b] = delta[b];
-        k.mm[b][..N].copy_from_slice(&mm[b]);
+        out.g[b] = u[b] + g.iter().sum::<f64>();
+        out.delta[b] = delta[b];
+        out.mm[b][..N].copy_from_slice(&mm[b]);
     }
     // H = M·Mᵀ, for ‖c‖² = dᵀ·H·d.
     for a in 0..N {
@@ -651,8 +651,8 @@ fn eliminate<const N: usize, const W: usize>(
             for j in 0..N {
                 s += mm[a][j] * mm[b][j];
             }
-            k.h[a][b] = s;
-            k.h[b][a] = s;
+            out.h[a][b] = s;
+            out.h[b][a] = s;
         }
     }
     true
