@@ -47,7 +47,8 @@ fn single(c: &mut Criterion) {
 }
 
 /// Seed 000's estimator at control rate: the 4-10-4 free-motion network (PSO-BPNN, Table 1)
-/// and the joint torque disturbance observer, one sample (issue #22: ≤ 1 µs excluding I/O).
+/// and the joint torque disturbance observer, one sample; and the physics-informed estimator's
+/// sample (issue #22: ≤ 1 µs excluding I/O).
 fn forceps(c: &mut Criterion) {
     use cable_core::forceps::{Geometry, Jtdo, SEED_THRESHOLD};
     let mut g = c.benchmark_group("forceps");
@@ -66,6 +67,23 @@ fn forceps(c: &mut Criterion) {
         b.iter(|| {
             m.forward(black_box(&motors), &mut free).unwrap();
             black_box(jtdo.estimate(black_box(&measured), &free).unwrap());
+        })
+    });
+    // the physics-informed estimator (issue #22 §2): two direction states, capstan and joint
+    // friction, spring and stretch per forceps; alternate motion so the states keep moving
+    let mut physics = cable_core::forceps::physics::PhysicsObserver::new(
+        geometry,
+        [cable_core::forceps::physics::Losses::START; 2],
+        SEED_THRESHOLD,
+    )
+    .unwrap();
+    let mut k = 0u32;
+    g.bench_function("physics_step", |b| {
+        b.iter(|| {
+            k = k.wrapping_add(1);
+            let x = 1e-3 + 1e-6 * f64::from(k % 64);
+            let m = [x, 0.5e-3, x, 0.5e-3];
+            black_box(physics.step(black_box(&m), black_box(&measured)).unwrap());
         })
     });
     g.finish();

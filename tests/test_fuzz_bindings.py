@@ -174,6 +174,23 @@ def _calls() -> dict[str, Call]:
     out["Jtdo.step"] = Call(jtdo.step, (tensions[1], tensions[0]))
     out["Jtdo.estimate"] = Call(jtdo.estimate, (tensions, tensions[::-1].copy()))
     out["Jtdo.calibrated"] = Call(jtdo.calibrated, (tensions, tensions[::-1].copy(), np.ones((2, 2))))
+    from cablekit.forceps import PhysicsObserver, Twin
+
+    seed = Twin.seed()
+    bench = dict(tension_noise=0.08, pressure_noise=0.01, seed=3, sample_time=0.01, substeps=100)
+    out["Twin"] = Call(Twin, (seed.a, seed.b), bench)
+    out["Twin.clamp"] = Call(seed.clamp, (2e-3, 0.5, 2, 0.1))
+    out["Twin.run"] = Call(seed.run, (0.0, [("move", 1e-4, 1e-3)], 0.0, [("hold", 0.05)], True))
+    physics = PhysicsObserver(r2=4e-3, arm_a=12e-3, arm_b=14e-3)
+    motors = np.array([[1e-3, 5e-4, 1e-3, 5e-4], [1.005e-3, 5e-4, 1.005e-3, 5e-4]] * 12)
+    out["PhysicsObserver"] = Call(
+        PhysicsObserver, (), dict(r2=4e-3, arm_a=12e-3, arm_b=14e-3, losses_a=physics.losses[0].copy())
+    )
+    out["PhysicsObserver.step"] = Call(physics.step, (motors[0], tensions[0]))
+    out["PhysicsObserver.estimate"] = Call(physics.estimate, (motors, np.repeat(tensions, 12, axis=0)))
+    out["PhysicsObserver.calibrated"] = Call(
+        physics.calibrated, (motors, np.repeat(tensions, 12, axis=0), np.zeros((24, 2)))
+    )
     out["JointProblem.fit"] = Call(
         lambda th, ftol, max_iter: _problem().fit(th, ftol=ftol, max_iter=max_iter),
         (_problem().reference(), 1e-8, 3),
@@ -214,7 +231,18 @@ def _finite_numbers(obj: Any) -> bool:
 
 #: typed results whose every number is finite from finite input (FilterRun/FilterHealth are
 #: not: their NIS is NaN, as documented, at a step without a measurement)
-_RESULTS = {"ClampRun", "ClampStep", "Tensions", "Kinematics", "Capacity", "Step", "FitReport", "DualRun"}
+_RESULTS = {
+    "ClampRun",
+    "ClampStep",
+    "Tensions",
+    "Kinematics",
+    "Capacity",
+    "Step",
+    "FitReport",
+    "DualRun",
+    "TwinRun",
+    "PhysicsCalibration",
+}
 
 
 def _is_finite_input(obj: Any) -> bool:

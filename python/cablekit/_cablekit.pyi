@@ -2,7 +2,7 @@
 
 import os
 from collections.abc import Sequence
-from typing import Any, final
+from typing import Any, ClassVar, final
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,11 +27,15 @@ __all__ = [
     "Mlp",
     "Model",
     "ParamSpec",
+    "PhysicsCalibration",
+    "PhysicsObserver",
     "Robot",
     "SrUkf",
     "Step",
     "TensionController",
     "Tensions",
+    "Twin",
+    "TwinRun",
     "__version__",
     "cable_tension",
     "capstan_ratio",
@@ -655,6 +659,108 @@ class ClampRun:
     def clamping(self) -> _F: ...
     @property
     def contact(self) -> NDArray[np.bool_]: ...
+
+_Segment = tuple[str, float] | tuple[str, float, float]
+
+@final
+class Twin:
+    """Seed 000's two-forceps bench as a twin (``cable_core::forceps::twin``)."""
+
+    JAW_NAMES: ClassVar[list[str]]
+    SEED_SPEEDS: ClassVar[list[float]]
+    def __new__(
+        cls,
+        a: _F,
+        b: _F,
+        *,
+        tension_noise: float,
+        pressure_noise: float,
+        seed: int,
+        sample_time: float,
+        substeps: int,
+    ) -> Twin: ...
+    @staticmethod
+    def seed() -> Twin: ...
+    @property
+    def a(self) -> _F: ...
+    @property
+    def b(self) -> _F: ...
+    @property
+    def bench(self) -> tuple[float, float, int, float, int]: ...
+    def free_motion(self, speeds: list[float] = ..., pause: float = 0.2) -> TwinRun: ...
+    def clamp(self, speed: float, peak: float, steps: int, dwell: float) -> TwinRun: ...
+    def run(
+        self,
+        start_a: float,
+        program_a: list[_Segment],
+        start_b: float,
+        program_b: list[_Segment],
+        block: bool,
+    ) -> TwinRun: ...
+
+@final
+class TwinRun:
+    """A twin run, one row per sample."""
+
+    @property
+    def time(self) -> _F: ...
+    @property
+    def motors(self) -> _F: ...
+    @property
+    def measured(self) -> _F: ...
+    @property
+    def tensions(self) -> _F: ...
+    @property
+    def joint_tensions(self) -> _F: ...
+    @property
+    def external(self) -> _F: ...
+    @property
+    def external_true(self) -> _F: ...
+    @property
+    def angles(self) -> _F: ...
+
+@final
+class PhysicsObserver:
+    """The physics-informed clamping-force estimator (``cable_core::forceps::physics``)."""
+
+    LOSS_NAMES: ClassVar[list[str]]
+    def __new__(
+        cls,
+        *,
+        r2: float,
+        arm_a: float,
+        arm_b: float,
+        losses_a: _F | None = None,
+        losses_b: _F | None = None,
+        threshold: float = ...,  # 0.11 N, the seed's collision threshold
+    ) -> PhysicsObserver: ...
+    def calibrated(
+        self, motors: _F, measured: _F, external: _F
+    ) -> tuple[PhysicsObserver, tuple[PhysicsCalibration, PhysicsCalibration]]: ...
+    @property
+    def losses(self) -> _F: ...
+    @property
+    def geometry(self) -> tuple[float, float, float]: ...
+    @property
+    def threshold(self) -> float: ...
+    def step(self, motors: _F, measured: _F) -> ClampStep: ...
+    def reset(self) -> None: ...
+    def estimate(self, motors: _F, measured: _F) -> ClampRun: ...
+
+@final
+class PhysicsCalibration:
+    """One forceps' calibration (``PhysicsObserver.calibrated``)."""
+
+    @property
+    def losses(self) -> list[float]: ...
+    @property
+    def rmse_start(self) -> float: ...
+    @property
+    def rmse(self) -> float: ...
+    @property
+    def iterations(self) -> int: ...
+    @property
+    def converged(self) -> bool: ...
 
 @final
 class TensionController:

@@ -17,6 +17,9 @@
 //!
 //! and a forceps is in contact when `|F̂_ext|` exceeds the collision threshold (seed 000: 0.11 N).
 
+pub mod physics;
+pub mod twin;
+
 use crate::error::{check, CableError, Result};
 
 /// The collision threshold of seed 000 §3.3 (N): the detection resolution it measured.

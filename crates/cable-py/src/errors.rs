@@ -82,7 +82,7 @@ pub fn arg_error(class: Class, name: &str, message: String) -> PyErr {
 }
 
 /// The exception of a core error: its class, with what it names as attributes.
-fn core_error(err: CableError) -> PyErr {
+pub fn core_error(err: CableError) -> PyErr {
     use Attr::{Float, Int, Str};
     let msg = err.to_string();
     let (class, attrs): (Class, Vec<(&str, Attr<'_>)>) = match &err {

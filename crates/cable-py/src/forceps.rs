@@ -1,11 +1,15 @@
 //! `Jtdo`: the forceps' joint torque disturbance observer and clamping-force estimator.
 
-use cable_core::forceps::{self as core, Geometry};
+use std::sync::Mutex;
+
+use cable_core::forceps::physics::{self, Losses, PhysicsObserver as CorePhysics};
+use cable_core::forceps::twin::{self, Segment};
+use cable_core::forceps::{self as core, ClampLog, Geometry};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 
-use crate::convert::{matrix, to_matrix, vector_into};
-use crate::errors::guarded;
+use crate::convert::{matrix, to_matrix, vector, vector_into};
+use crate::errors::{core_error, guarded, lock};
 
 /// Joint torque disturbance observer of a two-forceps end-effector (seed 000 eqs 8, 15–17):
 /// from the measured cable tensions `F_M` and the free-motion tensions `F̂_E` (N, columns
@@ -70,14 +74,7 @@ impl Jtdo {
         let (mut m, mut f) = ([0.0; 4], [0.0; 4]);
         vector_into(measured, "measured", &mut m)?;
         vector_into(free, "free", &mut f)?;
-        let c = guarded(|| self.inner.estimate(&m, &f))?;
-        Ok(ClampStep {
-            disturbance: c.disturbance.into(),
-            torque: c.torque.into(),
-            external: c.external.into(),
-            clamping: c.clamping,
-            contact: c.contact.into(),
-        })
+        Ok(guarded(|| self.inner.estimate(&m, &f))?.into())
     }
 
     /// A whole log: `measured` and `free` `(T, 4)` → a `ClampRun` (GIL released).
@@ -91,15 +88,7 @@ impl Jtdo {
         let (f, _) = matrix(free, "free", Some(4))?;
         let (m, f) = (m.as_slice()?, f.as_slice()?);
         let log = py.detach(|| guarded(|| self.inner.estimate_log(m, f)))?;
-        let contact = numpy::ndarray::Array2::from_shape_vec((t, 2), log.contact)
-            .expect("buffer length matches the shape by construction");
-        Ok(ClampRun {
-            disturbance: to_matrix(py, log.disturbance, t, 4).unbind(),
-            torque: to_matrix(py, log.torque, t, 2).unbind(),
-            external: to_matrix(py, log.external, t, 2).unbind(),
-            clamping: log.clamping.into_pyarray(py).unbind(),
-            contact: contact.into_pyarray(py).unbind(),
-        })
+        Ok(clamp_run(py, log, t))
     }
 
     fn __repr__(&self) -> String {
@@ -136,4 +125,340 @@ pub struct ClampRun {
     external: Py<PyArray2<f64>>,
     clamping: Py<PyArray1<f64>>,
     contact: Py<PyArray2<bool>>,
+}
+
+impl From<core::Clamp> for ClampStep {
+    fn from(c: core::Clamp) -> Self {
+        Self {
+            disturbance: c.disturbance.into(),
+            torque: c.torque.into(),
+            external: c.external.into(),
+            clamping: c.clamping,
+            contact: c.contact.into(),
+        }
+    }
+}
+
+fn clamp_run(py: Python<'_>, log: ClampLog, t: usize) -> ClampRun {
+    let contact = numpy::ndarray::Array2::from_shape_vec((t, 2), log.contact)
+        .expect("buffer length matches the shape by construction");
+    ClampRun {
+        disturbance: to_matrix(py, log.disturbance, t, 4).unbind(),
+        torque: to_matrix(py, log.torque, t, 2).unbind(),
+        external: to_matrix(py, log.external, t, 2).unbind(),
+        clamping: log.clamping.into_pyarray(py).unbind(),
+        contact: contact.into_pyarray(py).unbind(),
+    }
+}
+
+/// Seed 000's two-forceps bench as a twin (see `cable_core::forceps::twin`): jaws `a`, `b` as
+/// `(17,)` parameter arrays in `JAW_NAMES` order, sensor noise (N) with its `seed`, the
+/// sampling period (s) and RK4 steps per sample. Immutable.
+#[pyclass(frozen, module = "cablekit._cablekit")]
+pub struct Twin {
+    inner: twin::Twin,
+}
+
+#[pymethods]
+impl Twin {
+    #[classattr]
+    const JAW_NAMES: [&'static str; twin::N_JAW] = twin::JAW_NAMES;
+    #[classattr]
+    const SEED_SPEEDS: [f64; 5] = twin::SEED_SPEEDS;
+
+    #[new]
+    #[pyo3(signature = (a, b, *, tension_noise, pressure_noise, seed, sample_time, substeps))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        a: &Bound<'_, PyAny>,
+        b: &Bound<'_, PyAny>,
+        tension_noise: f64,
+        pressure_noise: f64,
+        seed: u64,
+        sample_time: f64,
+        substeps: usize,
+    ) -> PyResult<Self> {
+        let (a, b) = (vector(a, "a", twin::N_JAW)?, vector(b, "b", twin::N_JAW)?);
+        let inner = guarded(|| {
+            let tw = twin::Twin {
+                a: twin::Jaw::from_array(&a, "a")?,
+                b: twin::Jaw::from_array(&b, "b")?,
+                noise: twin::Noise {
+                    tension: tension_noise,
+                    pressure: pressure_noise,
+                    seed,
+                },
+                sample_time,
+                substeps,
+            };
+            tw.validate().map(|()| tw)
+        })?;
+        Ok(Self { inner })
+    }
+
+    /// Seed 000's bench with the core's documented values.
+    #[staticmethod]
+    fn seed() -> Self {
+        Self {
+            inner: twin::Twin::seed(),
+        }
+    }
+
+    /// Jaw `a` or `b`'s parameters `(17,)` in `JAW_NAMES` order.
+    #[getter]
+    fn a<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.a.to_array().to_vec().into_pyarray(py)
+    }
+    #[getter]
+    fn b<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.b.to_array().to_vec().into_pyarray(py)
+    }
+    /// `(tension_noise, pressure_noise, seed, sample_time, substeps)`.
+    #[getter]
+    fn bench(&self) -> (f64, f64, u64, f64, usize) {
+        let t = &self.inner;
+        (
+            t.noise.tension,
+            t.noise.pressure,
+            t.noise.seed,
+            t.sample_time,
+            t.substeps,
+        )
+    }
+
+    /// Seed 000 §3.1's free motion: close and open over the whole range at each of `speeds`
+    /// (m/s), block removed (GIL released).
+    #[pyo3(signature = (speeds = twin::SEED_SPEEDS.to_vec(), pause = 0.2))]
+    fn free_motion(&self, py: Python<'_>, speeds: Vec<f64>, pause: f64) -> PyResult<TwinRun> {
+        let run = py.detach(|| guarded(|| self.inner.free_motion(&speeds, pause)))?;
+        Ok(twin_run(py, run))
+    }
+
+    /// Seed 000 §3.3's clamping on the block: `steps = 1` continuous to `peak` N (Fig. 7),
+    /// `steps > 1` stair loading in equal increments (Figs 8–9), each load held `dwell` s.
+    fn clamp(
+        &self,
+        py: Python<'_>,
+        speed: f64,
+        peak: f64,
+        steps: usize,
+        dwell: f64,
+    ) -> PyResult<TwinRun> {
+        let run = py.detach(|| guarded(|| self.inner.clamp(speed, peak, steps, dwell)))?;
+        Ok(twin_run(py, run))
+    }
+
+    /// Any motor programs: `start_*` (m) and `program_*` lists of `("move", to_m, speed_m_s)`
+    /// or `("hold", seconds)`, with or without the `block`.
+    fn run(
+        &self,
+        py: Python<'_>,
+        start_a: f64,
+        program_a: Vec<Bound<'_, PyAny>>,
+        start_b: f64,
+        program_b: Vec<Bound<'_, PyAny>>,
+        block: bool,
+    ) -> PyResult<TwinRun> {
+        let (pa, pb) = (segments(&program_a)?, segments(&program_b)?);
+        let run = py.detach(|| {
+            guarded(|| {
+                let a = twin::Profile::new(start_a, &pa, twin::RAMP, twin::PULSE)?;
+                let b = twin::Profile::new(start_b, &pb, twin::RAMP, twin::PULSE)?;
+                self.inner.run(&a, &b, block)
+            })
+        })?;
+        Ok(twin_run(py, run))
+    }
+}
+
+fn segments(program: &[Bound<'_, PyAny>]) -> PyResult<Vec<Segment>> {
+    let bad = |item: &Bound<'_, PyAny>| {
+        core_error(cable_core::CableError::InvalidOption {
+            name: "program segment".into(),
+            value: item.repr().map(|r| r.to_string()).unwrap_or_default(),
+            allowed: "(\"move\", to, speed) or (\"hold\", seconds)".into(),
+        })
+    };
+    let segment = |item: &Bound<'_, PyAny>| match item.extract::<(String, f64, f64)>() {
+        Ok((kind, to, speed)) if kind == "move" => Ok(Segment::Move { to, speed }),
+        Ok(_) => Err(bad(item)),
+        Err(_) => match item.extract::<(String, f64)>() {
+            Ok((kind, duration)) if kind == "hold" => Ok(Segment::Hold { duration }),
+            _ => Err(bad(item)),
+        },
+    };
+    program.iter().map(segment).collect()
+}
+
+/// A twin run, one row per sample: `time` `(T,)`; `motors` `(T, 4)` `[x_a, v_a, x_b, v_b]`;
+/// motor-side tensions `measured` (noisy) and `tensions` `(T, 4)`; `joint_tensions` `(T, 4)`;
+/// pad forces `external` (pressure sensors, noisy) and `external_true` `(T, 2)`; jaw `angles`
+/// `(T, 2)` (rad, closing from fully open).
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct TwinRun {
+    time: Py<PyArray1<f64>>,
+    motors: Py<PyArray2<f64>>,
+    measured: Py<PyArray2<f64>>,
+    tensions: Py<PyArray2<f64>>,
+    joint_tensions: Py<PyArray2<f64>>,
+    external: Py<PyArray2<f64>>,
+    external_true: Py<PyArray2<f64>>,
+    angles: Py<PyArray2<f64>>,
+}
+
+fn twin_run(py: Python<'_>, r: twin::TwinRun) -> TwinRun {
+    let t = r.len;
+    TwinRun {
+        time: r.time.into_pyarray(py).unbind(),
+        motors: to_matrix(py, r.motors, t, 4).unbind(),
+        measured: to_matrix(py, r.measured, t, 4).unbind(),
+        tensions: to_matrix(py, r.tensions, t, 4).unbind(),
+        joint_tensions: to_matrix(py, r.joint_tensions, t, 4).unbind(),
+        external: to_matrix(py, r.external, t, 2).unbind(),
+        external_true: to_matrix(py, r.external_true, t, 2).unbind(),
+        angles: to_matrix(py, r.angles, t, 2).unbind(),
+    }
+}
+
+/// The physics-informed clamping-force estimator (`cable_core::forceps::physics`): per forceps
+/// the capstan and joint friction of its cable loop with rate-independent direction states,
+/// from motor motion and measured tensions only. Loss parameters `(9,)` in `LOSS_NAMES` order
+/// (`None`: a neutral start for `calibrated`).
+/// `step` keeps the direction states between calls (`reset` forgets them; a second thread in
+/// a call raises `ConcurrentUseError`); `estimate` runs a log from reset states.
+#[pyclass(module = "cablekit._cablekit")]
+pub struct PhysicsObserver {
+    inner: Mutex<CorePhysics>,
+}
+
+/// Loss parameters from `(9,)`, or the core's neutral start for `None`.
+fn losses(obj: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Losses> {
+    let Some(obj) = obj else {
+        return Ok(Losses::START);
+    };
+    let v = vector(obj, name, physics::N_LOSSES)?;
+    guarded(|| Losses::from_array(&v, name))
+}
+
+#[pymethods]
+impl PhysicsObserver {
+    #[classattr]
+    const LOSS_NAMES: [&'static str; physics::N_LOSSES] = physics::LOSS_NAMES;
+
+    #[new]
+    #[pyo3(signature = (*, r2, arm_a, arm_b, losses_a = None, losses_b = None, threshold = core::SEED_THRESHOLD))]
+    fn new(
+        r2: f64,
+        arm_a: f64,
+        arm_b: f64,
+        losses_a: Option<&Bound<'_, PyAny>>,
+        losses_b: Option<&Bound<'_, PyAny>>,
+        threshold: f64,
+    ) -> PyResult<Self> {
+        let l = [losses(losses_a, "losses_a")?, losses(losses_b, "losses_b")?];
+        let inner = guarded(|| CorePhysics::new(Geometry { r2, arm_a, arm_b }, l, threshold))?;
+        Ok(Self {
+            inner: Mutex::new(inner),
+        })
+    }
+
+    /// Fits each forceps' losses to one calibration run: `motors`, `measured` `(T, 4)` and the
+    /// known `external` forces `(T, 2)` (N; zeros for free motion), from `start` (this
+    /// observer's losses, e.g. another instrument's). Returns the fitted observer and the two
+    /// `PhysicsCalibration`s (GIL released).
+    fn calibrated(
+        &self,
+        py: Python<'_>,
+        motors: &Bound<'_, PyAny>,
+        measured: &Bound<'_, PyAny>,
+        external: &Bound<'_, PyAny>,
+    ) -> PyResult<(Self, (PhysicsCalibration, PhysicsCalibration))> {
+        let (m, _) = matrix(motors, "motors", Some(4))?;
+        let (f, _) = matrix(measured, "measured", Some(4))?;
+        let (e, _) = matrix(external, "external", Some(2))?;
+        let (m, f, e) = (m.as_slice()?, f.as_slice()?, e.as_slice()?);
+        let me = *lock(&self.inner, "PhysicsObserver")?;
+        let (obs, [ca, cb]) = py.detach(|| {
+            guarded(|| CorePhysics::calibrate(me.geometry(), me.threshold(), me.losses(), m, f, e))
+        })?;
+        Ok((
+            Self {
+                inner: Mutex::new(obs),
+            },
+            (ca.into(), cb.into()),
+        ))
+    }
+
+    /// `(2, 9)` loss parameters of A and B.
+    #[getter]
+    fn losses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let l = lock(&self.inner, "PhysicsObserver")?.losses();
+        let v = [l[0].to_array(), l[1].to_array()].concat();
+        Ok(to_matrix(py, v, 2, physics::N_LOSSES))
+    }
+    /// `(r2, arm_a, arm_b)` (m).
+    #[getter]
+    fn geometry(&self) -> PyResult<(f64, f64, f64)> {
+        let g = lock(&self.inner, "PhysicsObserver")?.geometry();
+        Ok((g.r2, g.arm_a, g.arm_b))
+    }
+    #[getter]
+    fn threshold(&self) -> PyResult<f64> {
+        Ok(lock(&self.inner, "PhysicsObserver")?.threshold())
+    }
+
+    /// One sample: `motors` `[x_a, v_a, x_b, v_b]` and `measured` `(4,)` → a `ClampStep`
+    /// (`disturbance` holds the tension losses `F_f`).
+    fn step(&self, motors: &Bound<'_, PyAny>, measured: &Bound<'_, PyAny>) -> PyResult<ClampStep> {
+        let (mut m, mut f) = ([0.0; 4], [0.0; 4]);
+        vector_into(motors, "motors", &mut m)?;
+        vector_into(measured, "measured", &mut f)?;
+        let mut me = lock(&self.inner, "PhysicsObserver")?;
+        Ok(guarded(|| me.step(&m, &f))?.into())
+    }
+
+    /// Forget the direction states (a new run starts).
+    fn reset(&self) -> PyResult<()> {
+        lock(&self.inner, "PhysicsObserver")?.reset();
+        Ok(())
+    }
+
+    /// A whole log `(T, 4)` each from reset states → a `ClampRun` (GIL released).
+    fn estimate(
+        &self,
+        py: Python<'_>,
+        motors: &Bound<'_, PyAny>,
+        measured: &Bound<'_, PyAny>,
+    ) -> PyResult<ClampRun> {
+        let (m, t) = matrix(motors, "motors", Some(4))?;
+        let (f, _) = matrix(measured, "measured", Some(4))?;
+        let (m, f) = (m.as_slice()?, f.as_slice()?);
+        let me = *lock(&self.inner, "PhysicsObserver")?;
+        let log = py.detach(|| guarded(|| me.estimate_log(m, f)))?;
+        Ok(clamp_run(py, log, t))
+    }
+}
+
+/// One forceps' calibration: fitted `losses` `(9,)`, the external-force RMS error on the
+/// calibration run at the start and after the fit (`rmse_start`, `rmse`, N), LM `iterations`
+/// and whether a tolerance stopped it (`converged`).
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct PhysicsCalibration {
+    losses: Vec<f64>,
+    rmse_start: f64,
+    rmse: f64,
+    iterations: usize,
+    converged: bool,
+}
+
+impl From<physics::Calibration> for PhysicsCalibration {
+    fn from(c: physics::Calibration) -> Self {
+        Self {
+            losses: c.losses.to_array().to_vec(),
+            rmse_start: c.rmse_start,
+            rmse: c.rmse,
+            iterations: c.iterations,
+            converged: c.converged,
+        }
+    }
 }

@@ -53,5 +53,9 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<forceps::Jtdo>()?;
     m.add_class::<forceps::ClampStep>()?;
     m.add_class::<forceps::ClampRun>()?;
+    m.add_class::<forceps::Twin>()?;
+    m.add_class::<forceps::TwinRun>()?;
+    m.add_class::<forceps::PhysicsObserver>()?;
+    m.add_class::<forceps::PhysicsCalibration>()?;
     Ok(())
 }

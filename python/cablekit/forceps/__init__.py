@@ -11,6 +11,15 @@
   a whole log.
 * :func:`free_motion_tensions` — ``F̂_E`` from a free-motion network (a ``cablekit.Mlp`` trained
   on ``[x_a, v_a, x_b, v_b] → [F_A¹, F_A², F_B¹, F_B²]``, e.g. by ``cablekit nn``).
+* :class:`Twin` — seed 000's two-forceps bench (stepping motors with S-curves, pretensioned cable
+  pairs, capstan and pulley losses, hysteretic joint friction, a block with pads, tension and
+  pressure sensors) simulated in Rust; :func:`load_twin` reads it from TOML
+  (``instruments/seed000.toml``), :func:`another_instrument` varies it.
+* :class:`PhysicsObserver` — the physics-informed estimator: capstan and joint friction with
+  rate-independent direction states, a few parameters per forceps fitted on one calibration run
+  (:meth:`PhysicsObserver.calibrated`); no network.
+* :mod:`cablekit.forceps.experiments` — the seed's experiments and the transfer study
+  (``cablekit forceps experiments``).
 
 See docs/forceps.md.
 """
@@ -19,10 +28,32 @@ from __future__ import annotations
 
 import numpy as np
 
-from cablekit._cablekit import ClampRun, ClampStep, Jtdo, Mlp
+from cablekit._cablekit import (
+    ClampRun,
+    ClampStep,
+    Jtdo,
+    Mlp,
+    PhysicsCalibration,
+    PhysicsObserver,
+    Twin,
+    TwinRun,
+)
 from cablekit.errors import ShapeError
+from cablekit.forceps.twin import another_instrument, load_twin, twin_from_toml
 
-__all__ = ["ClampRun", "ClampStep", "Jtdo", "free_motion_tensions"]
+__all__ = [
+    "ClampRun",
+    "ClampStep",
+    "Jtdo",
+    "PhysicsCalibration",
+    "PhysicsObserver",
+    "Twin",
+    "TwinRun",
+    "another_instrument",
+    "free_motion_tensions",
+    "load_twin",
+    "twin_from_toml",
+]
 
 
 def free_motion_tensions(model: Mlp, motors: np.ndarray) -> np.ndarray:

@@ -42,6 +42,16 @@ use crate::cable::{CableLaw, CableRun, Creep};
 use crate::error::{check, Result};
 use crate::friction::{smooth_sign, Dahl, StaticFriction};
 
+/// Output names of an antagonistic joint (and of the forceps twin's jaw), in layout order.
+pub const OUTPUT_NAMES: [&str; 6] = [
+    "tension_motor_drive",
+    "tension_motor_return",
+    "tension_joint_drive",
+    "tension_joint_return",
+    "theta",
+    "contact_force",
+];
+
 /// Contact with an object (jaw clamping, tissue) at a fixed angle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Contact {
@@ -278,17 +288,7 @@ impl Model for AntagonisticJoint {
         vec!["x_m".into(), "dx_m".into()]
     }
     fn output_names(&self) -> Vec<String> {
-        [
-            "tension_motor_drive",
-            "tension_motor_return",
-            "tension_joint_drive",
-            "tension_joint_return",
-            "theta",
-            "contact_force",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .collect()
+        OUTPUT_NAMES.map(String::from).to_vec()
     }
 }
 

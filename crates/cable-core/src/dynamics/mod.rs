@@ -11,7 +11,7 @@ mod raven2;
 mod spec;
 mod transmission;
 
-pub use antagonistic::{AntagonisticJoint, Contact};
+pub use antagonistic::{AntagonisticJoint, Contact, OUTPUT_NAMES as ANTAGONISTIC_OUTPUTS};
 pub use any::AnyModel;
 pub use dahl::DahlElement;
 pub use raven2::raven2;
