@@ -313,10 +313,12 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--quiet", action="store_true", help="no progress bars")
     d.set_defaults(func=_diagnose)
     from cablekit.cdpr.cli import add_parser as add_cdpr
+    from cablekit.forceps.cli import add_parser as add_forceps
     from cablekit.nn.cli import add_parser as add_nn
 
     add_nn(sub)
     add_cdpr(sub)
+    add_forceps(sub)
     return p
 
 
