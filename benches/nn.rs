@@ -87,6 +87,52 @@ fn forceps(c: &mut Criterion) {
         })
     });
     g.finish();
+    drive(c);
+}
+
+/// The real-instrument jaw torque model (issue #22 §3), five Maxwell-slip elements, on a run
+/// of 1,000 samples at 1 kHz (budget: 1 µs per sample).
+fn drive(c: &mut Criterion) {
+    use cable_core::forceps::drive::{DriveModel, DriveRun};
+    let n = 4000;
+    let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+    let mut runs = Vec::new();
+    for load in [0.01, 0.03, 0.05] {
+        let th: Vec<f64> = t.iter().map(|&t| 0.5 * (1.0 - (6.0 * t).cos())).collect();
+        let tj: Vec<f64> = th.iter().map(|a| -load - 0.01 * a).collect();
+        let ts: Vec<f64> = th
+            .iter()
+            .zip(&tj)
+            .enumerate()
+            .map(|(k, (a, j))| 0.02 * a - j + 1e-3 * ((k % 7) as f64))
+            .collect();
+        runs.push((th, ts, tj));
+    }
+    let views: Vec<DriveRun<'_>> = runs
+        .iter()
+        .map(|(th, ts, tj)| DriveRun {
+            spindle_angle: th,
+            spindle_torque: ts,
+            motor_angle: th,
+            jaw_torque: Some(tj),
+            jaw_angle: Some(th),
+            dt: 1e-3,
+        })
+        .collect();
+    let travels = [0.1f64, 0.5, 2.0, 8.0, 32.0].map(f64::to_radians);
+    let model = DriveModel::fit(&views, &travels, 20, 0.5).unwrap();
+    let mut run = views[1];
+    run.spindle_angle = &runs[1].0[..1000];
+    run.spindle_torque = &runs[1].1[..1000];
+    run.motor_angle = &runs[1].0[..1000];
+    run.jaw_torque = None;
+    run.jaw_angle = None;
+    let mut g = c.benchmark_group("forceps");
+    g.throughput(Throughput::Elements(1000));
+    g.bench_function("drive_estimate_1000", |b| {
+        b.iter(|| black_box(model.estimate(black_box(&run)).unwrap()))
+    });
+    g.finish();
 }
 
 criterion_group!(benches, single, forceps);

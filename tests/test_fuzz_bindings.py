@@ -188,6 +188,20 @@ def _calls() -> dict[str, Call]:
     )
     out["PhysicsObserver.step"] = Call(physics.step, (motors[0], tensions[0]))
     out["PhysicsObserver.estimate"] = Call(physics.estimate, (motors, np.repeat(tensions, 12, axis=0)))
+    from cablekit.forceps import DriveModel
+
+    t = np.arange(400) * 1e-3
+    drive_runs = []
+    for load in (0.01, 0.03, 0.05):
+        th = 0.5 * (1 - np.cos(2 * np.pi * 2.0 * t))
+        tj = -load - 0.01 * th
+        ts = 0.01 * np.sign(np.sin(4 * np.pi * t)) - tj + 0.02 * th
+        drive_runs.append(np.column_stack([th, ts, th, tj, th]))
+    drive = DriveModel.fit(drive_runs, [0.01, 0.1], warmup=0.05)
+    fit_kw = dict(dt=1e-3, window=20, warmup=0.05)
+    out["DriveModel.fit"] = Call(DriveModel.fit, (drive_runs[:2], [0.01, 0.1]), fit_kw)
+    out["DriveModel.estimate"] = Call(drive.estimate, (drive_runs[0][:, :3].copy(),), dict(dt=1e-3))
+    out["DriveModel.recalibrated"] = Call(drive.recalibrated, (drive_runs[1],), dict(dt=1e-3, friction=True))
     out["PhysicsObserver.calibrated"] = Call(
         physics.calibrated, (motors, np.repeat(tensions, 12, axis=0), np.zeros((24, 2)))
     )
@@ -242,6 +256,7 @@ _RESULTS = {
     "DualRun",
     "TwinRun",
     "PhysicsCalibration",
+    "JawEstimate",
 }
 
 

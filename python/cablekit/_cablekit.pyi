@@ -15,11 +15,13 @@ __all__ = [
     "ClampRun",
     "ClampStep",
     "DahlElement",
+    "DriveModel",
     "DualRun",
     "DualSrUkf",
     "FilterHealth",
     "FilterRun",
     "FitReport",
+    "JawEstimate",
     "JointProblem",
     "JointRun",
     "Jtdo",
@@ -761,6 +763,36 @@ class PhysicsCalibration:
     def iterations(self) -> int: ...
     @property
     def converged(self) -> bool: ...
+
+@final
+class DriveModel:
+    """Jaw torque from drive-side signals (``cable_core::forceps::drive``)."""
+
+    @staticmethod
+    def fit(
+        runs: list[_F], travels: list[float], *, dt: float = 1e-3, window: int = 20, warmup: float = 1.0
+    ) -> DriveModel: ...
+    def recalibrated(self, run: _F, *, dt: float = 1e-3, friction: bool = False) -> DriveModel: ...
+    def estimate(self, run: _F, *, dt: float = 1e-3) -> JawEstimate: ...
+    @property
+    def coefficients(self) -> list[float]: ...
+    @property
+    def angle_coefficients(self) -> list[float]: ...
+    @property
+    def travels(self) -> list[float]: ...
+    @property
+    def ranges(self) -> list[list[float]]: ...
+
+@final
+class JawEstimate:
+    """``DriveModel.estimate``."""
+
+    @property
+    def torque(self) -> _F: ...
+    @property
+    def angle(self) -> _F: ...
+    @property
+    def outside_share(self) -> float: ...
 
 @final
 class TensionController:

@@ -17,6 +17,7 @@
 //!
 //! and a forceps is in contact when `|F̂_ext|` exceeds the collision threshold (seed 000: 0.11 N).
 
+pub mod drive;
 pub mod physics;
 pub mod twin;
 

@@ -2,6 +2,7 @@
 
 use std::sync::Mutex;
 
+use cable_core::forceps::drive;
 use cable_core::forceps::physics::{self, Losses, PhysicsObserver as CorePhysics};
 use cable_core::forceps::twin::{self, Segment};
 use cable_core::forceps::{self as core, ClampLog, Geometry};
@@ -461,4 +462,141 @@ impl From<physics::Calibration> for PhysicsCalibration {
             converged: c.converged,
         }
     }
+}
+
+/// Jaw torque from drive-side signals (`cable_core::forceps::drive`): a transmission with
+/// Maxwell-slip friction driven by the motor angle, fitted by least squares on runs with a
+/// measured jaw, inverted per sample. A run is a `(T, 5)` array of `[spindle_angle (rad),
+/// spindle_torque (N·m), motor_angle (rad), jaw_torque (N·m), jaw_angle (rad)]` sampled every
+/// `dt` s (for `estimate` the jaw columns may be absent: `(T, 3)`). Immutable.
+#[pyclass(frozen, module = "cablekit._cablekit")]
+pub struct DriveModel {
+    inner: drive::DriveModel,
+}
+
+/// The views of `(5, T)` or `(3, T)` signal arrays as core runs.
+fn drive_runs<'a>(
+    data: &'a [(numpy::ndarray::Array2<f64>, usize)],
+    dt: f64,
+) -> Vec<drive::DriveRun<'a>> {
+    data.iter()
+        .map(|(a, cols)| {
+            let col = |j: usize| {
+                a.row(j)
+                    .to_slice()
+                    .expect("rows of a standard-layout copy are contiguous")
+            };
+            drive::DriveRun {
+                spindle_angle: col(0),
+                spindle_torque: col(1),
+                motor_angle: col(2),
+                jaw_torque: (*cols == 5).then(|| col(3)),
+                jaw_angle: (*cols == 5).then(|| col(4)),
+                dt,
+            }
+        })
+        .collect()
+}
+
+/// A run's columns as the rows of a `(columns, T)` copy, so each signal is one slice.
+fn drive_array(
+    obj: &Bound<'_, PyAny>,
+    name: &str,
+    jaw: bool,
+) -> PyResult<(numpy::ndarray::Array2<f64>, usize)> {
+    let (m, _) = matrix(obj, name, None)?;
+    let v = m.as_array();
+    let cols = v.ncols();
+    if cols != 5 && (jaw || cols != 3) {
+        let expected = if jaw { "5 columns" } else { "3 or 5 columns" };
+        return Err(core_error(cable_core::CableError::Shape {
+            what: name.into(),
+            expected: format!("(T, {expected}): spindle angle, spindle torque, motor angle[, jaw torque, jaw angle]"),
+            got: format!("{:?}", v.shape()),
+        }));
+    }
+    Ok((v.t().as_standard_layout().into_owned(), cols))
+}
+
+#[pymethods]
+impl DriveModel {
+    /// Fits on `runs` (a list of `(T, 5)` arrays) with Maxwell-slip element `travels` (rad
+    /// of motor angle), a causal velocity over `window` samples, skipping `warmup` s per run.
+    #[staticmethod]
+    #[pyo3(signature = (runs, travels, *, dt = 1e-3, window = 20, warmup = 1.0))]
+    fn fit(
+        py: Python<'_>,
+        runs: Vec<Bound<'_, PyAny>>,
+        travels: Vec<f64>,
+        dt: f64,
+        window: usize,
+        warmup: f64,
+    ) -> PyResult<Self> {
+        let data = runs
+            .iter()
+            .enumerate()
+            .map(|(i, r)| drive_array(r, &format!("runs[{i}]"), true))
+            .collect::<PyResult<Vec<_>>>()?;
+        let inner = py.detach(|| {
+            guarded(|| drive::DriveModel::fit(&drive_runs(&data, dt), &travels, window, warmup))
+        })?;
+        Ok(Self { inner })
+    }
+
+    /// The model adapted to a new instrument from one `(T, 5)` run: the offsets, and with
+    /// `friction=True` also a common scale of the friction torques.
+    #[pyo3(signature = (run, *, dt = 1e-3, friction = false))]
+    fn recalibrated(&self, run: &Bound<'_, PyAny>, dt: f64, friction: bool) -> PyResult<Self> {
+        let data = [drive_array(run, "run", true)?];
+        let what = if friction {
+            drive::Recalibrate::OffsetAndFriction
+        } else {
+            drive::Recalibrate::Offset
+        };
+        let inner = guarded(|| self.inner.recalibrated(&drive_runs(&data, dt)[0], what))?;
+        Ok(Self { inner })
+    }
+
+    /// Estimated jaw torque (N·m) and angle (rad) for a `(T, 3)` or `(T, 5)` run → `JawEstimate`
+    /// (GIL released).
+    #[pyo3(signature = (run, *, dt = 1e-3))]
+    fn estimate(&self, py: Python<'_>, run: &Bound<'_, PyAny>, dt: f64) -> PyResult<JawEstimate> {
+        let data = [drive_array(run, "run", false)?];
+        let (torque, angle, outside) =
+            py.detach(|| guarded(|| self.inner.estimate(&drive_runs(&data, dt)[0])))?;
+        Ok(JawEstimate {
+            torque: torque.into_pyarray(py).unbind(),
+            angle: angle.into_pyarray(py).unbind(),
+            outside_share: outside,
+        })
+    }
+
+    /// `[c₀, c_θ, c_ω, a₁..a_m, g, b₁..b_m]`.
+    #[getter]
+    fn coefficients(&self) -> Vec<f64> {
+        self.inner.coefficients().to_vec()
+    }
+    /// `[p₀, p₁, p₂]` of the jaw angle.
+    #[getter]
+    fn angle_coefficients(&self) -> [f64; 3] {
+        self.inner.angle_coefficients()
+    }
+    #[getter]
+    fn travels(&self) -> Vec<f64> {
+        self.inner.travels().to_vec()
+    }
+    /// Training ranges `[[min, max]]` of spindle angle, torque and velocity.
+    #[getter]
+    fn ranges(&self) -> [[f64; 2]; 3] {
+        self.inner.ranges()
+    }
+}
+
+/// `DriveModel.estimate`: jaw `torque` (N·m) and `angle` (rad) per sample, and the share of
+/// samples outside the training ranges (`outside_share`).
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct JawEstimate {
+    torque: Py<PyArray1<f64>>,
+    angle: Py<PyArray1<f64>>,
+    outside_share: f64,
 }

@@ -57,5 +57,7 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<forceps::TwinRun>()?;
     m.add_class::<forceps::PhysicsObserver>()?;
     m.add_class::<forceps::PhysicsCalibration>()?;
+    m.add_class::<forceps::DriveModel>()?;
+    m.add_class::<forceps::JawEstimate>()?;
     Ok(())
 }

@@ -20,6 +20,9 @@
   (:meth:`PhysicsObserver.calibrated`); no network.
 * :mod:`cablekit.forceps.experiments` — the seed's experiments and the transfer study
   (``cablekit forceps experiments``).
+* :class:`DriveModel` and :mod:`cablekit.forceps.davinci` — the jaw torque of a real instrument
+  from drive-side signals (transmission with Maxwell-slip friction driven by the motor angle),
+  the bench loader, held-out folds and the new-instrument protocol (``cablekit forceps davinci``).
 
 See docs/forceps.md.
 """
@@ -31,6 +34,8 @@ import numpy as np
 from cablekit._cablekit import (
     ClampRun,
     ClampStep,
+    DriveModel,
+    JawEstimate,
     Jtdo,
     Mlp,
     PhysicsCalibration,
@@ -44,6 +49,8 @@ from cablekit.forceps.twin import another_instrument, load_twin, twin_from_toml
 __all__ = [
     "ClampRun",
     "ClampStep",
+    "DriveModel",
+    "JawEstimate",
     "Jtdo",
     "PhysicsCalibration",
     "PhysicsObserver",

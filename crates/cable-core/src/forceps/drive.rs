@@ -1,0 +1,548 @@
+//! Jaw torque of a cable-driven instrument from drive-side signals only (issue #22 §3): the
+//! spindle's angle and torque and the drive motor's angle, no sensor at the jaw.
+//!
+//! **Model.** The drive-side torque is what the jaw needs, passed through the cables, plus the
+//! friction of the transmission, its elastic return and its drag:
+//!
+//! ```text
+//! τ_s = c₀ + c_θ·θ_s + c_ω·ω_s + Σᵢ aᵢ·σᵢ + (g + Σᵢ bᵢ·σᵢ)·τ_j
+//! σᵢ ← sgn(Δφ)·(1 − (1 − σᵢ·sgn Δφ)·e^{−|Δφ|/δᵢ})           Maxwell-slip element i
+//! ```
+//!
+//! `σᵢ` are rate-independent direction states of a Maxwell-slip friction model (each element
+//! reverses over its own travel `δᵢ`: a sharp breakaway and slower tails), driven by the **motor**
+//! angle `φ`: the motor turns before the spindle at a reversal (the coupling to the spindle
+//! torque sensor is compliant), so the friction states lead the spindle as friction does. `aᵢ`
+//! are the elements' friction torques, `g` the transmission ratio, `bᵢ` the load-dependent
+//! (capstan) part of the friction, `c_θ` an elastic return, `c_ω` drag, `c₀` zeros and preload.
+//! `ω_s` is a causal finite difference over a window.
+//!
+//! **Fit** ([`DriveModel::fit`]): the forward model is linear in its coefficients, so a least
+//! squares fit of `τ_s` on the training runs (streamed normal equations on scaled columns,
+//! solved by SVD) identifies them; regressing the drive torque on the jaw torque — not the other
+//! way round — keeps the transmission ratio free of the friction's much larger swing.
+//! **Estimate**: `τ̂_j = (τ_s − c₀ − c_θθ_s − c_ωω_s − Σaᵢσᵢ) / (g + Σbᵢσᵢ)` per sample, causal.
+//! The jaw angle is estimated alongside as `θ̂_j = p₀ + p₁·θ_s + p₂·τ_s` (ratio and cable
+//! stretch), fitted on the same runs.
+//!
+//! **Recalibration** ([`DriveModel::recalibrated`]) for a new instrument from one run with its
+//! jaw torque: the offset `c₀` (and optionally a common scale of the friction `aᵢ`, and the jaw
+//! angle's offset), the transmission and friction structure kept from the training instrument.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::error::{check, CableError, Result};
+
+/// Most Maxwell-slip elements a model may have.
+pub const MAX_ELEMENTS: usize = 8;
+/// Longest velocity window (samples).
+pub const MAX_WINDOW: usize = 10_000;
+
+/// One run of drive-side signals (SI: rad, N·m), sampled every `dt` s, with the jaw's torque
+/// and angle where known (training and calibration runs).
+#[derive(Debug, Clone, Copy)]
+pub struct DriveRun<'a> {
+    /// Spindle angle `θ_s` (rad).
+    pub spindle_angle: &'a [f64],
+    /// Spindle torque `τ_s` (N·m).
+    pub spindle_torque: &'a [f64],
+    /// Drive motor angle `φ` at the spindle's scale (rad).
+    pub motor_angle: &'a [f64],
+    /// Jaw torque `τ_j` (N·m), if measured.
+    pub jaw_torque: Option<&'a [f64]>,
+    /// Jaw angle (rad), if measured.
+    pub jaw_angle: Option<&'a [f64]>,
+    /// Sampling period (s).
+    pub dt: f64,
+}
+
+impl DriveRun<'_> {
+    fn len(&self) -> usize {
+        self.spindle_angle.len()
+    }
+
+    fn check(&self, what: &str, need_jaw: bool) -> Result<()> {
+        let n = self.len();
+        check::positive(&format!("{what}.dt"), self.dt)?;
+        let mut cols = vec![
+            ("spindle_torque", Some(self.spindle_torque)),
+            ("motor_angle", Some(self.motor_angle)),
+            ("jaw_torque", self.jaw_torque),
+            ("jaw_angle", self.jaw_angle),
+        ];
+        cols.insert(0, ("spindle_angle", Some(self.spindle_angle)));
+        for (name, col) in cols {
+            match col {
+                Some(c) => {
+                    check::len(&format!("{what}.{name}"), c, n)?;
+                    check::all_finite(&format!("{what}.{name}"), c, 1)?;
+                }
+                None if need_jaw && name.starts_with("jaw") => {
+                    return Err(CableError::InvalidOption {
+                        name: format!("{what}.{name}"),
+                        value: "missing".into(),
+                        allowed: "a measured column (training and calibration runs need the jaw's torque and angle)".into(),
+                    })
+                }
+                None => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How [`DriveModel::recalibrated`] adapts a model to a new instrument.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Recalibrate {
+    /// The torque offset `c₀` and the jaw angle's offset.
+    Offset,
+    /// The offsets and a common scale of the friction torques `aᵢ`.
+    OffsetAndFriction,
+}
+
+/// The fitted drive model; see the module docs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DriveModel {
+    travels: Vec<f64>,
+    window: usize,
+    warmup: f64,
+    /// `[c₀, c_θ, c_ω, a₁..a_m, g, b₁..b_m]`.
+    coef: Vec<f64>,
+    /// `[p₀, p₁, p₂]` of the jaw angle.
+    angle: [f64; 3],
+    /// Training ranges `[min, max]` of `θ_s`, `τ_s`, `ω_s`.
+    ranges: [[f64; 2]; 3],
+}
+
+/// Per-sample state of an estimate: the direction states and the angle history for `ω_s`.
+#[derive(Debug, Clone)]
+struct Features {
+    travels: Vec<f64>,
+    states: Vec<f64>,
+    last_motor: Option<f64>,
+    history: Vec<f64>,
+    head: usize,
+    filled: usize,
+    dt: f64,
+}
+
+impl Features {
+    fn new(travels: &[f64], window: usize, dt: f64) -> Self {
+        Self {
+            travels: travels.to_vec(),
+            states: vec![0.0; travels.len()],
+            last_motor: None,
+            history: vec![0.0; window + 1],
+            head: 0,
+            filled: 0,
+            dt,
+        }
+    }
+
+    /// Advances with one sample; returns `ω_s`.
+    fn push(&mut self, spindle: f64, motor: f64) -> f64 {
+        let dx = self.last_motor.map_or(0.0, |m| motor - m);
+        self.last_motor = Some(motor);
+        if dx != 0.0 {
+            let s = dx.signum();
+            for (st, &d) in self.states.iter_mut().zip(&self.travels) {
+                *st = s * (1.0 - (1.0 - *st * s) * (-dx.abs() / d).exp());
+            }
+        }
+        let len = self.history.len();
+        self.history[self.head] = spindle;
+        let oldest = if self.filled + 1 < len {
+            self.history[0]
+        } else {
+            self.history[(self.head + 1) % len]
+        };
+        let span = self.filled.min(len - 1);
+        self.head = (self.head + 1) % len;
+        self.filled = (self.filled + 1).min(len);
+        if span == 0 {
+            0.0
+        } else {
+            (spindle - oldest) / (span as f64 * self.dt)
+        }
+    }
+}
+
+/// The regressors of the forward model at one sample, split into the part without and the
+/// part multiplying the jaw torque: `τ_s = rest·c[..3+m] + τ_j·(gain·c[3+m..])`.
+fn regressors(theta: f64, omega: f64, states: &[f64], rest: &mut Vec<f64>, gain: &mut Vec<f64>) {
+    rest.clear();
+    gain.clear();
+    rest.extend([1.0, theta, omega]);
+    rest.extend_from_slice(states);
+    gain.push(1.0);
+    gain.extend_from_slice(states);
+}
+
+impl DriveModel {
+    /// Fits the model on `runs` (each with its jaw torque and angle) with Maxwell-slip
+    /// elements of the given `travels` (rad of motor angle, 1..=8 values > 0), a causal
+    /// velocity over `window` samples, skipping the first `warmup` s of every run (the
+    /// direction states start at 0). Errors: bad shapes or values, no samples, or a design
+    /// that does not determine the coefficients (e.g. a jaw torque that never varies: the
+    /// transmission ratio needs it to vary independently of the friction).
+    pub fn fit(runs: &[DriveRun<'_>], travels: &[f64], window: usize, warmup: f64) -> Result<Self> {
+        if travels.is_empty() || travels.len() > MAX_ELEMENTS {
+            return Err(CableError::InvalidParameter {
+                name: "travels".into(),
+                value: travels.len() as f64,
+                requirement: "1 to 8 Maxwell-slip elements",
+            });
+        }
+        for (i, &d) in travels.iter().enumerate() {
+            check::positive(&format!("travels[{i}]"), d)?;
+        }
+        if !(1..=MAX_WINDOW).contains(&window) {
+            return Err(CableError::InvalidParameter {
+                name: "window".into(),
+                value: window as f64,
+                requirement: "an integer in 1 ..= 10000 samples",
+            });
+        }
+        check::non_negative("warmup", warmup)?;
+        let m = travels.len();
+        let p = 4 + 2 * m;
+        let mut ata = DMatrix::<f64>::zeros(p, p);
+        let mut aty = DVector::<f64>::zeros(p);
+        let mut angle_ata = DMatrix::<f64>::zeros(3, 3);
+        let mut angle_aty = DVector::<f64>::zeros(3);
+        let mut ranges = [[f64::INFINITY, f64::NEG_INFINITY]; 3];
+        let mut count = 0usize;
+        let (mut rest, mut gain) = (Vec::new(), Vec::new());
+        let mut row = vec![0.0; p];
+        let (mut v, mut av) = (DVector::<f64>::zeros(p), DVector::<f64>::zeros(3));
+        for (r, run) in runs.iter().enumerate() {
+            run.check(&format!("runs[{r}]"), true)?;
+            let (tj, ja) = (run.jaw_torque.unwrap_or(&[]), run.jaw_angle.unwrap_or(&[]));
+            let mut f = Features::new(travels, window, run.dt);
+            let skip = (warmup / run.dt).ceil() as usize;
+            for k in 0..run.len() {
+                let (th, ts) = (run.spindle_angle[k], run.spindle_torque[k]);
+                let w = f.push(th, run.motor_angle[k]);
+                if k < skip {
+                    continue;
+                }
+                regressors(th, w, &f.states, &mut rest, &mut gain);
+                row[..rest.len()].copy_from_slice(&rest);
+                for (j, g) in gain.iter().enumerate() {
+                    row[rest.len() + j] = g * tj[k];
+                }
+                v.copy_from_slice(&row);
+                ata.ger(1.0, &v, &v, 1.0);
+                aty.axpy(ts, &v, 1.0);
+                av.copy_from_slice(&[1.0, th, ts]);
+                angle_ata.ger(1.0, &av, &av, 1.0);
+                angle_aty.axpy(ja[k], &av, 1.0);
+                for (rg, v) in ranges.iter_mut().zip([th, ts, w]) {
+                    rg[0] = rg[0].min(v);
+                    rg[1] = rg[1].max(v);
+                }
+                count += 1;
+            }
+        }
+        if count < 2 * p {
+            return Err(CableError::Shape {
+                what: "training samples after the warm-up".into(),
+                expected: format!("at least {}", 2 * p),
+                got: count.to_string(),
+            });
+        }
+        let coef = solve_normal(&ata, &aty, "drive model")?;
+        let angle = solve_normal(&angle_ata, &angle_aty, "jaw angle model")?;
+        Ok(Self {
+            travels: travels.to_vec(),
+            window,
+            warmup,
+            coef,
+            angle: [angle[0], angle[1], angle[2]],
+            ranges,
+        })
+    }
+
+    /// Coefficients `[c₀, c_θ, c_ω, a₁..a_m, g, b₁..b_m]` (N·m, N·m/rad, N·m·s/rad, N·m…, –, –…).
+    pub fn coefficients(&self) -> &[f64] {
+        &self.coef
+    }
+
+    /// Jaw angle coefficients `[p₀, p₁, p₂]` (rad, –, rad/(N·m)).
+    pub fn angle_coefficients(&self) -> [f64; 3] {
+        self.angle
+    }
+
+    /// Travels of the Maxwell-slip elements (rad).
+    pub fn travels(&self) -> &[f64] {
+        &self.travels
+    }
+
+    /// Velocity window (samples) and warm-up (s).
+    pub fn settings(&self) -> (usize, f64) {
+        (self.window, self.warmup)
+    }
+
+    /// Training ranges `[min, max]` of the spindle angle (rad), torque (N·m) and velocity (rad/s).
+    pub fn ranges(&self) -> [[f64; 2]; 3] {
+        self.ranges
+    }
+
+    /// Estimated jaw torque (N·m) and angle (rad) per sample of `run`, causal, from reset
+    /// direction states, and the share of samples whose spindle angle, torque or velocity lie
+    /// outside the training ranges.
+    pub fn estimate(&self, run: &DriveRun<'_>) -> Result<(Vec<f64>, Vec<f64>, f64)> {
+        run.check("run", false)?;
+        let m = self.travels.len();
+        let (c, g) = self.coef.split_at(3 + m);
+        let mut f = Features::new(&self.travels, self.window, run.dt);
+        let (mut torque, mut angle) =
+            (Vec::with_capacity(run.len()), Vec::with_capacity(run.len()));
+        let mut outside = 0usize;
+        for k in 0..run.len() {
+            let (th, ts) = (run.spindle_angle[k], run.spindle_torque[k]);
+            let w = f.push(th, run.motor_angle[k]);
+            let s = &f.states;
+            let rest = c[0] + c[1] * th + c[2] * w + dot(&c[3..], s);
+            let gain = g[0] + dot(&g[1..], s);
+            torque.push((ts - rest) / gain);
+            angle.push(self.angle[0] + self.angle[1] * th + self.angle[2] * ts);
+            let out = [th, ts, w]
+                .iter()
+                .zip(&self.ranges)
+                .any(|(v, r)| *v < r[0] || *v > r[1]);
+            outside += usize::from(out);
+        }
+        check::result_finite(
+            "jaw torque estimate",
+            &torque,
+            1,
+            "the transmission gain crosses zero: the model was fitted on too narrow a set of runs",
+        )?;
+        Ok((torque, angle, outside as f64 / run.len().max(1) as f64))
+    }
+
+    /// The same model adapted to a new instrument from one run with its jaw torque and angle
+    /// (see [`Recalibrate`]); the samples after the warm-up are used.
+    pub fn recalibrated(&self, run: &DriveRun<'_>, what: Recalibrate) -> Result<Self> {
+        run.check("calibration run", true)?;
+        let m = self.travels.len();
+        let (tj, ja) = (run.jaw_torque.unwrap_or(&[]), run.jaw_angle.unwrap_or(&[]));
+        let mut f = Features::new(&self.travels, self.window, run.dt);
+        let skip = (self.warmup / run.dt).ceil() as usize;
+        let (c, g) = self.coef.split_at(3 + m);
+        // residual of the drive torque without c₀ and with the friction split out:
+        // τ_s − (c_θθ + c_ωω + gain·τ_j) = c₀ + α·Σaᵢσᵢ
+        let (mut s00, mut s01, mut s11, mut y0, mut y1, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0usize);
+        let mut angle_offset = 0.0;
+        for k in 0..run.len() {
+            let (th, ts) = (run.spindle_angle[k], run.spindle_torque[k]);
+            let w = f.push(th, run.motor_angle[k]);
+            if k < skip {
+                continue;
+            }
+            let s = &f.states;
+            let fric = dot(&c[3..], s);
+            let y = ts - c[1] * th - c[2] * w - (g[0] + dot(&g[1..], s)) * tj[k];
+            s00 += 1.0;
+            s01 += fric;
+            s11 += fric * fric;
+            y0 += y;
+            y1 += y * fric;
+            angle_offset += ja[k] - self.angle[1] * th - self.angle[2] * ts;
+            n += 1;
+        }
+        if n < 10 {
+            return Err(CableError::Shape {
+                what: "calibration samples after the warm-up".into(),
+                expected: "at least 10".into(),
+                got: n.to_string(),
+            });
+        }
+        let mut me = self.clone();
+        match what {
+            Recalibrate::Offset => {
+                me.coef[0] = (y0 - s01) / s00;
+            }
+            Recalibrate::OffsetAndFriction => {
+                let det = s00 * s11 - s01 * s01;
+                if det.abs() <= 1e-12 * s00 * s11.max(f64::MIN_POSITIVE) {
+                    return Err(CableError::InvalidParameter {
+                        name: "calibration run".into(),
+                        value: det,
+                        requirement:
+                            "a run whose motion reverses (the friction scale needs both directions)",
+                    });
+                }
+                let c0 = (s11 * y0 - s01 * y1) / det;
+                let alpha = (s00 * y1 - s01 * y0) / det;
+                me.coef[0] = c0;
+                for a in &mut me.coef[3..3 + m] {
+                    *a *= alpha;
+                }
+            }
+        }
+        me.angle[0] = angle_offset / n as f64;
+        check::result_finite(
+            "recalibrated coefficients",
+            &me.coef,
+            1,
+            "the calibration run is degenerate",
+        )?;
+        Ok(me)
+    }
+}
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Solves normal equations `AᵀA x = Aᵀy` on columns scaled to unit diagonal, by SVD, refusing
+/// a rank-deficient design.
+fn solve_normal(ata: &DMatrix<f64>, aty: &DVector<f64>, what: &str) -> Result<Vec<f64>> {
+    let p = ata.nrows();
+    check::result_finite(
+        &format!("{what} normal equations"),
+        ata.as_slice(),
+        p,
+        "a signal or the sample period is too extreme for the fit (dt near 0 makes the velocity overflow)",
+    )?;
+    check::result_finite(
+        &format!("{what} right-hand side"),
+        aty.as_slice(),
+        1,
+        "a signal is too large",
+    )?;
+    let d: Vec<f64> = (0..p)
+        .map(|i| ata[(i, i)].sqrt().max(f64::MIN_POSITIVE))
+        .collect();
+    let scaled = DMatrix::from_fn(p, p, |i, j| ata[(i, j)] / (d[i] * d[j]));
+    let rhs = DVector::from_fn(p, |i, _| aty[i] / d[i]);
+    // bounded iterations: a design that does not converge is an error, never a hang
+    let svd = scaled
+        .try_svd(true, true, f64::EPSILON, 10_000)
+        .ok_or_else(|| CableError::NotConverged {
+            what: format!("{what} SVD"),
+            limit: 10_000,
+            hint: "the design is degenerate; check the runs' signals",
+        })?;
+    let smax = svd.singular_values.max();
+    let smin = svd.singular_values.min();
+    let conditioned = smin > 1e-12 * smax; // false for NaN too
+    if !conditioned {
+        return Err(CableError::InvalidParameter {
+            name: format!("{what} design"),
+            value: smin / smax,
+            requirement: "well conditioned (> 1e-12): the runs must vary the jaw torque, the angle and the direction",
+        });
+    }
+    let x = svd
+        .solve(&rhs, 0.0)
+        .map_err(|_| CableError::InvalidParameter {
+            name: format!("{what} design"),
+            value: f64::NAN,
+            requirement: "solvable",
+        })?;
+    Ok((0..p).map(|i| x[i] / d[i]).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    /// A synthetic instrument that follows the model exactly: the fit recovers it and the
+    /// estimate inverts it.
+    #[test]
+    fn the_fit_recovers_a_model_that_generated_the_data() {
+        let travels = [0.002, 0.03];
+        let truth = [0.01, -0.02, 0.001, -0.04, -0.01, -1.05, 0.2, 0.05];
+        let dt = 1e-3;
+        let mut runs = Vec::new();
+        for (freq, load) in [(0.2, 0.01), (0.4, 0.03), (0.3, 0.05)] {
+            let n = 6000;
+            let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+            let th: Vec<f64> = t
+                .iter()
+                .map(|&t| 0.5 * (1.0 - (std::f64::consts::TAU * freq * t).cos()))
+                .collect();
+            let motor = th.clone();
+            let tj: Vec<f64> = th.iter().map(|&a| -load - 0.01 * a).collect();
+            let ja: Vec<f64> = th
+                .iter()
+                .zip(&tj)
+                .map(|(a, j)| 0.3 + 0.9 * a + 0.5 * j)
+                .collect();
+            let mut f = Features::new(&travels, 20, dt);
+            let mut ts = Vec::with_capacity(n);
+            for k in 0..n {
+                let w = f.push(th[k], motor[k]);
+                let s = &f.states;
+                let rest =
+                    truth[0] + truth[1] * th[k] + truth[2] * w + truth[3] * s[0] + truth[4] * s[1];
+                let gain = truth[5] + truth[6] * s[0] + truth[7] * s[1];
+                ts.push(rest + gain * tj[k]);
+            }
+            let ja = ja
+                .iter()
+                .zip(&ts)
+                .zip(&tj)
+                .map(|((a, s), j)| a - 0.5 * j + 0.2 * s)
+                .collect::<Vec<_>>();
+            runs.push((th, ts, motor, tj, ja));
+        }
+        let views: Vec<DriveRun<'_>> = runs
+            .iter()
+            .map(|(th, ts, m, tj, ja)| DriveRun {
+                spindle_angle: th,
+                spindle_torque: ts,
+                motor_angle: m,
+                jaw_torque: Some(tj),
+                jaw_angle: Some(ja),
+                dt,
+            })
+            .collect();
+        let model = DriveModel::fit(&views, &travels, 20, 0.5).unwrap();
+        for (a, b) in model.coefficients().iter().zip(truth) {
+            assert_relative_eq!(*a, b, epsilon = 1e-8, max_relative = 1e-6);
+        }
+        let (tau, angle, outside) = model.estimate(&views[1]).unwrap();
+        for k in 600..tau.len() {
+            assert_relative_eq!(tau[k], runs[1].3[k], epsilon = 1e-9);
+            assert_relative_eq!(angle[k], runs[1].4[k], epsilon = 1e-9);
+        }
+        assert!(outside < 0.01);
+        // a shifted instrument: the offset recalibration finds the shift
+        let shifted: Vec<f64> = runs[2].1.iter().map(|v| v + 0.004).collect();
+        let mut cal = views[2];
+        cal.spindle_torque = &shifted;
+        let re = model.recalibrated(&cal, Recalibrate::Offset).unwrap();
+        assert_relative_eq!(re.coefficients()[0], truth[0] + 0.004, epsilon = 1e-9);
+        let re2 = model
+            .recalibrated(&cal, Recalibrate::OffsetAndFriction)
+            .unwrap();
+        assert_relative_eq!(re2.coefficients()[3], truth[3], epsilon = 1e-6);
+    }
+
+    #[test]
+    fn a_constant_jaw_torque_cannot_identify_the_transmission() {
+        let n = 4000;
+        let th: Vec<f64> = (0..n).map(|k| (k as f64 * 1e-3).sin()).collect();
+        let ts: Vec<f64> = th.iter().map(|a| 0.1 * a).collect();
+        let tj = vec![-0.01; n];
+        let run = DriveRun {
+            spindle_angle: &th,
+            spindle_torque: &ts,
+            motor_angle: &th,
+            jaw_torque: Some(&tj),
+            jaw_angle: Some(&th),
+            dt: 1e-3,
+        };
+        assert!(DriveModel::fit(&[run], &[0.01], 20, 0.1).is_err());
+        assert!(DriveModel::fit(&[run], &[], 20, 0.1).is_err());
+        let mut bad = run;
+        bad.jaw_torque = None;
+        assert!(DriveModel::fit(&[bad], &[0.01], 20, 0.1).is_err());
+    }
+}
