@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -13,17 +12,11 @@ from hypothesis import strategies as st
 
 import cablekit as ck
 from cablekit.diagnose.davinci import SPINDLE_RADIUS, calibrate, load_bench_run, prepare_bench
+from tests.bench_data import davinci_dir
 
 
 def _data_dir() -> Path:
-    env = os.environ.get("CABLEKIT_DAVINCI_DATA")
-    here = Path(__file__).resolve().parents[1]
-    for cand in ([Path(env)] if env else []) + [here.parent / "shared" / "data" / "davinci-maryland-bench"]:
-        if (cand / "tool4_load_sweep").is_dir():
-            return cand
-    # the data may not be redistributed, so it is not in the repository; CI has it in
-    # ../shared/data (where .ci/run also diagnoses it); elsewhere point CABLEKIT_DAVINCI_DATA at it
-    pytest.skip("da Vinci bench data not found (set CABLEKIT_DAVINCI_DATA)")
+    return davinci_dir()
 
 
 def test_bench_file_converts_to_si_units():

@@ -127,8 +127,77 @@ def _experiments(args: argparse.Namespace) -> int:
     return 0
 
 
+def _davinci_table(results: list[Any]) -> str:
+    from cablekit.forceps.davinci import PUBLISHED_RMSE
+
+    names = list(next(iter(results[0].folds.values())))
+    lines = [
+        "| protocol | held out | " + " | ".join(names) + " |",
+        "|---|---|" + "---|" * len(names),
+    ]
+    for res in results:
+        for fold, scores in res.folds.items():
+            cells = []
+            for n in names:
+                sc = scores[n]
+                mark = "" if sc.rmse_mnm <= PUBLISHED_RMSE else " ✗"
+                ang = f", jaw angle {sc.angle_rmse_deg:.2f}°" if sc.angle_rmse_deg is not None else ""
+                cells.append(f"{sc.rmse_mnm:.2f}{mark} (worst run {sc.worst_run_mnm:.2f}{ang})")
+            lines.append(f"| {res.protocol} | {fold} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _davinci(args: argparse.Namespace) -> int:
+    from cablekit.diagnose.progress import Progress
+    from cablekit.forceps import davinci as dv
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    train = dv.read_bench_folder(args.directory)
+    fitters = dv.estimator_fitters(networks=not args.no_networks)
+    results = []
+    if args.calibrate_on:
+        cal = dv.read_bench_file(args.calibrate_on)
+        test_dir = args.test or str(Path(args.calibrate_on).parent)
+        test = [r for r in dv.read_bench_folder(test_dir) if r.path.resolve() != cal.path.resolve()]
+        if not test:
+            raise dv.DataError(f"{test_dir}: no runs to score besides the calibration run")
+        results.append(dv.new_instrument(train, cal, test, fitters, friction=args.friction))
+    else:
+        folds = len({r.frequency for r in train}) + len({r.load for r in train})
+        with Progress(folds + 1, "da Vinci folds", enabled=not args.quiet) as bar:
+            for key in ("frequency", "load"):
+                results.append(dv.leave_one_out(train, key, fitters, bar.advance))
+            cal = next((r for r in train if r.name == "00"), train[0])
+            rest = [r for r in train if r is not cal]
+            results.append(dv.new_instrument(train, cal, rest, fitters, friction=args.friction))
+            bar.advance("new-instrument path")
+    table = _davinci_table(results)
+    notes = [w for r in results for w in r.warnings]
+    text = "\n\n".join(
+        [
+            "# Jaw torque from drive-side signals (real bench)",
+            f"Training runs: `{args.directory}` ({len(train)} runs). RMSE in mN·m after a 1 s warm-up "
+            f"per run (✗: above the published {dv.PUBLISHED_RMSE} mN·m); jaw angle RMSE about each "
+            "run's mean (the bench does not zero the jaw encoder).",
+            table,
+            ("Warnings:\n" + "\n".join(f"- {w}" for w in notes)) if notes else "No input left the ranges.",
+            "Data: O'Neill, Stephens, Kowalewski, RA-L 3(4):3027-3034, 2018 (ODbL 1.0 / DbCL 1.0).",
+        ]
+    )
+    (out / "davinci.md").write_text(text + "\n", encoding="utf-8")
+    rows = {
+        r.protocol: {f: {n: vars(sc) for n, sc in s.items()} for f, s in r.folds.items()} for r in results
+    }
+    (out / "davinci.json").write_text(json.dumps(rows, indent=2), encoding="utf-8")
+    if not args.quiet:
+        print(text)
+    print(f"wrote {out / 'davinci.md'}")
+    return 0
+
+
 def add_parser(sub: Any) -> None:
-    """``cablekit forceps experiments``."""
+    """``cablekit forceps experiments`` and ``cablekit forceps davinci``."""
     p = sub.add_parser("forceps", help="cable-driven forceps: clamping-force estimation (seed 000)")
     fs = p.add_subparsers(dest="forceps_command", required=True)
     e = fs.add_parser(
@@ -143,3 +212,26 @@ def add_parser(sub: Any) -> None:
     e.add_argument("--no-plots", action="store_true", help="no PNGs (no matplotlib needed)")
     e.add_argument("--quiet", action="store_true", help="no progress bars, no table on stdout")
     e.set_defaults(func=_experiments)
+    d = fs.add_parser(
+        "davinci",
+        help="jaw torque from drive-side signals on a real bench: held-out folds, new-instrument protocol",
+        description="Without --calibrate-on: leave one frequency out, leave one load out, and the "
+        "new-instrument path on DIR itself (calibrated on its 00 run, scored on the others). With "
+        "--calibrate-on FILE: train on every run of DIR, recalibrate on FILE (a run of the new instrument, "
+        "e.g. NEW/00.TXT.gz: 0.1 Hz, 10 %% load), score every other run of --test (default: FILE's "
+        "folder). Warns when the new runs leave the training ranges.",
+    )
+    d.add_argument(
+        "directory", help="bench folder of the training instrument (../shared/data/davinci-maryland-bench)"
+    )
+    d.add_argument("--calibrate-on", help="one run of the new instrument to recalibrate on")
+    d.add_argument(
+        "--test", help="folder of the new instrument's runs to score (default: --calibrate-on's folder)"
+    )
+    d.add_argument(
+        "--friction", action="store_true", help="recalibrate the friction's scale too, not only the offsets"
+    )
+    d.add_argument("--no-networks", action="store_true", help="skip the network estimators (no torch needed)")
+    d.add_argument("--out", default="out/forceps-davinci", help="output folder")
+    d.add_argument("--quiet", action="store_true", help="no progress bar, no table on stdout")
+    d.set_defaults(func=_davinci)
