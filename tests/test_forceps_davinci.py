@@ -52,6 +52,11 @@ def test_drive_model_equals_the_numpy_reference(seed, window):
     torque, angle = ref.estimate(c, p, runs[1], TRAVELS, 1e-3, window)
     np.testing.assert_allclose(est.torque, torque, rtol=0, atol=1e-8)
     np.testing.assert_allclose(est.angle, angle, rtol=0, atol=1e-8)
+    # one sample at a time, as a controller calls it, gives the same numbers
+    obs = model.observer(dt=1e-3)
+    for k in range(0, 50):
+        sample = obs.step(*runs[1][k, :3])
+        assert sample.torque == est.torque[k] and sample.angle == est.angle[k]
     # the model recovers the jaw torque it was built on, to the noise's order
     err = est.torque[500:] - runs[1][500:, 3]
     assert np.sqrt(np.mean(err**2)) < 2e-3

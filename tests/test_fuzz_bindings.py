@@ -201,6 +201,7 @@ def _calls() -> dict[str, Call]:
     fit_kw = dict(dt=1e-3, window=20, warmup=0.05)
     out["DriveModel.fit"] = Call(DriveModel.fit, (drive_runs[:2], [0.01, 0.1]), fit_kw)
     out["DriveModel.estimate"] = Call(drive.estimate, (drive_runs[0][:, :3].copy(),), dict(dt=1e-3))
+    out["JawObserver.step"] = Call(drive.observer().step, (0.1, -0.02, 0.1))
     out["DriveModel.recalibrated"] = Call(drive.recalibrated, (drive_runs[1],), dict(dt=1e-3, friction=True))
     out["PhysicsObserver.calibrated"] = Call(
         physics.calibrated, (motors, np.repeat(tensions, 12, axis=0), np.zeros((24, 2)))
@@ -257,6 +258,7 @@ _RESULTS = {
     "TwinRun",
     "PhysicsCalibration",
     "JawEstimate",
+    "JawSample",
 }
 
 

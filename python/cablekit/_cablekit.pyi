@@ -22,6 +22,8 @@ __all__ = [
     "FilterRun",
     "FitReport",
     "JawEstimate",
+    "JawObserver",
+    "JawSample",
     "JointProblem",
     "JointRun",
     "Jtdo",
@@ -774,6 +776,7 @@ class DriveModel:
     ) -> DriveModel: ...
     def recalibrated(self, run: _F, *, dt: float = 1e-3, friction: bool = False) -> DriveModel: ...
     def estimate(self, run: _F, *, dt: float = 1e-3) -> JawEstimate: ...
+    def observer(self, *, dt: float = 1e-3) -> JawObserver: ...
     @property
     def coefficients(self) -> list[float]: ...
     @property
@@ -782,6 +785,24 @@ class DriveModel:
     def travels(self) -> list[float]: ...
     @property
     def ranges(self) -> list[list[float]]: ...
+
+@final
+class JawObserver:
+    """``DriveModel.observer``: one sample per call."""
+
+    def step(self, spindle_angle: float, spindle_torque: float, motor_angle: float) -> JawSample: ...
+    def reset(self) -> None: ...
+
+@final
+class JawSample:
+    """One ``JawObserver.step``."""
+
+    @property
+    def torque(self) -> float: ...
+    @property
+    def angle(self) -> float: ...
+    @property
+    def outside(self) -> bool: ...
 
 @final
 class JawEstimate:

@@ -571,6 +571,15 @@ impl DriveModel {
         })
     }
 
+    /// A per-sample observer of this model for a controller (`JawObserver`).
+    #[pyo3(signature = (*, dt = 1e-3))]
+    fn observer(&self, dt: f64) -> PyResult<JawObserver> {
+        let inner = guarded(|| drive::DriveObserver::new(self.inner.clone(), dt))?;
+        Ok(JawObserver {
+            inner: Mutex::new(inner),
+        })
+    }
+
     /// `[c₀, c_θ, c_ω, a₁..a_m, g, b₁..b_m]`.
     #[getter]
     fn coefficients(&self) -> Vec<f64> {
@@ -599,4 +608,44 @@ pub struct JawEstimate {
     torque: Py<PyArray1<f64>>,
     angle: Py<PyArray1<f64>>,
     outside_share: f64,
+}
+
+/// `DriveModel.observer`: one sample per `step(spindle_angle, spindle_torque, motor_angle)`
+/// (rad, N·m, rad) → `JawSample`; the friction states persist between calls, `reset` forgets
+/// them. A second thread in a call raises `ConcurrentUseError`.
+#[pyclass(module = "cablekit._cablekit")]
+pub struct JawObserver {
+    inner: Mutex<drive::DriveObserver>,
+}
+
+#[pymethods]
+impl JawObserver {
+    fn step(
+        &self,
+        spindle_angle: f64,
+        spindle_torque: f64,
+        motor_angle: f64,
+    ) -> PyResult<JawSample> {
+        let mut obs = lock(&self.inner, "JawObserver")?;
+        let e = guarded(|| obs.step(spindle_angle, spindle_torque, motor_angle))?;
+        Ok(JawSample {
+            torque: e.torque,
+            angle: e.angle,
+            outside: e.outside,
+        })
+    }
+
+    fn reset(&self) -> PyResult<()> {
+        lock(&self.inner, "JawObserver")?.reset();
+        Ok(())
+    }
+}
+
+/// One `JawObserver.step`: jaw `torque` (N·m), `angle` (rad), and whether an input was
+/// `outside` the training ranges.
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct JawSample {
+    torque: f64,
+    angle: f64,
+    outside: bool,
 }

@@ -59,5 +59,7 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<forceps::PhysicsCalibration>()?;
     m.add_class::<forceps::DriveModel>()?;
     m.add_class::<forceps::JawEstimate>()?;
+    m.add_class::<forceps::JawObserver>()?;
+    m.add_class::<forceps::JawSample>()?;
     Ok(())
 }

@@ -147,6 +147,41 @@ def _davinci_table(results: list[Any]) -> str:
     return "\n".join(lines)
 
 
+def plot_davinci(runs: list[Any], fitters: dict[str, Any], path: Path) -> Path | None:
+    """The lightest load held out (an edge of the load range): every estimator trained on the
+    other loads, on that load's slowest run — measured and estimated jaw torque, the error, and
+    the spindle angle and torque."""
+    from cablekit.plotting import pyplot_or_none
+
+    plt = pyplot_or_none()
+    loads = sorted({r.load for r in runs if r.load is not None})
+    if plt is None or len(loads) < 2:
+        return None
+    test = min((r for r in runs if r.load == loads[0]), key=lambda r: (r.frequency or 0, r.name))
+    train = [r for r in runs if r.load != loads[0]]
+    k = round(1.0 / test.dt)
+    t = np.arange(len(test.jaw_torque)) * test.dt
+    fig, ax = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
+    ax[0].plot(t[k:], test.jaw_torque[k:] * 1e3, "k", lw=2, alpha=0.4, label="measured")
+    for name, fit in fitters.items():
+        torque, _, _ = fit(train).predict(test)
+        ax[0].plot(t[k:], torque[k:] * 1e3, lw=0.8, label=name)
+        ax[1].plot(t[k:], (torque[k:] - test.jaw_torque[k:]) * 1e3, lw=0.8, label=name)
+    ax[0].set_ylabel("jaw torque (mN·m)")
+    ax[0].legend(fontsize=7)
+    ax[0].set_title(f"run {test.label()} held out with its load; trained on the other loads", fontsize=9)
+    ax[1].axhline(0.0, color="k", lw=0.5)
+    ax[1].set_ylabel("error (mN·m)")
+    ax[2].plot(t[k:], np.degrees(test.signals[k:, 0]), label="spindle angle (°)")
+    ax[2].plot(t[k:], test.signals[k:, 1] * 1e3, label="spindle torque (mN·m)")
+    ax[2].set_xlabel("time (s)")
+    ax[2].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
 def _davinci(args: argparse.Namespace) -> int:
     from cablekit.diagnose.progress import Progress
     from cablekit.forceps import davinci as dv
@@ -174,6 +209,7 @@ def _davinci(args: argparse.Namespace) -> int:
             bar.advance("new-instrument path")
     table = _davinci_table(results)
     notes = [w for r in results for w in r.warnings]
+    figure = None if args.no_plots else plot_davinci(train, fitters, out / "davinci_held_out_load.png")
     text = "\n\n".join(
         [
             "# Jaw torque from drive-side signals (real bench)",
@@ -183,6 +219,7 @@ def _davinci(args: argparse.Namespace) -> int:
             table,
             ("Warnings:\n" + "\n".join(f"- {w}" for w in notes)) if notes else "No input left the ranges.",
             "Data: O'Neill, Stephens, Kowalewski, RA-L 3(4):3027-3034, 2018 (ODbL 1.0 / DbCL 1.0).",
+            f"![held-out load edge]({figure.name})" if figure else "",
         ]
     )
     (out / "davinci.md").write_text(text + "\n", encoding="utf-8")
@@ -232,6 +269,7 @@ def add_parser(sub: Any) -> None:
         "--friction", action="store_true", help="recalibrate the friction's scale too, not only the offsets"
     )
     d.add_argument("--no-networks", action="store_true", help="skip the network estimators (no torch needed)")
+    d.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
     d.add_argument("--out", default="out/forceps-davinci", help="output folder")
     d.add_argument("--quiet", action="store_true", help="no progress bar, no table on stdout")
     d.set_defaults(func=_davinci)

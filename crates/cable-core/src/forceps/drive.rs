@@ -293,32 +293,21 @@ impl DriveModel {
     /// outside the training ranges.
     pub fn estimate(&self, run: &DriveRun<'_>) -> Result<(Vec<f64>, Vec<f64>, f64)> {
         run.check("run", false)?;
-        let m = self.travels.len();
-        let (c, g) = self.coef.split_at(3 + m);
-        let mut f = Features::new(&self.travels, self.window, run.dt);
+        let mut obs = DriveObserver::new(self.clone(), run.dt)?;
         let (mut torque, mut angle) =
             (Vec::with_capacity(run.len()), Vec::with_capacity(run.len()));
         let mut outside = 0usize;
         for k in 0..run.len() {
-            let (th, ts) = (run.spindle_angle[k], run.spindle_torque[k]);
-            let w = f.push(th, run.motor_angle[k]);
-            let s = &f.states;
-            let rest = c[0] + c[1] * th + c[2] * w + dot(&c[3..], s);
-            let gain = g[0] + dot(&g[1..], s);
-            torque.push((ts - rest) / gain);
-            angle.push(self.angle[0] + self.angle[1] * th + self.angle[2] * ts);
-            let out = [th, ts, w]
-                .iter()
-                .zip(&self.ranges)
-                .any(|(v, r)| *v < r[0] || *v > r[1]);
-            outside += usize::from(out);
+            let e = obs.step_unchecked(
+                run.spindle_angle[k],
+                run.spindle_torque[k],
+                run.motor_angle[k],
+            );
+            torque.push(e.torque);
+            angle.push(e.angle);
+            outside += usize::from(e.outside);
         }
-        check::result_finite(
-            "jaw torque estimate",
-            &torque,
-            1,
-            "the transmission gain crosses zero: the model was fitted on too narrow a set of runs",
-        )?;
+        check::result_finite("jaw torque estimate", &torque, 1, GAIN_HINT)?;
         Ok((torque, angle, outside as f64 / run.len().max(1) as f64))
     }
 
@@ -390,6 +379,84 @@ impl DriveModel {
             "the calibration run is degenerate",
         )?;
         Ok(me)
+    }
+}
+
+const GAIN_HINT: &str =
+    "the transmission gain crosses zero: the model was fitted on too narrow a set of runs";
+
+/// One sample of a [`DriveObserver`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JawSample {
+    /// Estimated jaw torque (N·m).
+    pub torque: f64,
+    /// Estimated jaw angle (rad).
+    pub angle: f64,
+    /// Whether the spindle angle, torque or velocity lies outside the training ranges.
+    pub outside: bool,
+}
+
+/// A [`DriveModel`] at a controller's rate: one sample per call, the friction states and the
+/// velocity window carried between calls (no allocation per sample).
+#[derive(Debug, Clone)]
+pub struct DriveObserver {
+    model: DriveModel,
+    features: Features,
+}
+
+impl DriveObserver {
+    /// An observer of `model` for samples every `dt` s.
+    pub fn new(model: DriveModel, dt: f64) -> Result<Self> {
+        check::positive("dt", dt)?;
+        let features = Features::new(&model.travels, model.window, dt);
+        Ok(Self { model, features })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &DriveModel {
+        &self.model
+    }
+
+    /// Forget the friction states and the velocity window (a new run starts).
+    pub fn reset(&mut self) {
+        self.features = Features::new(&self.model.travels, self.model.window, self.features.dt);
+    }
+
+    /// One sample: spindle angle (rad), spindle torque (N·m), motor angle (rad). Errors on a
+    /// non-finite input or estimate; the states are not advanced by a rejected input.
+    pub fn step(
+        &mut self,
+        spindle_angle: f64,
+        spindle_torque: f64,
+        motor_angle: f64,
+    ) -> Result<JawSample> {
+        check::all_finite(
+            "drive sample",
+            &[spindle_angle, spindle_torque, motor_angle],
+            3,
+        )?;
+        let e = self.step_unchecked(spindle_angle, spindle_torque, motor_angle);
+        check::result_finite("jaw torque estimate", &[e.torque, e.angle], 2, GAIN_HINT)?;
+        Ok(e)
+    }
+
+    #[inline]
+    fn step_unchecked(&mut self, th: f64, ts: f64, motor: f64) -> JawSample {
+        let w = self.features.push(th, motor);
+        let m = &self.model;
+        let (c, g) = m.coef.split_at(3 + m.travels.len());
+        let s = &self.features.states;
+        let rest = c[0] + c[1] * th + c[2] * w + dot(&c[3..], s);
+        let gain = g[0] + dot(&g[1..], s);
+        let outside = [th, ts, w]
+            .iter()
+            .zip(&m.ranges)
+            .any(|(v, r)| *v < r[0] || *v > r[1]);
+        JawSample {
+            torque: (ts - rest) / gain,
+            angle: m.angle[0] + m.angle[1] * th + m.angle[2] * ts,
+            outside,
+        }
     }
 }
 
@@ -513,6 +580,19 @@ mod tests {
             assert_relative_eq!(angle[k], runs[1].4[k], epsilon = 1e-9);
         }
         assert!(outside < 0.01);
+        // one sample at a time gives the batch's numbers, and reset starts over
+        let mut obs = DriveObserver::new(model.clone(), dt).unwrap();
+        for _ in 0..2 {
+            obs.reset();
+            for k in 0..tau.len() {
+                let v = &views[1];
+                let e = obs
+                    .step(v.spindle_angle[k], v.spindle_torque[k], v.motor_angle[k])
+                    .unwrap();
+                assert_eq!(e.torque.to_bits(), tau[k].to_bits());
+            }
+        }
+        assert!(obs.step(f64::NAN, 0.0, 0.0).is_err());
         // a shifted instrument: the offset recalibration finds the shift
         let shifted: Vec<f64> = runs[2].1.iter().map(|v| v + 0.004).collect();
         let mut cal = views[2];
