@@ -201,6 +201,13 @@ def _calls() -> dict[str, Call]:
     fit_kw = dict(dt=1e-3, window=20, warmup=0.05)
     out["DriveModel.fit"] = Call(DriveModel.fit, (drive_runs[:2], [0.01, 0.1]), fit_kw)
     out["DriveModel.estimate"] = Call(drive.estimate, (drive_runs[0][:, :3].copy(),), dict(dt=1e-3))
+    from cablekit.cdpr import Winch
+
+    winch = Winch.seed003()
+    out["Winch"] = Call(Winch, (winch.values.copy(),))
+    out["Winch.zeros_and_poles"] = Call(winch.zeros_and_poles, ("fixed", True))
+    out["Winch.root_locus"] = Call(winch.root_locus, ("synchronized", False, [0.5, 6.0]))
+    out["Winch.dominant"] = Call(winch.dominant, ("fixed", False, 6.0))
     out["JawObserver.step"] = Call(drive.observer().step, (0.1, -0.02, 0.1))
     out["DriveModel.recalibrated"] = Call(drive.recalibrated, (drive_runs[1],), dict(dt=1e-3, friction=True))
     out["PhysicsObserver.calibrated"] = Call(

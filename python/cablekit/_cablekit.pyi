@@ -40,6 +40,7 @@ __all__ = [
     "Tensions",
     "Twin",
     "TwinRun",
+    "Winch",
     "__version__",
     "cable_tension",
     "capstan_ratio",
@@ -814,6 +815,25 @@ class JawEstimate:
     def angle(self) -> _F: ...
     @property
     def outside_share(self) -> float: ...
+
+@final
+class Winch:
+    """Seed 003's winch linearised (``cable_core::cdpr::winch``)."""
+
+    NAMES: ClassVar[list[str]]
+    def __new__(cls, values: _F) -> Winch: ...
+    @staticmethod
+    def seed003() -> Winch: ...
+    @property
+    def values(self) -> _F: ...
+    @property
+    def load(self) -> tuple[float, float]: ...
+    def open_loop(self, setup: str, lpf: bool) -> tuple[_F, _F]: ...
+    def zeros_and_poles(self, setup: str, lpf: bool) -> tuple[_F, _F]: ...
+    def root_locus(self, setup: str, lpf: bool, kps: list[float]) -> _F: ...
+    def dominant(
+        self, setup: str, lpf: bool, kp: float
+    ) -> tuple[tuple[float, float], float, float] | None: ...
 
 @final
 class TensionController:

@@ -14,6 +14,7 @@ mod identify;
 mod integrate;
 mod nn;
 mod results;
+mod winch;
 
 use pyo3::prelude::*;
 
@@ -53,6 +54,7 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<forceps::Jtdo>()?;
     m.add_class::<forceps::ClampStep>()?;
     m.add_class::<forceps::ClampRun>()?;
+    m.add_class::<winch::Winch>()?;
     m.add_class::<forceps::Twin>()?;
     m.add_class::<forceps::TwinRun>()?;
     m.add_class::<forceps::PhysicsObserver>()?;

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from cablekit._cablekit import Capacity, Kinematics, Step, TensionController, Tensions
+from cablekit._cablekit import Capacity, Kinematics, Step, TensionController, Tensions, Winch
 from cablekit._cablekit import Robot as _Robot
 from cablekit.cdpr.workspace import Requirement, Workspace, plot_workspace, workspace
 from cablekit.errors import DataError
@@ -35,6 +35,7 @@ __all__ = [
     "Step",
     "TensionController",
     "Tensions",
+    "Winch",
     "Workspace",
     "plot_workspace",
     "shipped",

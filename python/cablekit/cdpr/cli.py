@@ -182,6 +182,16 @@ def _distribute(args: argparse.Namespace) -> int:
     return 0
 
 
+def _winch(args: argparse.Namespace) -> int:
+    from cablekit.cdpr.winch import report
+
+    text = report(args.out, plots=not args.no_plots)
+    if not args.quiet:
+        print(text)
+    print(f"wrote {Path(args.out) / 'winch.md'}")
+    return 0
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """``cablekit cdpr workspace`` and ``cablekit cdpr distribute``."""
     p = sub.add_parser("cdpr", help="cable-driven parallel robots: workspace, tensions along a trajectory")
@@ -222,3 +232,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     d.add_argument("--no-gravity", action="store_true", help="leave out the platform's weight")
     d.add_argument("--no-plots", action="store_true")
     d.set_defaults(func=_distribute)
+    wn = cs.add_parser(
+        "winch",
+        help="seed 003's winch linearised: Table 5 recomputed, the seed's inconsistencies, root locus",
+    )
+    wn.add_argument("--out", default="out/winch", help="output folder")
+    wn.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
+    wn.add_argument("--quiet", action="store_true", help="no table on stdout")
+    wn.set_defaults(func=_winch)

@@ -10,6 +10,7 @@ mod kinematics;
 mod qp;
 mod robot;
 mod tension;
+pub mod winch;
 mod workspace;
 
 pub use batch::{
