@@ -189,7 +189,7 @@ def _davinci(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     train = dv.read_bench_folder(args.directory)
-    fitters = dv.estimator_fitters(networks=not args.no_networks)
+    fitters = dv.estimator_fitters(networks=not args.no_networks, friction=args.friction)
     results = []
     if args.calibrate_on:
         cal = dv.read_bench_file(args.calibrate_on)
@@ -197,7 +197,7 @@ def _davinci(args: argparse.Namespace) -> int:
         test = [r for r in dv.read_bench_folder(test_dir) if r.path.resolve() != cal.path.resolve()]
         if not test:
             raise dv.DataError(f"{test_dir}: no runs to score besides the calibration run")
-        results.append(dv.new_instrument(train, cal, test, fitters, friction=args.friction))
+        results.append(dv.new_instrument(train, cal, test, fitters))
     else:
         folds = len({r.frequency for r in train}) + len({r.load for r in train})
         with Progress(folds + 1, "da Vinci folds", enabled=not args.quiet) as bar:
@@ -205,7 +205,7 @@ def _davinci(args: argparse.Namespace) -> int:
                 results.append(dv.leave_one_out(train, key, fitters, bar.advance))
             cal = next((r for r in train if r.name == "00"), train[0])
             rest = [r for r in train if r is not cal]
-            results.append(dv.new_instrument(train, cal, rest, fitters, friction=args.friction))
+            results.append(dv.new_instrument(train, cal, rest, fitters))
             bar.advance("new-instrument path")
     table = _davinci_table(results)
     notes = [w for r in results for w in r.warnings]

@@ -359,9 +359,12 @@ class Jtdo(Estimator):
 
 
 #: estimator name → fit(runs); the networks need torch (the ``train`` extra)
-def estimator_fitters(networks: bool = True) -> dict[str, Callable[[Sequence[BenchRun]], Estimator]]:
+def estimator_fitters(
+    networks: bool = True, friction: bool = False
+) -> dict[str, Callable[[Sequence[BenchRun]], Estimator]]:
+    """``friction``: the physics model's recalibration also rescales its friction."""
     fitters: dict[str, Callable[[Sequence[BenchRun]], Estimator]] = {
-        Physics.name: Physics.fit,
+        Physics.name: lambda runs: Physics.fit(runs, friction=friction),
         Linear.name: Linear.fit,
     }
     if networks:
@@ -454,7 +457,6 @@ def new_instrument(
     calibration: BenchRun,
     test: Sequence[BenchRun],
     fitters: dict[str, Callable[[Sequence[BenchRun]], Estimator]],
-    friction: bool = False,
 ) -> FoldResult:
     """Train on ``train`` (one instrument), recalibrate on ``calibration`` (one run of the new
     instrument), score on ``test`` (its other runs). Warns when the new runs leave the
@@ -463,8 +465,6 @@ def new_instrument(
     scores = {}
     for name, fit in fitters.items():
         est = fit(train)
-        if isinstance(est, Physics):
-            est.friction = friction
         s = score(est.recalibrated(calibration), test)
         scores[name] = s
         if s.outside_share > OUTSIDE_WARN:

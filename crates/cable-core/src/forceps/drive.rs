@@ -143,11 +143,8 @@ impl Features {
     fn push(&mut self, spindle: f64, motor: f64) -> f64 {
         let dx = self.last_motor.map_or(0.0, |m| motor - m);
         self.last_motor = Some(motor);
-        if dx != 0.0 {
-            let s = dx.signum();
-            for (st, &d) in self.states.iter_mut().zip(&self.travels) {
-                *st = s * (1.0 - (1.0 - *st * s) * (-dx.abs() / d).exp());
-            }
+        for (st, &d) in self.states.iter_mut().zip(&self.travels) {
+            *st = super::physics::direction(*st, dx, d);
         }
         let len = self.history.len();
         self.history[self.head] = spindle;

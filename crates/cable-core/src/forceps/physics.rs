@@ -138,9 +138,10 @@ impl Losses {
     }
 }
 
-/// Rate-independent direction state after a motor step `dx` with reversal travel `travel`.
+/// Rate-independent direction state after a motor step `dx` with reversal travel `travel`
+/// (the exact solution of `dσ/dx = (1 − σ·sgn dx)/travel` over the step).
 #[inline]
-fn direction(state: f64, dx: f64, travel: f64) -> f64 {
+pub(crate) fn direction(state: f64, dx: f64, travel: f64) -> f64 {
     if dx == 0.0 {
         return state;
     }
