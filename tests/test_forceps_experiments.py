@@ -23,7 +23,7 @@ from cablekit.forceps.experiments import (
 )
 from cablekit.forceps.twin import load_twin
 
-pytest.importorskip("torch")
+pytest.importorskip("torch")  # the train extra; .ci/run installs it, so CI runs these
 
 
 @pytest.fixture(scope="module")
