@@ -307,14 +307,9 @@ class Network(Estimator):
 
 
 def _train(x: F64, y: F64, seed: int) -> object:
-    import tempfile
+    from cablekit.nn import to_mlp, train_mlp
 
-    from cablekit._cablekit import Mlp
-    from cablekit.nn import export, train_mlp
-
-    res = train_mlp(x, y, method="lm", seed=seed, progress=False)
-    with tempfile.TemporaryDirectory() as d:
-        return Mlp.load(export(res, Path(d) / "net.safetensors"))
+    return to_mlp(train_mlp(x, y, method="lm", seed=seed, progress=False))
 
 
 @dataclass

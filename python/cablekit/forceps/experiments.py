@@ -26,10 +26,8 @@ The protocol (every number is measured by :func:`seed_experiments` and :func:`tr
 from __future__ import annotations
 
 import math
-import tempfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -124,19 +122,16 @@ def with_seed(twin: Twin, seed: int) -> Twin:
 def train_free_motion_network(free: TwinRun, seed: int = 0, progress: bool = False) -> Mlp:
     """Seed 000's free-motion tension model: a PSO-BPNN 4-10-4 (Table 1) from
     ``[x_a, v_a, x_b, v_b]`` to the four measured tensions, loaded into Rust."""
-    from cablekit.nn import export, train_mlp
+    from cablekit.nn import to_mlp, train_mlp
 
     res = train_mlp(free.motors, free.measured, method="pso-lm", seed=seed, progress=progress)
-    with tempfile.TemporaryDirectory() as d:
-        path = export(
-            res,
-            Path(d) / "free_motion.safetensors",
-            input_names=("x_a", "v_a", "x_b", "v_b"),
-            input_units=("m", "m/s", "m", "m/s"),
-            output_names=("F_A1", "F_A2", "F_B1", "F_B2"),
-            output_units=("N", "N", "N", "N"),
-        )
-        return Mlp.load(path)
+    return to_mlp(
+        res,
+        input_names=("x_a", "v_a", "x_b", "v_b"),
+        input_units=("m", "m/s", "m", "m/s"),
+        output_names=("F_A1", "F_A2", "F_B1", "F_B2"),
+        output_units=("N", "N", "N", "N"),
+    )
 
 
 def _geometry(twin: Twin) -> dict[str, float]:

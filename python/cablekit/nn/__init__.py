@@ -15,7 +15,7 @@ Importing this package does not import torch; the training functions do, on firs
 from __future__ import annotations
 
 from cablekit._cablekit import Mlp
-from cablekit.nn.export import export, network_arrays
+from cablekit.nn.export import export, network_arrays, to_mlp
 from cablekit.nn.mapminmax import MapMinMax
 from cablekit.nn.onnx_export import export_onnx, onnx_model
 from cablekit.nn.spec import METHODS, PsoConfig, TrainConfig, TrainResult
@@ -32,6 +32,7 @@ __all__ = [
     "export_onnx",
     "network_arrays",
     "onnx_model",
+    "to_mlp",
     "train_mlp",
 ]
 

@@ -23,6 +23,7 @@ from cablekit.errors import ShapeError
 from cablekit.nn.mapminmax import MapMinMax
 
 if TYPE_CHECKING:
+    from cablekit._cablekit import Mlp
     from cablekit.nn.spec import TrainResult
 
 F64 = NDArray[np.float64]
@@ -138,3 +139,15 @@ def export(
         output_units=output_units,
         metadata=md,
     )
+
+
+def to_mlp(result: TrainResult, **names: Sequence[str]) -> Mlp:
+    """A trained network as the Rust ``cablekit.Mlp``, through the same weight file
+    :func:`export` writes (so inference runs exactly what a user would load); ``names`` are
+    :func:`export`'s ``input_names`` … ``output_units``."""
+    import tempfile
+
+    from cablekit._cablekit import Mlp
+
+    with tempfile.TemporaryDirectory() as d:
+        return Mlp.load(export(result, Path(d) / "network.safetensors", **names))  # type: ignore[arg-type]
