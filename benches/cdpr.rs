@@ -7,7 +7,7 @@ use std::hint::black_box;
 use cable_bench::ipanema_fixture;
 use cable_core::cdpr::{
     capacity_batch, capacity_margin, distribute_batch, improved_closed_form, inverse_kinematics,
-    CableGeometry, CapacityMut, Distributor, Method, Pose, Requirement, TensionsMut,
+    CableGeometry, CapacityMut, Distributor, Margins, Method, Pose, Requirement, TensionsMut,
 };
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 
@@ -163,8 +163,13 @@ fn batch(c: &mut Criterion) {
         half_width: [20.0, 20.0, 20.0, 2.0, 2.0, 2.0],
         ..Requirement::default()
     };
+    let inside = Requirement {
+        margins: Margins::Inside,
+        ..Requirement::default()
+    };
     for (name, req) in [
         ("workspace_static_125k", Requirement::default()),
+        ("workspace_static_inside_125k", inside),
         ("workspace_wrench_box_125k", boxed),
     ] {
         g.bench_function(name, |b| {

@@ -89,7 +89,7 @@ def workspace_peers(robot) -> None:
 
     from scipy.optimize import linprog
 
-    from cablekit.cdpr import workspace
+    from cablekit.cdpr import Requirement, workspace
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from tests.reference import cdpr as ref
@@ -97,6 +97,10 @@ def workspace_peers(robot) -> None:
     t0 = time.perf_counter()
     ws = workspace(robot, counts=50)
     ours = (time.perf_counter() - t0) / ws.margin.size * 1e6
+    t0 = time.perf_counter()
+    inside = workspace(robot, counts=50, requirement=Requirement(margins="inside"))
+    ours_inside = (time.perf_counter() - t0) / inside.margin.size * 1e6
+    assert np.array_equal(inside.feasible, ws.feasible)
     x, y, z = ws.axes
     rng = np.random.default_rng(1)
     pick = rng.integers(0, 50, (200, 3))
@@ -116,10 +120,14 @@ def workspace_peers(robot) -> None:
 
     rows = [
         ("cablekit capacity margin (grid)", ours),
+        ("cablekit, margins inside only", ours_inside),
         ("scipy HiGHS LP (membership only)", _per_pose(lp, 200)),
         ("NumPy hyperplane shifting (SVD)", _per_pose(svd, 50)),
     ]
-    print(f"static workspace, 50^3 grid = {ws.margin.size:,} poses in {ws.seconds * 1e3:.1f} ms, per pose")
+    print(
+        f"static workspace, 50^3 grid = {ws.margin.size:,} poses in {ws.seconds * 1e3:.1f} ms "
+        f"({inside.seconds * 1e3:.1f} ms with margins inside only), per pose"
+    )
     for name, us in rows:
         print(f"  {name:34s} {us:10.3f} us   {us / ours:8.0f}x cablekit")
 

@@ -339,6 +339,16 @@ def test_capacity_margin_matches_the_reference_with_and_without_a_wrench_box(nam
             np.testing.assert_allclose(boxed.margin[i], want_box, rtol=1e-9, atol=1e-9 * scale)
         assert np.array_equal(plain.feasible, plain.margin >= 0)
         assert not plain.degenerate.any()
+        # margins="inside": the same membership and inside margins; outside, a crossed facet's
+        # distance, between the exact margin and zero
+        for full, args in [(plain, ()), (boxed, (center, half))]:
+            fast = robot.capacity(poses, *args, margins="inside", **kwargs)
+            assert np.array_equal(fast.feasible, full.feasible)
+            inside = full.feasible
+            assert np.array_equal(fast.margin[inside], full.margin[inside])
+            out = fast.margin[~inside]
+            assert np.all(out < 0) and np.all(out >= full.margin[~inside] - 1e-9 * scale)
+    assert (~plain.feasible).sum() >= 5  # the outside branch above is exercised
 
 
 def test_capacity_sign_is_lp_feasibility_and_the_weakest_direction_is_tight():
@@ -413,6 +423,8 @@ def test_capacity_bad_input_is_a_typed_error():
         robot.capacity(q, moment_length=0.0)
     with pytest.raises(ck.DTypeError):
         robot.capacity(q.astype(np.float32))
+    with pytest.raises(ck.ParameterError, match="everywhere, inside"):
+        robot.capacity(q, margins="outside")
 
 
 # --- the controller API --------------------------------------------------------------------

@@ -593,8 +593,10 @@ class Robot:
         *,
         gravity: bool = True,
         moment_length: float = 1.0,
+        margins: str = "everywhere",
     ) -> Capacity:
-        """Capacity margins at poses (T, n) for the weight plus the wrench box wrench ± half_width."""
+        """Capacity margins at poses (T, n) for the weight plus the wrench box wrench ± half_width;
+        margins="inside" stops an outside pose at its first crossed facet."""
     def controller(self, method: str = "auto", *, gravity: bool = True) -> TensionController:
         """One pose per call, the solver kept warm."""
 

@@ -3,7 +3,8 @@
 use std::sync::Mutex;
 
 use cable_core::cdpr::{
-    self as core, CapacityMut, KinematicsMut, Method, Motion, Platform, Requirement, TensionsMut,
+    self as core, CapacityMut, KinematicsMut, Margins, Method, Motion, Platform, Requirement,
+    TensionsMut,
 };
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -154,8 +155,10 @@ impl Robot {
     /// Capacity margins at poses `(T, n)`: the required wrench set is the platform's weight
     /// (unless `gravity=False`) plus the box `wrench ± half_width` `(n,)` each; moments count
     /// in the distance divided by `moment_length` (m). A `Capacity` (GIL released, parallel);
-    /// a grid of poses gives the static or wrench-feasible workspace.
-    #[pyo3(signature = (poses, wrench = None, half_width = None, *, gravity = true, moment_length = 1.0))]
+    /// a grid of poses gives the static or wrench-feasible workspace. `margins="inside"` stops
+    /// an outside pose's scan at the first crossed facet (its margin is then an upper bound).
+    #[pyo3(signature = (poses, wrench = None, half_width = None, *, gravity = true, moment_length = 1.0, margins = "everywhere"))]
+    #[allow(clippy::too_many_arguments)]
     fn capacity(
         &self,
         py: Python<'_>,
@@ -164,12 +167,14 @@ impl Robot {
         half_width: Option<&Bound<'_, PyAny>>,
         gravity: bool,
         moment_length: f64,
+        margins: &str,
     ) -> PyResult<Capacity> {
         let n = self.inner.dof();
         let (p, t) = matrix(poses, "poses", Some(n))?;
         let mut req = Requirement {
             gravity,
             moment_length,
+            margins: guarded(|| Margins::from_name(margins))?,
             ..Requirement::default()
         };
         for (arg, name, into) in [

@@ -95,6 +95,7 @@ def _workspace(args: argparse.Namespace) -> int:
         wrench=_floats(args.wrench, n, "wrench"),
         half_width=_floats(args.half_width, n, "half-width"),
         moment_length=args.moment_length,
+        margins=args.margins,
     )
     ws = workspace(
         robot,
@@ -212,6 +213,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     w.add_argument("--wrench", help="centre of the required external wrench box, n comma-separated values")
     w.add_argument("--half-width", help="half widths of the required wrench box, n comma-separated values")
     w.add_argument("--moment-length", type=float, default=1.0, help="moments count as moment / length (m)")
+    w.add_argument(
+        "--margins",
+        choices=("everywhere", "inside"),
+        default="everywhere",
+        help="where margins are exact: inside stops an outside pose at its first crossed facet (faster)",
+    )
     w.add_argument("--no-gravity", action="store_true", help="leave out the platform's weight")
     w.add_argument("--no-plots", action="store_true", help="no PNGs (no matplotlib needed)")
     w.set_defaults(func=_workspace)

@@ -28,7 +28,7 @@ pub use tension::{
     closed_form, improved_closed_form, minimum_norm, Distribution, Method, BOUND_TOLERANCE,
 };
 
-pub use workspace::{capacity, capacity_margin, Capacity, Requirement, RANK_TOLERANCE};
+pub use workspace::{capacity, capacity_margin, Capacity, Margins, Requirement, RANK_TOLERANCE};
 
 #[cfg(test)]
 mod tests;

@@ -724,3 +724,83 @@ fn cached_rotation_is_the_uncached_pose() {
     }
     assert!(Pose::from_coordinates_cached(Motion::Spatial, &[f64::NAN; 6], &mut cache).is_err());
 }
+
+/// `Margins::Inside` (stop at the first crossed facet) keeps every membership and every inside
+/// margin of the full scan, per pose and in a batch; outside it reports a crossed facet's
+/// distance, never above zero and never below the exact margin, and that facet's cables are the
+/// full scan's own facet when the two margins agree.
+#[test]
+fn inside_margins_stop_at_a_crossed_facet_and_change_no_membership() {
+    let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+    for robot in [box_robot(false), box_robot(true), planar_robot()] {
+        let n = robot.dof();
+        let full = Requirement {
+            gravity: true,
+            center: [3.0, -2.0, 1.0, 0.1, 0.0, 0.05],
+            ..Requirement::default()
+        };
+        let inside = Requirement {
+            margins: Margins::Inside,
+            ..full
+        };
+        let poses: Vec<f64> = (0..400)
+            .flat_map(|_| {
+                (0..n)
+                    .map(|k| match (n, k) {
+                        (3, 0) => rng.uniform(-0.2, 1.2),
+                        (3, 1) => rng.uniform(-0.2, 1.0),
+                        (3, _) => rng.uniform(-0.6, 0.6),
+                        (_, 0) => rng.uniform(-0.6, 0.6),
+                        (_, 1) => rng.uniform(-0.45, 0.45),
+                        (_, 2) => rng.uniform(-0.45, 0.45),
+                        _ => rng.uniform(-0.4, 0.4),
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let t = poses.len() / n;
+        let (mut margin, mut feasible, mut degenerate, mut weakest) = (
+            vec![0.0; t],
+            vec![false; t],
+            vec![false; t],
+            vec![0.0; t * n],
+        );
+        let out = CapacityMut {
+            margin: &mut margin,
+            feasible: &mut feasible,
+            degenerate: &mut degenerate,
+            weakest: &mut weakest,
+        };
+        capacity_batch(&robot, &poses, &inside, out).unwrap();
+        let (mut geo, mut outside, mut stopped) = (CableGeometry::default(), 0, 0);
+        for (row, q) in poses.chunks(n).enumerate() {
+            let pose = Pose::from_coordinates(robot.motion, q).unwrap();
+            let c = capacity(&robot, &pose, &full, &mut geo).unwrap();
+            let s = capacity(&robot, &pose, &inside, &mut geo).unwrap();
+            assert_eq!((s.feasible, s.degenerate), (c.feasible, c.degenerate));
+            assert_eq!((feasible[row], degenerate[row]), (c.feasible, c.degenerate));
+            assert_eq!(c.facet_cables.count_ones() as usize, n - 1, "{c:?}");
+            if c.feasible {
+                assert_eq!(s.margin.to_bits(), c.margin.to_bits());
+                assert_eq!(margin[row].to_bits(), c.margin.to_bits());
+                assert_eq!(s.facets, c.facets);
+            } else if !c.degenerate {
+                outside += 1;
+                for m in [s.margin, margin[row]] {
+                    assert!(
+                        m < 0.0 && m >= c.margin - 1e-9 * c.margin.abs(),
+                        "{m} vs {c:?}"
+                    );
+                }
+                stopped += usize::from(s.facets < c.facets);
+                if (s.margin - c.margin).abs() < 1e-12 * c.margin.abs() {
+                    assert_eq!(s.facet_cables, c.facet_cables);
+                }
+            }
+        }
+        assert!(
+            outside > 40 && stopped > 20,
+            "{outside} outside, {stopped} stopped early"
+        );
+    }
+}

@@ -47,6 +47,36 @@ pub struct Requirement {
     pub half_width: [f64; 6],
     /// Moments count in the distance as `moment / moment_length` (m, `> 0`).
     pub moment_length: f64,
+    /// Where the margin must be exact (see [`Margins`]).
+    pub margins: Margins,
+}
+
+/// Where [`capacity_margin`] measures the margin exactly.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Margins {
+    /// At every pose: every facet pair is examined.
+    #[default]
+    Everywhere,
+    /// Inside the workspace only: the scan stops at the first facet the required wrench set
+    /// crosses, so an outside pose's `margin` is that facet's (negative) distance, an upper
+    /// bound of the exact margin, and its `weakest` that facet's direction. Membership
+    /// (`feasible`) and the margins of inside poses are exact, as with `Everywhere`.
+    Inside,
+}
+
+impl Margins {
+    /// From its name (`"everywhere"`, `"inside"`).
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "everywhere" => Ok(Self::Everywhere),
+            "inside" => Ok(Self::Inside),
+            other => Err(CableError::InvalidOption {
+                name: "margins".into(),
+                value: other.into(),
+                allowed: "everywhere, inside".into(),
+            }),
+        }
+    }
 }
 
 impl Default for Requirement {
@@ -57,6 +87,7 @@ impl Default for Requirement {
             center: [0.0; 6],
             half_width: [0.0; 6],
             moment_length: 1.0,
+            margins: Margins::Everywhere,
         }
     }
 }
@@ -105,6 +136,9 @@ pub struct Capacity {
     /// norm, the first `n` entries): adding `margin · weakest` to the required wrench reaches
     /// the boundary of the available wrench set. Zero at a degenerate pose.
     pub weakest: [f64; 6],
+    /// The `n − 1` cables (bit `i` for cable `i`) whose columns the facet behind `margin` is
+    /// parallel to: the other cables sit at a tension limit on it. Zero at a degenerate pose.
+    pub facet_cables: u32,
 }
 
 /// First `k`-combination of `0..`.
@@ -218,6 +252,9 @@ struct Kernel {
     /// Required box half widths (scaled).
     delta: [f64; 8],
     boxed: bool,
+    /// The cable of each basis coordinate and of each non-basis column.
+    col_b: [usize; 8],
+    col_x: [usize; MAX_CABLES],
 }
 
 /// The nearest facet so far.
@@ -230,6 +267,8 @@ struct Best {
     len: usize,
     /// The cables' wrench leaves through `+c` (else `−c`).
     up: bool,
+    /// The non-basis columns the nearest facet is parallel to (bit set).
+    skip: u32,
     facets: usize,
 }
 
@@ -294,6 +333,7 @@ impl Kernel {
             best.f[..L].copy_from_slice(&f);
             best.len = L;
             best.up = along <= 0.0;
+            best.skip = skip;
         }
     }
 }
@@ -330,7 +370,11 @@ pub fn capacity_margin(
             });
         }
     }
-    let args = (at, m, f_min, f_max, weight, req);
+    margin_checked(n, (at, m, f_min, f_max, weight, req))
+}
+
+/// [`capacity_margin`] of checked arguments.
+fn margin_checked(n: usize, args: MarginArgs<'_>) -> Result<Capacity> {
     #[cfg(target_arch = "x86_64")]
     if crate::lanes::cpu_has_avx2_fma() {
         #[allow(unsafe_code)]
@@ -362,6 +406,8 @@ fn margin(n: usize, args: MarginArgs<'_>) -> Result<Capacity> {
         mm: [[0.0; 8]; 8],
         delta: [0.0; 8],
         boxed: false,
+        col_b: [0; 8],
+        col_x: [0; MAX_CABLES],
     };
     let regular = match (n, m <= 8) {
         (1, true) => eliminate::<1, 8>(args, &mut k),
@@ -384,6 +430,7 @@ fn margin(n: usize, args: MarginArgs<'_>) -> Result<Capacity> {
             degenerate: true,
             facets: 0,
             weakest: [0.0; 6],
+            facet_cables: 0,
         });
     }
     let mm = &k.mm;
@@ -394,97 +441,114 @@ fn margin(n: usize, args: MarginArgs<'_>) -> Result<Capacity> {
         f: [0; 6],
         len: 0,
         up: true,
+        skip: 0,
         facets: 0,
     };
     let r = k.r;
-    // q = 0: the n − 1 other basis columns; d = e_f.
-    for f in 0..n {
-        k.facet([1.0], [f], 0, &mut best);
-    }
-    // q = 1: one non-basis column x and two free coordinates.
-    for x in (0..r).filter(|_| n >= 2) {
-        let tx = k.tx[x];
-        for f0 in 0..n {
-            for f1 in f0 + 1..n {
-                let d = [tx[f1], -tx[f0]];
-                let size = tx[f0] * tx[f0] + tx[f1] * tx[f1];
-                if d[0] * d[0] + d[1] * d[1] > SINE_TOLERANCE * size {
-                    k.facet(d, [f0, f1], 1 << x, &mut best);
+    // an outside pose's scan may stop at the first crossed facet
+    let stop = req.margins == Margins::Inside;
+    'scan: {
+        // q = 0: the n − 1 other basis columns; d = e_f.
+        for f in 0..n {
+            k.facet([1.0], [f], 0, &mut best);
+        }
+        if stop && best.num < 0.0 {
+            break 'scan;
+        }
+        // q = 1: one non-basis column x and two free coordinates.
+        for x in (0..r).filter(|_| n >= 2) {
+            let tx = k.tx[x];
+            for f0 in 0..n {
+                for f1 in f0 + 1..n {
+                    let d = [tx[f1], -tx[f0]];
+                    let size = tx[f0] * tx[f0] + tx[f1] * tx[f1];
+                    if d[0] * d[0] + d[1] * d[1] > SINE_TOLERANCE * size {
+                        k.facet(d, [f0, f1], 1 << x, &mut best);
+                    }
                 }
             }
+            if stop && best.num < 0.0 {
+                break 'scan;
+            }
         }
-    }
-    // q = 2: two non-basis columns and three free coordinates.
-    if n >= 3 {
-        for x in 0..r {
-            for y in x + 1..r {
-                let (a, b) = (k.tx[x], k.tx[y]);
-                for f0 in 0..n {
-                    for f1 in f0 + 1..n {
-                        for f2 in f1 + 1..n {
-                            let (a, b) = ([a[f0], a[f1], a[f2]], [b[f0], b[f1], b[f2]]);
-                            let d = [
-                                a[1] * b[2] - a[2] * b[1],
-                                a[2] * b[0] - a[0] * b[2],
-                                a[0] * b[1] - a[1] * b[0],
-                            ];
-                            let size = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
-                                * (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
-                            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > SINE_TOLERANCE * size {
-                                k.facet(d, [f0, f1, f2], (1 << x) | (1 << y), &mut best);
+        // q = 2: two non-basis columns and three free coordinates.
+        if n >= 3 {
+            for x in 0..r {
+                for y in x + 1..r {
+                    let (a, b) = (k.tx[x], k.tx[y]);
+                    for f0 in 0..n {
+                        for f1 in f0 + 1..n {
+                            for f2 in f1 + 1..n {
+                                let (a, b) = ([a[f0], a[f1], a[f2]], [b[f0], b[f1], b[f2]]);
+                                let d = [
+                                    a[1] * b[2] - a[2] * b[1],
+                                    a[2] * b[0] - a[0] * b[2],
+                                    a[0] * b[1] - a[1] * b[0],
+                                ];
+                                let size = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+                                    * (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+                                if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > SINE_TOLERANCE * size {
+                                    k.facet(d, [f0, f1, f2], (1 << x) | (1 << y), &mut best);
+                                }
                             }
                         }
                     }
+                    if stop && best.num < 0.0 {
+                        break 'scan;
+                    }
                 }
             }
         }
-    }
-    // q ≥ 3 (more than two redundant cables): signed maximal minors.
-    let mut qset = [0usize; 6];
-    let mut fset = [0usize; 6];
-    for q in 3..=r.min(n - 1) {
-        first_combination(&mut qset, q);
-        loop {
-            first_combination(&mut fset, q + 1);
+        // q ≥ 3 (more than two redundant cables): signed maximal minors.
+        let mut qset = [0usize; 6];
+        let mut fset = [0usize; 6];
+        for q in 3..=r.min(n - 1) {
+            first_combination(&mut qset, q);
             loop {
-                let mut rows = [[0.0; 6]; 6];
-                let mut size = 1.0;
-                let mut skip = 0u32;
-                for a in 0..q {
-                    let x = qset[a];
-                    skip |= 1 << x;
-                    let mut norm2 = 0.0;
-                    for b in 0..=q {
-                        rows[a][b] = k.tx[x][fset[b]];
-                        norm2 += rows[a][b] * rows[a][b];
+                first_combination(&mut fset, q + 1);
+                loop {
+                    let mut rows = [[0.0; 6]; 6];
+                    let mut size = 1.0;
+                    let mut skip = 0u32;
+                    for a in 0..q {
+                        let x = qset[a];
+                        skip |= 1 << x;
+                        let mut norm2 = 0.0;
+                        for b in 0..=q {
+                            rows[a][b] = k.tx[x][fset[b]];
+                            norm2 += rows[a][b] * rows[a][b];
+                        }
+                        size *= norm2;
                     }
-                    size *= norm2;
-                }
-                let mut d = [0.0; 6];
-                cross_rows(&rows, q, &mut d);
-                if d[..=q].iter().map(|v| v * v).sum::<f64>() > SINE_TOLERANCE * size {
-                    match q {
-                        3 => k.facet(
-                            [d[0], d[1], d[2], d[3]],
-                            [fset[0], fset[1], fset[2], fset[3]],
-                            skip,
-                            &mut best,
-                        ),
-                        4 => k.facet(
-                            [d[0], d[1], d[2], d[3], d[4]],
-                            [fset[0], fset[1], fset[2], fset[3], fset[4]],
-                            skip,
-                            &mut best,
-                        ),
-                        _ => k.facet(d, fset, skip, &mut best),
+                    let mut d = [0.0; 6];
+                    cross_rows(&rows, q, &mut d);
+                    if d[..=q].iter().map(|v| v * v).sum::<f64>() > SINE_TOLERANCE * size {
+                        match q {
+                            3 => k.facet(
+                                [d[0], d[1], d[2], d[3]],
+                                [fset[0], fset[1], fset[2], fset[3]],
+                                skip,
+                                &mut best,
+                            ),
+                            4 => k.facet(
+                                [d[0], d[1], d[2], d[3], d[4]],
+                                [fset[0], fset[1], fset[2], fset[3], fset[4]],
+                                skip,
+                                &mut best,
+                            ),
+                            _ => k.facet(d, fset, skip, &mut best),
+                        }
+                    }
+                    if !next_combination(&mut fset, q + 1, n) {
+                        break;
                     }
                 }
-                if !next_combination(&mut fset, q + 1, n) {
+                if stop && best.num < 0.0 {
+                    break 'scan;
+                }
+                if !next_combination(&mut qset, q, r) {
                     break;
                 }
-            }
-            if !next_combination(&mut qset, q, r) {
-                break;
             }
         }
     }
@@ -500,6 +564,13 @@ fn margin(n: usize, args: MarginArgs<'_>) -> Result<Capacity> {
         }
     }
     let facets = best.facets;
+    let mut facet_cables = 0u32;
+    for b in (0..n).filter(|b| !best.f[..best.len].contains(b)) {
+        facet_cables |= 1 << k.col_b[b];
+    }
+    for x in (0..r).filter(|x| best.skip & (1 << x) != 0) {
+        facet_cables |= 1 << k.col_x[x];
+    }
     if !margin.is_finite() {
         return Err(CableError::NonFiniteResult {
             what: "capacity margin".into(),
@@ -515,6 +586,7 @@ fn margin(n: usize, args: MarginArgs<'_>) -> Result<Capacity> {
         degenerate: false,
         facets,
         weakest,
+        facet_cables,
     })
 }
 
@@ -631,11 +703,13 @@ fn eliminate<const N: usize, const W: usize>(
                 out.tx[out.r][row] = t[row][j];
             }
             out.rad_x[out.r] = 0.5 * (f_max[j] - f_min[j]);
+            out.col_x[out.r] = j;
             out.r += 1;
         }
     }
     for (b, &j) in basis.iter().enumerate() {
         out.rad_b[b] = 0.5 * (f_max[j] - f_min[j]);
+        out.col_b[b] = j;
         let mut g = [0.0; W];
         for i in 0..W {
             g[i] = t[b][i] * mid[i];
@@ -678,13 +752,15 @@ pub fn capacity(
         (f_min[i], f_max[i]) = (c.f_min, c.f_max);
     }
     debug_assert!(matches!(robot.motion, Motion::Planar | Motion::Spatial));
-    capacity_margin(
+    // (a validated robot: 1 <= n <= 6 and n <= m <= MAX_CABLES; the structure is n x m)
+    debug_assert!((1..=6).contains(&n) && (n..=MAX_CABLES).contains(&m));
+    let args = (
         geometry.structure(),
-        n,
         m,
         &f_min[..m],
         &f_max[..m],
         &w[..n],
         req,
-    )
+    );
+    margin_checked(n, args)
 }
