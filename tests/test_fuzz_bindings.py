@@ -208,6 +208,8 @@ def _calls() -> dict[str, Call]:
     out["Winch.zeros_and_poles"] = Call(winch.zeros_and_poles, ("fixed", True))
     out["Winch.root_locus"] = Call(winch.root_locus, ("synchronized", False, [0.5, 6.0]))
     out["Winch.dominant"] = Call(winch.dominant, ("fixed", False, 6.0))
+    wd_kw = dict(setup="synchronized", lpf=False, pretension=10.0, current_limit=5.0, friction_smoothing=0.02)
+    out["WinchDrive"] = Call(ck.WinchDrive, (winch,), dict(wd_kw, cable_damping=1.0))
     out["JawObserver.step"] = Call(drive.observer().step, (0.1, -0.02, 0.1))
     out["DriveModel.recalibrated"] = Call(drive.recalibrated, (drive_runs[1],), dict(dt=1e-3, friction=True))
     out["PhysicsObserver.calibrated"] = Call(
@@ -217,7 +219,7 @@ def _calls() -> dict[str, Call]:
         lambda th, ftol, max_iter: _problem().fit(th, ftol=ftol, max_iter=max_iter),
         (_problem().reference(), 1e-8, 3),
     )
-    for name, model in (("R3", R3), ("AJ", AJ), ("Dahl", DAHL)):
+    for name, model in (("R3", R3), ("AJ", AJ), ("Dahl", DAHL), ("WD", ck.WinchDrive.seed003())):
         x, u = _arr(model.n_states, value=0.0), _arr(model.n_inputs, value=0.0)
         out[f"{name}.derivative"] = Call(model.derivative, (x, u))
         out[f"{name}.output"] = Call(model.output, (x, u))

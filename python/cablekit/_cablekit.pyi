@@ -41,6 +41,7 @@ __all__ = [
     "Twin",
     "TwinRun",
     "Winch",
+    "WinchDrive",
     "__version__",
     "cable_tension",
     "capstan_ratio",
@@ -836,6 +837,34 @@ class Winch:
     def dominant(
         self, setup: str, lpf: bool, kp: float
     ) -> tuple[tuple[float, float], float, float] | None: ...
+
+@final
+class WinchDrive(Model):
+    """Seed 003's winch as a nonlinear model: state [alpha, alpha_dot, x_ee, x_ee_dot,
+    error_integral, derivative_filtered]; inputs [alpha_ref, alpha_ref_dot];
+    outputs [alpha, tension_a, tension_b, x_ee, current, tension_from_current]."""
+
+    def __new__(
+        cls,
+        winch: Winch | None = None,
+        *,
+        setup: str | None = None,
+        lpf: bool | None = None,
+        pretension: float | None = None,
+        current_limit: float | None = None,
+        friction_smoothing: float | None = None,
+        cable_damping: float | None = None,
+    ) -> WinchDrive: ...
+    @staticmethod
+    def seed003() -> WinchDrive: ...
+    @property
+    def winch(self) -> Winch: ...
+    @property
+    def setup(self) -> str: ...
+    @property
+    def lpf(self) -> bool: ...
+    @property
+    def settings(self) -> tuple[float, float, float, float]: ...
 
 @final
 class TensionController:

@@ -125,6 +125,10 @@ impl Model {
                 "DahlElement(sigma0={}, coulomb={}, exponent={})",
                 d.dahl.sigma0, d.dahl.coulomb, d.dahl.exponent
             ),
+            AnyModel::Winch(w) => format!(
+                "WinchDrive(setup={:?}, lpf={}, pretension={}, current_limit={})",
+                w.setup, w.lpf, w.pretension, w.current_limit
+            ),
         }
     }
 }
@@ -139,7 +143,10 @@ impl Model {
 }
 
 /// Initializer of a `Model` subclass wrapping `inner`.
-fn wrap<S: pyo3::PyClass<BaseType = Model>>(inner: AnyModel, sub: S) -> PyClassInitializer<S> {
+pub(crate) fn wrap<S: pyo3::PyClass<BaseType = Model>>(
+    inner: AnyModel,
+    sub: S,
+) -> PyClassInitializer<S> {
     PyClassInitializer::from(Model { inner }).add_subclass(sub)
 }
 

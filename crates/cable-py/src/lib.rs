@@ -26,6 +26,7 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<dynamics::CableTransmission>()?;
     m.add_class::<dynamics::AntagonisticJoint>()?;
     m.add_class::<dynamics::DahlElement>()?;
+    m.add_class::<winch::WinchDrive>()?;
     m.add_function(wrap_pyfunction!(integrate::simulate_arrays, m)?)?;
     m.add_function(wrap_pyfunction!(integrate::simulate_servo_arrays, m)?)?;
     m.add_function(wrap_pyfunction!(integrate::propose_step_raw, m)?)?;

@@ -1,10 +1,12 @@
 //! `Winch`: seed 003's actuator linearised — transfer functions, zeros and poles, root locus.
 
 use cable_core::cdpr::winch::{self as core, Complex, Setup};
+use cable_core::dynamics::{self as dynamics, AnyModel};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 
 use crate::convert::{to_matrix, vector};
+use crate::dynamics::{wrap, Model};
 use crate::errors::guarded;
 
 /// Seed 003's winch (DC motor, gearbox, drum, elastic cable to the EE held by an antagonist,
@@ -14,7 +16,7 @@ use crate::errors::guarded;
 /// come as `(n, 2)` arrays of `[re, im]`. Immutable.
 #[pyclass(frozen, module = "cablekit._cablekit")]
 pub struct Winch {
-    inner: core::Winch,
+    pub(crate) inner: core::Winch,
 }
 
 type Pair<'py, A> = (Bound<'py, A>, Bound<'py, A>);
@@ -109,5 +111,84 @@ impl Winch {
     /// every pole is real.
     fn dominant(&self, setup: &str, lpf: bool, kp: f64) -> PyResult<Dominant> {
         guarded(|| self.inner.dominant(Setup::from_name(setup)?, lpf, kp))
+    }
+}
+
+/// Seed 003's winch as a nonlinear `Model` (see `cable_core::dynamics::WinchDrive`): state
+/// `[alpha, alpha_dot, x_ee, x_ee_dot, error_integral, derivative_filtered]`, inputs
+/// `[alpha_ref, alpha_ref_dot]`, outputs `[alpha, tension_a, tension_b, x_ee, current,
+/// tension_from_current]`. Keywords left out take `WinchDrive.seed003()`'s values.
+#[pyclass(extends = Model, frozen, module = "cablekit._cablekit")]
+pub struct WinchDrive;
+
+fn drive(slf: &PyRef<'_, WinchDrive>) -> dynamics::WinchDrive {
+    match &slf.as_super().inner {
+        AnyModel::Winch(w) => *w,
+        _ => unreachable!("WinchDrive always wraps a winch drive"),
+    }
+}
+
+#[pymethods]
+impl WinchDrive {
+    #[new]
+    #[pyo3(signature = (winch = None, *, setup = None, lpf = None, pretension = None, current_limit = None, friction_smoothing = None, cable_damping = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        winch: Option<PyRef<'_, Winch>>,
+        setup: Option<&str>,
+        lpf: Option<bool>,
+        pretension: Option<f64>,
+        current_limit: Option<f64>,
+        friction_smoothing: Option<f64>,
+        cable_damping: Option<f64>,
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let d = dynamics::WinchDrive::seed003();
+        let model = guarded(|| {
+            dynamics::WinchDrive::new(
+                winch.map_or(d.winch, |w| w.inner),
+                setup.map_or(Ok(d.setup), Setup::from_name)?,
+                lpf.unwrap_or(d.lpf),
+                pretension.unwrap_or(d.pretension),
+                current_limit.unwrap_or(d.current_limit),
+                friction_smoothing.unwrap_or(d.friction_smoothing),
+                cable_damping.unwrap_or(d.cable_damping),
+            )
+        })?;
+        Ok(wrap(AnyModel::Winch(model), WinchDrive))
+    }
+
+    /// Seed 003's winch in Setup 1 with the LPF (`T₀ = 20 N`, `I_max = 10 A`: choices).
+    #[staticmethod]
+    fn seed003(py: Python<'_>) -> PyResult<Py<WinchDrive>> {
+        let model = dynamics::WinchDrive::seed003();
+        Py::new(py, wrap(AnyModel::Winch(model), WinchDrive))
+    }
+
+    /// The linear parameters (motor, gearbox, drum, cables, EE, PID) as a `Winch`.
+    #[getter]
+    fn winch(slf: PyRef<'_, Self>) -> Winch {
+        Winch {
+            inner: drive(&slf).winch,
+        }
+    }
+    /// `"fixed"` (Setup 1) or `"synchronized"` (Setup 2).
+    #[getter]
+    fn setup(slf: PyRef<'_, Self>) -> &'static str {
+        drive(&slf).setup.name()
+    }
+    #[getter]
+    fn lpf(slf: PyRef<'_, Self>) -> bool {
+        drive(&slf).lpf
+    }
+    /// `(pretension N, current_limit A, friction_smoothing rad/s, cable_damping N·s/m)`.
+    #[getter]
+    fn settings(slf: PyRef<'_, Self>) -> (f64, f64, f64, f64) {
+        let d = drive(&slf);
+        (
+            d.pretension,
+            d.current_limit,
+            d.friction_smoothing,
+            d.cable_damping,
+        )
     }
 }

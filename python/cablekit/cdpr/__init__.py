@@ -7,6 +7,10 @@
   are the Rust core's (see docs/cdpr.md).
 * :func:`workspace` — the static or wrench-feasible workspace on a grid, :func:`plot_workspace`
   its slices and 3-D view.
+* :class:`Winch` — seed 003's winch linearised (eq. 26: zeros, poles, root locus);
+  :class:`WinchDrive` — the same winch as a nonlinear model (static friction, current limit,
+  PID with the derivative's filter) for :func:`cablekit.simulate`, the sr-UKF and the
+  diagnosis; :mod:`cablekit.cdpr.winch` the seed's Table 5 and step responses.
 
 Conventions: a pose is ``[x, y, θ]`` (planar) or ``[x, y, z, roll, pitch, yaw]`` (spatial,
 ``R = R_z(yaw) R_y(pitch) R_x(roll)``); tensions ``f`` hold an external wrench ``w`` when
@@ -22,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from cablekit._cablekit import Capacity, Kinematics, Step, TensionController, Tensions, Winch
+from cablekit._cablekit import Capacity, Kinematics, Step, TensionController, Tensions, Winch, WinchDrive
 from cablekit._cablekit import Robot as _Robot
 from cablekit.cdpr.workspace import Requirement, Workspace, plot_workspace, workspace
 from cablekit.errors import DataError
@@ -36,6 +40,7 @@ __all__ = [
     "TensionController",
     "Tensions",
     "Winch",
+    "WinchDrive",
     "Workspace",
     "plot_workspace",
     "shipped",

@@ -1,9 +1,11 @@
 """Seed 003's winch actuator linearised (§3.2–3.3, issue #23): the open-loop zeros and poles of
 its Table 5 recomputed from its own Tables 1–4 and Appendices A–B, where the printed values
 disagree with those equations (with the arithmetic), the root locus over ``K_p`` and the
-dominant pair's damped frequency and peak time ``t_p = π/ω_d`` (eq. 30).
+dominant pair's damped frequency and peak time ``t_p = π/ω_d`` (eq. 30); and the nonlinear
+model (:class:`WinchDrive`: static friction, current limit, the cables' one-sidedness) stepped
+where the linear analysis cannot go (:func:`step_response`, :func:`step_table`).
 
-``cablekit cdpr winch --out DIR`` writes the table, the notes and the root-locus plot.
+``cablekit cdpr winch --out DIR`` writes the tables, the notes, the root-locus and step plots.
 """
 
 from __future__ import annotations
@@ -13,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cablekit._cablekit import Winch
+from cablekit._cablekit import Winch, WinchDrive
+from cablekit.simulation import simulate
 
 #: seed 003 Table 5 as printed: per column, zeros then poles (complex)
 _Z48 = [555.61j, -555.61j, -33.17, -2.13]
@@ -127,7 +130,8 @@ def inconsistencies(w: Winch | None = None) -> list[str]:
     j_l, b_l = w.load
     ea_l = 48.9e9 * 1.89e-6 / 6.0
     td, ti, wc = v["td"], v["ti"], v["cutoff"]
-    lpf = np.roots([ti * ti + td * ti * wc, wc * ti + 1.0, wc])
+    lpf = np.roots([ti + td * ti * wc, wc * ti + 1.0, wc])
+    typo = np.roots([ti * ti + td * ti * wc, wc * ti + 1.0, wc])
     plain = np.roots([td * ti, ti, 1.0])
     m = v["ee_mass"]
     low = Winch(np.array([*w.values[:9], 7560.0, 7560.0, *w.values[11:]]))
@@ -143,11 +147,16 @@ def inconsistencies(w: Winch | None = None) -> list[str]:
         f"m_E = 2 × {ea_l:,.0f} / 555.61² = {2 * ea_l / 555.61**2:.4f} kg; we use {m:g} kg.",
         "The drum radius is not in Tables 1–4; Appendix A's static-friction test (τ_fr = M·g·r, "
         f"M = 0.62 kg, τ_fr = 0.152 N·m) gives r = 0.152 / (0.62 × 9.81) = {r_mm:.2f} mm.",
-        f"PID zeros with the LPF (eq. 13, Table 4: t_i = {ti} s, t_d = {td} s, ω_c = {wc:g} rad/s): "
-        f"({ti * ti + td * ti * wc:.4f}) s² + ({wc * ti + 1:.1f}) s + {wc:g} = 0 has roots "
-        f"{lpf[0]:.2f} and {lpf[1]:.2f}; Table 5 prints −28.17 and −2.13. Without the LPF "
-        f"(eq. 12): {td * ti:.5f} s² + {ti} s + 1 = 0 gives {plain[0]:.2f} and {plain[1]:.2f} "
-        "(printed −33.17, −2.13: the rounding of t_d = K_d/K_p = 0.17/6 = 0.02833).",
+        "Eq. 13 as printed, K_p((t_i² + t_d·t_i·ω_c)s² + (ω_c·t_i + 1)s + ω_c)/(s(s + ω_c)t_i), "
+        "is not the PID it expands (K_p(1 + ω_c·t_d·s/(ω_c + s) + 1/(t_i·s))) and mixes units "
+        "(t_i² in s², t_d·t_i·ω_c in s): the first term is t_i. With Table 4 (t_i = "
+        f"{ti} s, t_d = {td} s, ω_c = {wc:g} rad/s) the printed form gives zeros {typo[0]:.2f} and "
+        f"{typo[1]:.2f}; the expansion, ({ti + td * ti * wc:.4f}) s² + ({wc * ti + 1:.1f}) s + "
+        f"{wc:g} = 0, gives {lpf[0]:.2f} and {lpf[1]:.2f}, and Table 5 prints -28.17 and -2.13: "
+        "the table was computed right, the equation is misprinted. We use the expansion (the "
+        "nonlinear model's linearisation agrees with it, a test). Without the LPF (eq. 12): "
+        f"{td * ti:.5f} s² + {ti} s + 1 = 0 gives {plain[0]:.2f} and {plain[1]:.2f} (printed "
+        "-33.17, -2.13: the rounding of t_d = K_d/K_p = 0.17/6 = 0.02833).",
         "The real part of Setup 1's slow pair and Setup 2's real pole follow from "
         f"J_l = {j_l:.6f} kg·m² and B_l = {b_l:.6f} N·m·s/rad (eq. 17 with Tables 1–3): "
         f"−B_l/(2J_l) = {slow1:.3f} and −B_l/(J_l + m_E r²) = {slow2:.3f}; Table 5 prints −1.84 "
@@ -192,6 +201,8 @@ def report(out: str | Path, plots: bool = True) -> str:
     out.mkdir(parents=True, exist_ok=True)
     cols = table5()
     fig = plot_root_locus(out / "winch_root_locus.png") if plots else None
+    steps = step_table()
+    steps_fig = plot_steps(out / "winch_steps.png", steps) if plots else None
     dom = [c for c in cols if c.omega_d]
     text = "\n\n".join(
         [
@@ -206,7 +217,186 @@ def report(out: str | Path, plots: bool = True) -> str:
             )
             + " (seed 003: ω_d ≈ 30 rad/s at 48.9 GPa and ≈ 39 rad/s at 100 GPa, t_p ≈ 80–100 ms).",
             f"![root locus]({fig.name})" if fig else "",
+            "## The nonlinear model stepped (WinchDrive: static friction, current limit 10 A, "
+            "T₀ = 20 N)\n\n" + step_markdown(steps),
+            f"![steps]({steps_fig.name})" if steps_fig else "",
         ]
     )
     (out / "winch.md").write_text(text + "\n", encoding="utf-8")
     return text
+
+
+@dataclass(frozen=True)
+class StepResponse:
+    """A reference step of ``step`` rad (``alpha_ref`` jumps, ``alpha_ref_dot`` stays 0) applied
+    to a :class:`WinchDrive` at rest at its working point, and what it did: the traces;
+    ``peak_time``, the first local maximum of α (s; ``None`` if α never turns back), and α there
+    as a fraction of the step (``peak_fraction``); ``rise_time`` to 90 % of the step (s);
+    ``overshoot`` (fraction of the step); ``settling_time`` (last exit from ±2 % of the step, s;
+    ``None`` if still outside at the end); ``peak_tension`` (largest driven-cable tension, N);
+    ``final_error`` (rad); and the linearisation's ``linear_peak_time`` ``π/ω_d`` (s) and its
+    slowest time constant ``linear_slowest`` (s) (:func:`linearised_poles`)."""
+
+    label: str
+    step: float
+    t: np.ndarray
+    alpha: np.ndarray
+    tension_a: np.ndarray
+    tension_b: np.ndarray
+    current: np.ndarray
+    peak_time: float | None
+    peak_fraction: float | None
+    rise_time: float | None
+    overshoot: float
+    settling_time: float | None
+    peak_tension: float
+    final_error: float
+    linear_peak_time: float | None
+    linear_slowest: float | None
+
+
+def _without_static_friction(drive: WinchDrive) -> WinchDrive:
+    v = drive.winch.values.copy()
+    v[list(Winch.NAMES).index("static_friction")] = 0.0
+    t0, i_max, eps, c = drive.settings
+    return WinchDrive(
+        Winch(v),
+        setup=drive.setup,
+        lpf=drive.lpf,
+        pretension=t0,
+        current_limit=i_max,
+        friction_smoothing=eps,
+        cable_damping=c,
+    )
+
+
+def linearised_poles(drive: WinchDrive) -> np.ndarray:
+    """Closed-loop poles of the model linearised at its working point without static friction
+    (the eigenvalues of ``∂f/∂x`` at rest; for Setup 1 these are eq. 26 closed by the PID, a
+    tested identity; for Setup 2 they are the physical setup's, not eq. 27's lumped one),
+    sorted by modulus. Without the LPF the unused filter state adds one pole at 0, left out."""
+    d = _without_static_friction(drive)
+    ev = np.linalg.eigvals(d.jacobian(np.zeros(d.n_states), np.zeros(d.n_inputs)))
+    if not drive.lpf:
+        ev = np.delete(ev, int(np.argmin(np.abs(ev))))
+    return ev[np.argsort(np.abs(ev), kind="stable")]
+
+
+def step_response(
+    drive: WinchDrive,
+    step: float = 0.2,
+    *,
+    duration: float = 4.0,
+    dt: float = 1e-3,
+    substeps: int = 10,
+    label: str = "",
+) -> StepResponse:
+    """Simulate a reference step of ``step`` rad for ``duration`` s (RK4, ``substeps`` per ``dt``)."""
+    n = round(duration / dt) + 1
+    inputs = np.zeros((n, 2))
+    inputs[1:, 0] = step
+    run = simulate(drive, inputs, dt, substeps=substeps)
+    t, alpha = run.t, run["alpha"]
+    frac = alpha / step
+    rising = np.diff(frac)
+    turns = np.flatnonzero((rising[:-1] > 0) & (rising[1:] <= 0)) + 1
+    peak = int(turns[0]) if turns.size else None
+    reached = np.flatnonzero(frac >= 0.9)
+    outside = np.flatnonzero(np.abs(frac - 1.0) > 0.02)
+    if not outside.size:
+        settle: float | None = 0.0
+    elif outside[-1] == n - 1:
+        settle = None
+    else:
+        settle = float(t[outside[-1] + 1])
+    poles = linearised_poles(drive)
+    pair = [p for p in poles if p.imag > 1e-9]
+    real = [p for p in poles if abs(p.imag) <= 1e-9 and p.real < 0]
+    return StepResponse(
+        label=label,
+        step=step,
+        t=t,
+        alpha=alpha,
+        tension_a=run["tension_a"],
+        tension_b=run["tension_b"],
+        current=run["current"],
+        peak_time=None if peak is None else float(t[peak]),
+        peak_fraction=None if peak is None else float(frac[peak]),
+        rise_time=float(t[reached[0]]) if reached.size else None,
+        overshoot=float(max(frac.max() - 1.0, 0.0)),
+        settling_time=settle,
+        peak_tension=float(run["tension_a"].max()),
+        final_error=float(alpha[-1] - step),
+        linear_peak_time=float(np.pi / pair[0].imag) if pair else None,
+        linear_slowest=float(-1.0 / max(p.real for p in real)) if real else None,
+    )
+
+
+def step_cases(w: Winch | None = None) -> list[tuple[str, WinchDrive, float]]:
+    """The steps of :func:`step_table`: the linear model's assumptions first (no static
+    friction), then the seed's friction, the LPF left out, Setup 2 as built (the antagonist's
+    drum following) and a step of a whole radian with the antagonist fixed."""
+    w = w or Winch.seed003()
+    v = w.values.copy()
+    v[list(Winch.NAMES).index("static_friction")] = 0.0
+    frictionless = Winch(v)
+    return [
+        ("Setup 1, LPF, no static friction", WinchDrive(frictionless, setup="fixed"), 0.2),
+        ("Setup 1, LPF, static friction", WinchDrive(w, setup="fixed"), 0.2),
+        ("Setup 1, no LPF, static friction", WinchDrive(w, setup="fixed", lpf=False), 0.2),
+        ("Setup 2, LPF, static friction", WinchDrive(w, setup="synchronized"), 0.2),
+        ("Setup 1, LPF, static friction, 1 rad", WinchDrive(w, setup="fixed"), 1.0),
+        ("Setup 1, LPF, static friction, 0.02 rad", WinchDrive(w, setup="fixed"), 0.02),
+    ]
+
+
+def step_table(w: Winch | None = None, *, duration: float = 4.0) -> list[StepResponse]:
+    """Every case of :func:`step_cases` stepped."""
+    return [step_response(d, s, duration=duration, label=name) for name, d, s in step_cases(w)]
+
+
+def step_markdown(rows: list[StepResponse]) -> str:
+    """The step responses as a Markdown table."""
+
+    def ms(v: float | None) -> str:
+        return "–" if v is None else f"{1e3 * v:.0f} ms"
+
+    lines = [
+        "| step | α step | first peak of α (linear π/ω_d) | α there | 90 % at (linear slowest τ) | "
+        "overshoot | settled ±2 % | peak T_A | error at end |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        there = "–" if r.peak_fraction is None else f"{100 * r.peak_fraction:.0f} %"
+        lines.append(
+            f"| {r.label} | {r.step:g} rad | {ms(r.peak_time)} ({ms(r.linear_peak_time)}) | {there} | "
+            f"{ms(r.rise_time)} ({ms(r.linear_slowest)}) | {100 * r.overshoot:.0f} % | "
+            f"{ms(r.settling_time)} | "
+            f"{r.peak_tension:.1f} N | {r.final_error:+.1e} rad |"
+        )
+    return "\n".join(lines)
+
+
+def plot_steps(path: str | Path, rows: list[StepResponse]) -> Path | None:
+    """α/step and T_A over time for every step."""
+    from cablekit.plotting import pyplot_or_none
+
+    plt = pyplot_or_none()
+    if plt is None:
+        return None
+    fig, (a, b) = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    for r in rows:
+        a.plot(r.t, r.alpha / r.step, lw=1, label=r.label)
+        b.plot(r.t, r.tension_a, lw=1, label=r.label)
+    a.axhline(1.0, color="k", lw=0.5)
+    a.set_ylabel("α / step")
+    b.set_ylabel("T_A (N)")
+    b.set_yscale("log")
+    b.set_xlabel("t (s)")
+    a.legend(fontsize=7)
+    a.set_title("Seed 003's winch, nonlinear model: reference steps (T₀ = 20 N)")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path

@@ -7,7 +7,8 @@
 //!                  (K_A·K_B·r² + B_l(K_A+K_B)·s + (J_l(K_A+K_B) + K_A·m_E·r²)·s² + B_l·m_E·s³ + J_l·m_E·s⁴)
 //! J_l = J_rotor·r_gb² + J_gb + J_drum,   B_l = B_rotor·r_gb² + B_gb+drum          (eq. 17)
 //! PID (eq. 12):    K_p·(t_d·t_i·s² + t_i·s + 1) / (t_i·s)
-//! PID + LPF (13):  K_p·((t_i² + t_d·t_i·ω_c)·s² + (ω_c·t_i + 1)·s + ω_c) / (s·(s + ω_c)·t_i)
+//! PID + LPF (13):  K_p·((t_i + t_d·t_i·ω_c)·s² + (ω_c·t_i + 1)·s + ω_c) / (s·(s + ω_c)·t_i)
+//!                  (the seed prints t_i² for the first t_i: a typo, see docs/cdpr.md)
 //! Setup 1: the antagonist holds still;  Setup 2 (eq. 27): both move, K_A ← K_A + K_B, K_B ← 0
 //! ```
 //!
@@ -102,6 +103,14 @@ pub const WINCH_NAMES: [&str; N_WINCH] = [
 ];
 
 impl Setup {
+    /// Its name: `"fixed"` or `"synchronized"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Setup::AntagonistFixed => "fixed",
+            Setup::Synchronized => "synchronized",
+        }
+    }
+
     /// `"fixed"` (Setup 1) or `"synchronized"` (Setup 2).
     pub fn from_name(name: &str) -> Result<Self> {
         match name {
@@ -283,7 +292,7 @@ impl Winch {
         let (td, ti, wc) = (self.td, self.ti, self.cutoff);
         if lpf {
             TransferFunction {
-                num: vec![ti * ti + td * ti * wc, wc * ti + 1.0, wc],
+                num: vec![ti + td * ti * wc, wc * ti + 1.0, wc],
                 den: vec![ti, wc * ti, 0.0],
             }
         } else {

@@ -1,7 +1,7 @@
 //! [`AnyModel`]: the closed set of cablekit models as one value, for front ends that choose a
 //! model at run time (the Python classes, model files).
 
-use super::{AntagonisticJoint, CableTransmission, DahlElement, Model};
+use super::{AntagonisticJoint, CableTransmission, DahlElement, Model, WinchDrive};
 use crate::error::{CableError, Result};
 
 /// One of cablekit's models. Implements [`Model`] by forwarding (one branch per call); hot
@@ -14,6 +14,8 @@ pub enum AnyModel {
     Antagonistic(AntagonisticJoint),
     /// Dahl friction element.
     Dahl(DahlElement),
+    /// Seed 003's winch, cable and EE under its PID.
+    Winch(WinchDrive),
 }
 
 /// Evaluate `$body` with `$m` bound to the concrete model inside an [`AnyModel`]
@@ -25,6 +27,7 @@ macro_rules! with_model {
             $crate::dynamics::AnyModel::Transmission($m) => $body,
             $crate::dynamics::AnyModel::Antagonistic($m) => $body,
             $crate::dynamics::AnyModel::Dahl($m) => $body,
+            $crate::dynamics::AnyModel::Winch($m) => $body,
         }
     };
 }
@@ -48,6 +51,7 @@ impl AnyModel {
             Self::Transmission(_) => "CableTransmission",
             Self::Antagonistic(_) => "AntagonisticJoint",
             Self::Dahl(_) => "DahlElement",
+            Self::Winch(_) => "WinchDrive",
         }
     }
 }
@@ -102,6 +106,12 @@ impl From<CableTransmission> for AnyModel {
 impl From<AntagonisticJoint> for AnyModel {
     fn from(j: AntagonisticJoint) -> Self {
         Self::Antagonistic(j)
+    }
+}
+
+impl From<WinchDrive> for AnyModel {
+    fn from(w: WinchDrive) -> Self {
+        Self::Winch(w)
     }
 }
 

@@ -10,6 +10,7 @@ mod dahl;
 mod raven2;
 mod spec;
 mod transmission;
+mod winch;
 
 pub use antagonistic::{AntagonisticJoint, Contact, OUTPUT_NAMES as ANTAGONISTIC_OUTPUTS};
 pub use any::AnyModel;
@@ -19,6 +20,7 @@ pub use spec::{
     FieldDefault, JointSpec, SpecValue, TransmissionSpec, JOINT_FIELDS, TRANSMISSION_FIELDS,
 };
 pub use transmission::{CableTransmission, Gravity, JointKind, TransmissionLink, MAX_LINKS};
+pub use winch::{WinchDrive, WINCH_INPUT_NAMES, WINCH_OUTPUT_NAMES, WINCH_STATE_NAMES};
 
 /// A continuous-time state-space model `ẋ = f(x, u)`, `y = h(x, u)`.
 ///
