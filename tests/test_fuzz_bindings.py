@@ -210,6 +210,14 @@ def _calls() -> dict[str, Call]:
     out["Winch.dominant"] = Call(winch.dominant, ("fixed", False, 6.0))
     wd_kw = dict(setup="synchronized", lpf=False, pretension=10.0, current_limit=5.0, friction_smoothing=0.02)
     out["WinchDrive"] = Call(ck.WinchDrive, (winch,), dict(wd_kw, cable_damping=1.0))
+    from cablekit.cdpr import Calibration, LoadCellPulley, SignalChain
+
+    loads, reads = np.array([1.0, 2.0, 3.0]), np.array([12.0, 22.0, 32.5])
+    out["Calibration.fit"] = Call(Calibration.fit, (loads, reads, loads[::-1].copy(), reads[::-1] + 0.1))
+    out["Calibration.tension"] = Call(Calibration(10.0, 2.0).tension, (reads,))
+    out["LoadCellPulley.push"] = Call(LoadCellPulley(0.1, 0.2).push, (5.0,))
+    t_chain = np.arange(50) * 0.01
+    out["SignalChain.apply"] = Call(SignalChain(0.05, 0.02).apply, (t_chain, np.sin(t_chain)))
     out["JawObserver.step"] = Call(drive.observer().step, (0.1, -0.02, 0.1))
     out["DriveModel.recalibrated"] = Call(drive.recalibrated, (drive_runs[1],), dict(dt=1e-3, friction=True))
     out["PhysicsObserver.calibrated"] = Call(

@@ -11,6 +11,8 @@ from typing_extensions import disjoint_base
 __all__ = [
     "AntagonisticJoint",
     "CableTransmission",
+    "Calibration",
+    "CalibrationFit",
     "Capacity",
     "ClampRun",
     "ClampStep",
@@ -28,12 +30,14 @@ __all__ = [
     "JointRun",
     "Jtdo",
     "Kinematics",
+    "LoadCellPulley",
     "Mlp",
     "Model",
     "ParamSpec",
     "PhysicsCalibration",
     "PhysicsObserver",
     "Robot",
+    "SignalChain",
     "SrUkf",
     "Step",
     "TensionController",
@@ -839,6 +843,61 @@ class Winch:
     ) -> tuple[tuple[float, float], float, float] | None: ...
 
 @final
+class LoadCellPulley:
+    """A load cell pushed by a pulley deflecting the cable (seed 003 eqs 31–32)."""
+
+    def __new__(cls, angle_1: float, angle_2: float) -> LoadCellPulley: ...
+    @property
+    def ratio(self) -> float: ...
+    def push(self, tension: float) -> float: ...
+    def tension_range(self, rating: float) -> float: ...
+
+@final
+class Calibration:
+    """A linear calibration R = gain·T + offset (seed 003 eq. 33)."""
+
+    def __new__(cls, gain: float, offset: float) -> Calibration: ...
+    @property
+    def gain(self) -> float: ...
+    @property
+    def offset(self) -> float: ...
+    def tension(self, readings: _F) -> _F: ...
+    @staticmethod
+    def fit(
+        loading_loads: _F, loading_readings: _F, unloading_loads: _F, unloading_readings: _F
+    ) -> CalibrationFit: ...
+
+@final
+class CalibrationFit:
+    """``Calibration.fit``: the line, its correlation, residuals and hysteresis."""
+
+    @property
+    def calibration(self) -> Calibration: ...
+    @property
+    def correlation(self) -> float: ...
+    @property
+    def residual_rms(self) -> float: ...
+    @property
+    def residual_max(self) -> float: ...
+    @property
+    def hysteresis(self) -> float: ...
+    @property
+    def hysteresis_fraction(self) -> float: ...
+
+@final
+class SignalChain:
+    """Integrating converter, sample-and-hold and latency between a gauge and the controller."""
+
+    def __new__(cls, conversion_time: float, latency: float) -> SignalChain: ...
+    @staticmethod
+    def hx711_ble() -> SignalChain: ...
+    @property
+    def conversion_time(self) -> float: ...
+    @property
+    def latency(self) -> float: ...
+    def apply(self, t: _F, signal: _F) -> _F: ...
+
+@final
 class WinchDrive(Model):
     """Seed 003's winch as a nonlinear model: state [alpha, alpha_dot, x_ee, x_ee_dot,
     error_integral, derivative_filtered]; inputs [alpha_ref, alpha_ref_dot];
@@ -854,6 +913,7 @@ class WinchDrive(Model):
         current_limit: float | None = None,
         friction_smoothing: float | None = None,
         cable_damping: float | None = None,
+        control: str | None = None,
     ) -> WinchDrive: ...
     @staticmethod
     def seed003() -> WinchDrive: ...
@@ -863,6 +923,8 @@ class WinchDrive(Model):
     def setup(self) -> str: ...
     @property
     def lpf(self) -> bool: ...
+    @property
+    def control(self) -> str: ...
     @property
     def settings(self) -> tuple[float, float, float, float]: ...
 

@@ -14,6 +14,7 @@ mod identify;
 mod integrate;
 mod nn;
 mod results;
+mod sensors;
 mod winch;
 
 use pyo3::prelude::*;
@@ -27,6 +28,10 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<dynamics::AntagonisticJoint>()?;
     m.add_class::<dynamics::DahlElement>()?;
     m.add_class::<winch::WinchDrive>()?;
+    m.add_class::<sensors::LoadCellPulley>()?;
+    m.add_class::<sensors::Calibration>()?;
+    m.add_class::<sensors::CalibrationFit>()?;
+    m.add_class::<sensors::SignalChain>()?;
     m.add_function(wrap_pyfunction!(integrate::simulate_arrays, m)?)?;
     m.add_function(wrap_pyfunction!(integrate::simulate_servo_arrays, m)?)?;
     m.add_function(wrap_pyfunction!(integrate::propose_step_raw, m)?)?;

@@ -131,7 +131,7 @@ fn drive(slf: &PyRef<'_, WinchDrive>) -> dynamics::WinchDrive {
 #[pymethods]
 impl WinchDrive {
     #[new]
-    #[pyo3(signature = (winch = None, *, setup = None, lpf = None, pretension = None, current_limit = None, friction_smoothing = None, cable_damping = None))]
+    #[pyo3(signature = (winch = None, *, setup = None, lpf = None, pretension = None, current_limit = None, friction_smoothing = None, cable_damping = None, control = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         winch: Option<PyRef<'_, Winch>>,
@@ -141,9 +141,11 @@ impl WinchDrive {
         current_limit: Option<f64>,
         friction_smoothing: Option<f64>,
         cable_damping: Option<f64>,
+        control: Option<&str>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let d = dynamics::WinchDrive::seed003();
         let model = guarded(|| {
+            let control = control.map_or(Ok(d.control), dynamics::Control::from_name)?;
             dynamics::WinchDrive::new(
                 winch.map_or(d.winch, |w| w.inner),
                 setup.map_or(Ok(d.setup), Setup::from_name)?,
@@ -153,6 +155,7 @@ impl WinchDrive {
                 friction_smoothing.unwrap_or(d.friction_smoothing),
                 cable_damping.unwrap_or(d.cable_damping),
             )
+            .map(|m| m.with_control(control))
         })?;
         Ok(wrap(AnyModel::Winch(model), WinchDrive))
     }
@@ -179,6 +182,11 @@ impl WinchDrive {
     #[getter]
     fn lpf(slf: PyRef<'_, Self>) -> bool {
         drive(&slf).lpf
+    }
+    /// `"position"` (the PID loop) or `"current"` (input `[current_ref]`, A).
+    #[getter]
+    fn control(slf: PyRef<'_, Self>) -> &'static str {
+        drive(&slf).control.name()
     }
     /// `(pretension N, current_limit A, friction_smoothing rad/s, cable_damping N·s/m)`.
     #[getter]

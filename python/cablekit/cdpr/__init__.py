@@ -26,16 +26,32 @@ from typing import Any
 
 import numpy as np
 
-from cablekit._cablekit import Capacity, Kinematics, Step, TensionController, Tensions, Winch, WinchDrive
+from cablekit._cablekit import (
+    Calibration,
+    CalibrationFit,
+    Capacity,
+    Kinematics,
+    LoadCellPulley,
+    SignalChain,
+    Step,
+    TensionController,
+    Tensions,
+    Winch,
+    WinchDrive,
+)
 from cablekit._cablekit import Robot as _Robot
 from cablekit.cdpr.workspace import Requirement, Workspace, plot_workspace, workspace
 from cablekit.errors import DataError
 
 __all__ = [
+    "Calibration",
+    "CalibrationFit",
     "Capacity",
     "Kinematics",
+    "LoadCellPulley",
     "Requirement",
     "Robot",
+    "SignalChain",
     "Step",
     "TensionController",
     "Tensions",

@@ -203,6 +203,10 @@ def report(out: str | Path, plots: bool = True) -> str:
     fig = plot_root_locus(out / "winch_root_locus.png") if plots else None
     steps = step_table()
     steps_fig = plot_steps(out / "winch_steps.png", steps) if plots else None
+    from cablekit.cdpr.sensors import calibration_table, fig18, fig18_table, plot_fig18, seed_calibrations
+
+    sweeps = fig18()
+    sweeps_fig = plot_fig18(out / "winch_fig18.png", sweeps) if plots else None
     dom = [c for c in cols if c.omega_d]
     text = "\n\n".join(
         [
@@ -220,6 +224,12 @@ def report(out: str | Path, plots: bool = True) -> str:
             "## The nonlinear model stepped (WinchDrive: static friction, current limit 10 A, "
             "T₀ = 20 N)\n\n" + step_markdown(steps),
             f"![steps]({steps_fig.name})" if steps_fig else "",
+            "## Sensors: calibration as in Figs 14–15 (eq. 33; the rig's pulley μφ = 0.01 under the "
+            "load-cell ones)\n\n" + calibration_table(seed_calibrations()),
+            "## Fig. 18: the motor-current estimate (eq. 35) against the inline sensor through the "
+            "HX711 (100 ms) and BLE (30 ms), current stepped 0 → 1.7 A → 0 (levels above 0.9 A, "
+            "where the drum moves both ways)\n\n" + fig18_table(sweeps),
+            f"![fig18]({sweeps_fig.name})" if sweeps_fig else "",
         ]
     )
     (out / "winch.md").write_text(text + "\n", encoding="utf-8")

@@ -9,6 +9,7 @@ mod controller;
 mod kinematics;
 mod qp;
 mod robot;
+pub mod sensors;
 mod tension;
 pub mod winch;
 mod workspace;

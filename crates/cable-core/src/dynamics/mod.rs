@@ -20,7 +20,10 @@ pub use spec::{
     FieldDefault, JointSpec, SpecValue, TransmissionSpec, JOINT_FIELDS, TRANSMISSION_FIELDS,
 };
 pub use transmission::{CableTransmission, Gravity, JointKind, TransmissionLink, MAX_LINKS};
-pub use winch::{WinchDrive, WINCH_INPUT_NAMES, WINCH_OUTPUT_NAMES, WINCH_STATE_NAMES};
+pub use winch::{
+    Control, WinchDrive, WINCH_CURRENT_INPUT, WINCH_INPUT_NAMES, WINCH_OUTPUT_NAMES,
+    WINCH_STATE_NAMES,
+};
 
 /// A continuous-time state-space model `ẋ = f(x, u)`, `y = h(x, u)`.
 ///

@@ -29,8 +29,12 @@
 //! the driven drum feels `K_A`. The seed's eq. 27 instead lumps both cables on one drum
 //! (`K_A ← K_A + K_B`, `K_B ← 0`); that is this model's Setup 1 with those stiffnesses.
 //!
+//! **Current control** ([`Control::Current`], the seed's Fig. 18 experiment): the amplifier
+//! follows a current reference `u = [i_ref]` (A, within `±I_max`) and the PID is bypassed (`z`
+//! and `D` stay put).
+//!
 //! State `x = [α, α̇, x_E, ẋ_E, z, D]` (rad, rad/s, m, m/s, rad·s, rad); input
-//! `u = [α_ref, α̇_ref]` (rad, rad/s); outputs `y = [α, T_A, T_B, x_E, i_a, T̂]` (rad, N, N, m,
+//! `u = [α_ref, α̇_ref]` (rad, rad/s) under position control; outputs `y = [α, T_A, T_B, x_E, i_a, T̂]` (rad, N, N, m,
 //! A, N) with the motor-current tension estimate `T̂ = k_φ·r_gb·i_a/r` (eqs 34–35).
 
 use super::Model;
@@ -49,6 +53,41 @@ pub const WINCH_STATE_NAMES: [&str; 6] = [
 ];
 /// Input names of a [`WinchDrive`].
 pub const WINCH_INPUT_NAMES: [&str; 2] = ["alpha_ref", "alpha_ref_dot"];
+/// Input name of a [`WinchDrive`] under [`Control::Current`].
+pub const WINCH_CURRENT_INPUT: &str = "current_ref";
+
+/// What the servo amplifier follows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Control {
+    /// The PID position loop sets the current (the seed's §3).
+    #[default]
+    Position,
+    /// A current reference, the PID bypassed (the seed's Fig. 18 experiment).
+    Current,
+}
+
+impl Control {
+    /// From its name (`"position"`, `"current"`).
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "position" => Ok(Self::Position),
+            "current" => Ok(Self::Current),
+            other => Err(crate::error::CableError::InvalidOption {
+                name: "control".into(),
+                value: other.into(),
+                allowed: "position, current".into(),
+            }),
+        }
+    }
+
+    /// Its name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Position => "position",
+            Self::Current => "current",
+        }
+    }
+}
 /// Output names of a [`WinchDrive`].
 pub const WINCH_OUTPUT_NAMES: [&str; 6] = [
     "alpha",
@@ -76,6 +115,8 @@ pub struct WinchDrive {
     pub friction_smoothing: f64,
     /// Damping of each cable `c` (N·s/m), ≥ 0; the seed has none.
     pub cable_damping: f64,
+    /// What the amplifier follows (position loop by default).
+    pub control: Control,
 }
 
 impl WinchDrive {
@@ -97,6 +138,7 @@ impl WinchDrive {
             current_limit,
             friction_smoothing,
             cable_damping,
+            control: Control::Position,
         };
         w.validate()?;
         Ok(w)
@@ -114,7 +156,13 @@ impl WinchDrive {
             current_limit: 10.0,
             friction_smoothing: 0.01,
             cable_damping: 0.0,
+            control: Control::Position,
         }
+    }
+
+    /// The same winch under `control`.
+    pub fn with_control(self, control: Control) -> Self {
+        Self { control, ..self }
     }
 
     /// Every parameter finite and in range.
@@ -149,6 +197,9 @@ impl WinchDrive {
     #[inline]
     pub fn current(&self, x: &[f64], u: &[f64]) -> (f64, f64) {
         let w = &self.winch;
+        if self.control == Control::Current {
+            return (u[0], u[0].clamp(-self.current_limit, self.current_limit));
+        }
         let e = u[0] - x[0];
         let derivative = if self.lpf { x[5] } else { w.td * (u[1] - x[1]) };
         let cmd = w.kp * (e + derivative + x[4] / w.ti);
@@ -167,7 +218,10 @@ impl Model for WinchDrive {
         6
     }
     fn n_inputs(&self) -> usize {
-        2
+        match self.control {
+            Control::Position => 2,
+            Control::Current => 1,
+        }
     }
     fn n_outputs(&self) -> usize {
         6
@@ -187,6 +241,11 @@ impl Model for WinchDrive {
         dx[1] = torque / w.load_inertia();
         dx[2] = v_ee;
         dx[3] = (t_b - t_a) / w.ee_mass;
+        if self.control == Control::Current {
+            dx[4] = 0.0;
+            dx[5] = 0.0;
+            return;
+        }
         // conditional integration: hold the integral while saturated and `e` pushes further
         let winding = cmd.abs() > self.current_limit && w.kp * e * cmd > 0.0;
         dx[4] = if winding { 0.0 } else { e };
@@ -210,12 +269,13 @@ impl Model for WinchDrive {
     }
 
     /// The working point at rest: `α = 0`, `x_E = 0`, the integral holding `i₀` (within the
-    /// current limit; zero when `K_p = 0`, which has no such equilibrium).
+    /// current limit; zero when `K_p = 0`, which has no such equilibrium, and under current
+    /// control, where the held current is the input's).
     fn rest_state(&self) -> Vec<f64> {
         let w = &self.winch;
         let hold = (w.drum_radius * self.pretension / (w.torque_constant * w.gear_ratio))
             .min(self.current_limit);
-        let z = if w.kp.abs() > 0.0 {
+        let z = if w.kp.abs() > 0.0 && self.control == Control::Position {
             hold * w.ti / w.kp
         } else {
             0.0
@@ -227,7 +287,10 @@ impl Model for WinchDrive {
         WINCH_STATE_NAMES.iter().map(|s| (*s).to_owned()).collect()
     }
     fn input_names(&self) -> Vec<String> {
-        WINCH_INPUT_NAMES.iter().map(|s| (*s).to_owned()).collect()
+        match self.control {
+            Control::Position => WINCH_INPUT_NAMES.iter().map(|s| (*s).to_owned()).collect(),
+            Control::Current => vec![WINCH_CURRENT_INPUT.to_owned()],
+        }
     }
     fn output_names(&self) -> Vec<String> {
         WINCH_OUTPUT_NAMES.iter().map(|s| (*s).to_owned()).collect()
@@ -388,6 +451,44 @@ mod tests {
         still.output(&x, &[target, 0.0], &mut y);
         assert!((y[1] - 40.0).abs() < 0.05, "{y:?}");
         assert!((y[5] - y[1]).abs() < 1e-3 * y[1], "{y:?}");
+    }
+
+    /// Under current control with a sharp static friction, a slow current ramp up and back
+    /// down leaves the tension `(k_φ·r_gb·i ∓ τ_st)/r`: the motor-current estimate reads high
+    /// by `τ_st/r` while loading and low by as much while unloading (the seed's Fig. 18).
+    #[test]
+    fn current_control_shows_the_static_friction_hysteresis_of_the_current_estimate() {
+        let mut m = WinchDrive::seed003().with_control(Control::Current);
+        m.friction_smoothing = 1e-4;
+        m.cable_damping = 20.0;
+        let w = m.winch;
+        let band = w.static_friction / w.drum_radius;
+        let mut x = vec![0.0; 6];
+        let mut y = [0.0; 6];
+        // ramps (2 s each, then 0.5 s held): 0 → 1.3 A loading, 1.3 → 0.9 A unloading; the
+        // estimate is then off by the whole band either way
+        let mut level = 0.0;
+        for (target, loading) in [(1.3, true), (0.9, false)] {
+            for k in 0..2500 {
+                // (a smoothstep: the drum stops without momentum to carry it into the band)
+                let at = |k: usize| {
+                    let s = (k as f64 / 2000.0).min(1.0);
+                    level + (target - level) * s * s * (3.0 - 2.0 * s)
+                };
+                x = rk4_interval(&m, &x, &[at(k)], &[at(k + 1)], 1e-3, 100).unwrap();
+            }
+            level = target;
+            m.output(&x, &[target], &mut y);
+            let want = if loading { y[5] - band } else { y[5] + band };
+            assert!(
+                (y[1] - want).abs() < 0.05 * band,
+                "{target} {loading}: {y:?} band {band}"
+            );
+        }
+        let mut dx = [0.0; 6];
+        m.derivative(&x, &[0.9], &mut dx);
+        assert!(dx[4].abs() < 1e-300 && dx[5].abs() < 1e-300);
+        assert_eq!(m.input_names(), vec!["current_ref".to_owned()]);
     }
 
     /// The rest state is an equilibrium: the integral's current carries the pretension.
