@@ -216,6 +216,16 @@ def _calls() -> dict[str, Call]:
     out["Calibration.fit"] = Call(Calibration.fit, (loads, reads, loads[::-1].copy(), reads[::-1] + 0.1))
     out["Calibration.tension"] = Call(Calibration(10.0, 2.0).tension, (reads,))
     out["LoadCellPulley.push"] = Call(LoadCellPulley(0.1, 0.2).push, (5.0,))
+    from cablekit.cdpr import shipped
+
+    mini = shipped("seed002_mini")
+    q_mini = np.zeros((4, 6))
+    q_mini[:, 2] = 0.475
+    q_mini[:, 0] = np.linspace(0.0, 0.01, 4)
+    f_mini = np.full((4, 8), 10.0)
+    one = np.array([0.05])
+    out["Robot.path_friction"] = Call(mini.path_friction, (q_mini, f_mini, 0.01, one, one, one))
+    out["Robot.project_tensions"] = Call(mini.project_tensions, (q_mini, f_mini))
     t_chain = np.arange(50) * 0.01
     out["SignalChain.apply"] = Call(SignalChain(0.05, 0.02).apply, (t_chain, np.sin(t_chain)))
     out["JawObserver.step"] = Call(drive.observer().step, (0.1, -0.02, 0.1))

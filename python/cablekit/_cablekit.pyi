@@ -34,6 +34,7 @@ __all__ = [
     "Mlp",
     "Model",
     "ParamSpec",
+    "PathRun",
     "PhysicsCalibration",
     "PhysicsObserver",
     "Robot",
@@ -575,6 +576,8 @@ class Robot:
     @property
     def n_cables(self) -> int: ...
     @property
+    def mass(self) -> float: ...
+    @property
     def bounds(self) -> tuple[_F, _F]:
         """(f_min, f_max) per cable (N)."""
     def inverse_kinematics(self, poses: _F) -> Kinematics:
@@ -583,6 +586,25 @@ class Robot:
         self, poses: _F, wrenches: _F | None = None, *, method: str = "auto", gravity: bool = True
     ) -> Tensions:
         """Tensions holding the platform's weight plus external wrenches (T, n)."""
+    def path_friction(
+        self,
+        poses: _F,
+        ee: _F,
+        dt: float,
+        coefficient: _F,
+        viscous: _F,
+        guide_wrap: _F,
+        *,
+        law: str | None = None,
+        smoothing: float | None = None,
+        presliding: float | None = None,
+        exponent: float | None = None,
+    ) -> PathRun:
+        """Winch-side tensions through each cable's path friction (seed 002 eqs 7–8)."""
+    def project_tensions(
+        self, poses: _F, tensions: _F, wrenches: _F | None = None, *, gravity: bool = True
+    ) -> _F:
+        """The nearest tensions (T, m) to the measured ones that hold the platform (seed 002 eq. 10)."""
     def forward_kinematics(
         self, lengths: _F, seed: _F, tolerance: float = 1e-10
     ) -> tuple[_F, float, int, bool]:
@@ -841,6 +863,19 @@ class Winch:
     def dominant(
         self, setup: str, lpf: bool, kp: float
     ) -> tuple[tuple[float, float], float, float] | None: ...
+
+@final
+class PathRun:
+    """``Robot.path_friction``: pul, friction, speed, wrap, each (T, m)."""
+
+    @property
+    def pul(self) -> _F: ...
+    @property
+    def friction(self) -> _F: ...
+    @property
+    def speed(self) -> _F: ...
+    @property
+    def wrap(self) -> _F: ...
 
 @final
 class LoadCellPulley:

@@ -9,12 +9,20 @@ use cable_core::cdpr::{
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 
-use crate::convert::{any_vector, matrix, out_vector, to_vector, vector, vector_into};
+use crate::convert::{any_vector, matrix, out_vector, to_matrix, to_vector, vector, vector_into};
 use crate::errors::{guarded, lock};
-use crate::results::{Capacity, Kinematics, Step, Tensions};
+use crate::results::{Capacity, Kinematics, PathRun, Step, Tensions};
 
 /// `(cable, radius, axis)` of each pulley.
 type Pulleys = Vec<(usize, f64, [f64; 3])>;
+
+/// The optional `wrenches` `(T, n)` argument, copied out (`None` when absent or `None`).
+fn optional_wrenches(wrenches: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Option<Vec<f64>>> {
+    wrenches
+        .filter(|w| !w.is_none())
+        .map(|w| Ok(matrix(w, "wrenches", Some(n))?.0.as_slice()?.to_vec()))
+        .transpose()
+}
 
 /// A cable-driven parallel robot (seeds 002, 003): `motion` `"planar"` (pose `[x, y, θ]`) or
 /// `"spatial"` (pose `[x, y, z, roll, pitch, yaw]`), per cable an anchor and a platform
@@ -84,6 +92,11 @@ impl Robot {
     fn n_cables(&self) -> usize {
         self.inner.n_cables()
     }
+    /// The platform's mass (kg).
+    #[getter]
+    fn mass(&self) -> f64 {
+        self.inner.platform.mass
+    }
     /// `(f_min, f_max)` per cable (N).
     #[getter]
     fn bounds<'py>(
@@ -113,6 +126,69 @@ impl Robot {
         Ok(Kinematics::new(py, length, structure, (t, n, m)))
     }
 
+    /// The winch-side (sensor) tensions along a trajectory: poses `(T, n)` every `dt` s, the
+    /// platform-side tensions `ee` `(T, m)`, and each cable's path friction (seed 002 eqs 7–8):
+    /// `coefficient` μ, `viscous` σ_v (N·s/m), `guide_wrap` (rad) as `(m,)` or `(1,)` arrays,
+    /// `law` `"dahl"` (`presliding` m, `exponent`) or `"coulomb"` (`smoothing` m/s). A
+    /// `PathRun` (GIL released).
+    #[pyo3(signature = (poses, ee, dt, coefficient, viscous, guide_wrap, *, law = None, smoothing = None, presliding = None, exponent = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn path_friction(
+        &self,
+        py: Python<'_>,
+        poses: &Bound<'_, PyAny>,
+        ee: &Bound<'_, PyAny>,
+        dt: f64,
+        coefficient: &Bound<'_, PyAny>,
+        viscous: &Bound<'_, PyAny>,
+        guide_wrap: &Bound<'_, PyAny>,
+        law: Option<&str>,
+        smoothing: Option<f64>,
+        presliding: Option<f64>,
+        exponent: Option<f64>,
+    ) -> PyResult<PathRun> {
+        let (n, m) = (self.inner.dof(), self.inner.n_cables());
+        let (p, t) = matrix(poses, "poses", Some(n))?;
+        let (e, _) = matrix(ee, "ee", Some(m))?;
+        let [mu, sv, gw] = [
+            (coefficient, "coefficient"),
+            (viscous, "viscous"),
+            (guide_wrap, "guide_wrap"),
+        ]
+        .map(|(a, name)| any_vector(a, name));
+        let (mu, sv, gw) = (mu?, sv?, gw?);
+        let paths = guarded(|| {
+            let law = core::PathLaw::named(law, smoothing, presliding, exponent)?;
+            core::PathFriction::per_cable(&mu, &sv, &gw, law, m)
+        })?;
+        let (p, e) = (p.as_slice()?, e.as_slice()?);
+        let run = py.detach(|| guarded(|| core::path_friction(&self.inner, p, e, dt, &paths)))?;
+        Ok(PathRun::new(py, run, (t, m)))
+    }
+
+    /// Measured tensions `(T, m)` moved to the nearest tensions that hold the platform at the
+    /// poses `(T, n)` against the external `wrenches` `(T, n)` and the weight (unless
+    /// `gravity=False`): seed 002 eq. 10 with the measurement as `f_ref` (GIL released).
+    #[pyo3(signature = (poses, tensions, wrenches = None, *, gravity = true))]
+    fn project_tensions<'py>(
+        &self,
+        py: Python<'py>,
+        poses: &Bound<'py, PyAny>,
+        tensions: &Bound<'py, PyAny>,
+        wrenches: Option<&Bound<'py, PyAny>>,
+        gravity: bool,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let (n, m) = (self.inner.dof(), self.inner.n_cables());
+        let (p, t) = matrix(poses, "poses", Some(n))?;
+        let (f, _) = matrix(tensions, "tensions", Some(m))?;
+        let ext = optional_wrenches(wrenches, n)?;
+        let (p, f) = (p.as_slice()?, f.as_slice()?);
+        let out = py.detach(|| {
+            guarded(|| core::equilibrium_projection(&self.inner, p, f, ext.as_deref(), gravity))
+        })?;
+        Ok(to_matrix(py, out, t, m))
+    }
+
     /// Tensions at poses `(T, n)` holding the platform's weight (unless `gravity=False`) plus
     /// the external `wrenches` `(T, n)`, by `method` (`"auto"`: improved closed form → QP →
     /// least wrench error; or one of `"minimum_norm"`, `"closed_form"`,
@@ -129,13 +205,7 @@ impl Robot {
         let (n, m) = (self.inner.dof(), self.inner.n_cables());
         let method = guarded(|| Method::from_name(method))?;
         let (p, t) = matrix(poses, "poses", Some(n))?;
-        let ext = wrenches
-            .filter(|w| !w.is_none())
-            .map(|w| matrix(w, "wrenches", Some(n)))
-            .transpose()?;
-        let ext = ext
-            .map(|(e, _)| e.as_slice().map(<[f64]>::to_vec))
-            .transpose()?;
+        let ext = optional_wrenches(wrenches, n)?;
         let mut f = vec![0.0; t * m];
         let (mut used, mut feasible, mut residual) =
             (vec![Method::Auto; t], vec![false; t], vec![0.0; t]);

@@ -55,6 +55,7 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<results::Kinematics>()?;
     m.add_class::<results::Tensions>()?;
     m.add_class::<results::Capacity>()?;
+    m.add_class::<results::PathRun>()?;
     m.add_class::<results::Step>()?;
     m.add_class::<cdpr::TensionController>()?;
     m.add_class::<forceps::Jtdo>()?;

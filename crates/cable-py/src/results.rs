@@ -425,3 +425,25 @@ impl Step {
         )
     }
 }
+
+/// `Robot.path_friction`: per sample and cable `(T, m)` the winch-side tension `pul` (N), the
+/// `friction` `pul − ee` (N), the cable `speed` towards the winch (m/s) and the exit pulley's
+/// `wrap` (rad).
+#[pyclass(frozen, get_all, module = "cablekit._cablekit")]
+pub struct PathRun {
+    pul: Py<PyArray2<f64>>,
+    friction: Py<PyArray2<f64>>,
+    speed: Py<PyArray2<f64>>,
+    wrap: Py<PyArray2<f64>>,
+}
+
+impl PathRun {
+    pub fn new(py: Python<'_>, run: cable_core::cdpr::PathRun, (t, m): (usize, usize)) -> Self {
+        Self {
+            pul: to_matrix(py, run.pul, t, m).unbind(),
+            friction: to_matrix(py, run.friction, t, m).unbind(),
+            speed: to_matrix(py, run.speed, t, m).unbind(),
+            wrap: to_matrix(py, run.wrap, t, m).unbind(),
+        }
+    }
+}

@@ -193,8 +193,19 @@ def _winch(args: argparse.Namespace) -> int:
     return 0
 
 
+def _compensate(args: argparse.Namespace) -> int:
+    from cablekit.cdpr.compensate import compensate, report
+
+    comp = compensate(hidden=args.hidden, epochs=args.epochs, seed=args.seed, progress=not args.quiet)
+    text = report(args.out, comp, plots=not args.no_plots)
+    if not args.quiet:
+        print(text)
+    print(f"wrote {Path(args.out) / 'compensate.md'}")
+    return 0
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """``cablekit cdpr workspace`` and ``cablekit cdpr distribute``."""
+    """``cablekit cdpr workspace``, ``distribute``, ``winch`` and ``compensate``."""
     p = sub.add_parser("cdpr", help="cable-driven parallel robots: workspace, tensions along a trajectory")
     cs = p.add_subparsers(dest="cdpr_command", required=True)
     w = cs.add_parser(
@@ -247,3 +258,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     wn.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
     wn.add_argument("--quiet", action="store_true", help="no table on stdout")
     wn.set_defaults(func=_winch)
+    cp = cs.add_parser(
+        "compensate",
+        help="seed 002's pulley-friction compensation on the twin: PUL vs EE, the 14-8 network, Tables 1-2",
+    )
+    cp.add_argument("--out", default="out/compensate", help="output folder")
+    cp.add_argument("--hidden", type=int, default=20, help="hidden neurons")
+    cp.add_argument("--epochs", type=int, default=300, help="Bayesian-regularisation epochs")
+    cp.add_argument("--seed", type=int, default=0, help="noise, test points and training seed")
+    cp.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
+    cp.add_argument("--quiet", action="store_true", help="no table or progress on stdout")
+    cp.set_defaults(func=_compensate)

@@ -37,7 +37,7 @@ pub struct TensionsMut<'a> {
 }
 
 /// `err` with the pose row in what it names.
-fn at_row(err: CableError, row: usize) -> CableError {
+pub(super) fn at_row(err: CableError, row: usize) -> CableError {
     match err {
         CableError::InvalidParameter {
             name,

@@ -7,6 +7,7 @@
 mod batch;
 mod controller;
 mod kinematics;
+mod path;
 mod qp;
 mod robot;
 pub mod sensors;
@@ -23,6 +24,7 @@ pub use kinematics::{
     coordinates, elongation, forward_kinematics, inverse_kinematics, rpy, CableGeometry,
     ForwardKinematics, Pose, FK_MAX_ITER,
 };
+pub use path::{equilibrium_projection, path_friction, PathFriction, PathLaw, PathRun};
 pub use qp::{Distributor, LEAST_ERROR_REGULARISATION, QP_MAX_ITER};
 pub use robot::{Cable, Motion, Platform, Pulley, Robot, MAX_CABLES};
 pub use tension::{

@@ -804,3 +804,146 @@ fn inside_margins_stop_at_a_crossed_facet_and_change_no_membership() {
         );
     }
 }
+
+/// Path friction (seed 002 eqs 7–8) along a straight move there and back: the speed is the
+/// cable's hauling rate; with the Coulomb law the friction is `μ·T·N(θ)·σ_ε(v) + σ_v·v` (the
+/// hauled-in cables read high, the paid-out ones low); the Dahl state reaches the same value
+/// a few presliding lengths after each reversal, and lags it just after one.
+#[test]
+fn path_friction_follows_eqs_7_and_8() {
+    let robot = box_robot(true);
+    let (n, m) = (robot.dof(), robot.n_cables());
+    let dt = 0.01;
+    let t = 201;
+    let mut poses = vec![0.0; t * n];
+    for k in 0..t {
+        // 0.1 m out along x in 1 s, then back
+        let s = k as f64 * dt;
+        poses[k * n] = if s <= 1.0 { 0.1 * s } else { 0.1 * (2.0 - s) };
+    }
+    let ee = vec![10.0; t * m];
+    let coulomb = PathFriction {
+        coefficient: 0.1,
+        viscous: 5.0,
+        guide_wrap: std::f64::consts::FRAC_PI_2,
+        law: PathLaw::Coulomb { smoothing: 1e-6 },
+    };
+    let run = path_friction(&robot, &poses, &ee, dt, &[coulomb]).unwrap();
+    let mut geo = CableGeometry::default();
+    let mut lengths = vec![0.0; t * m];
+    for k in 0..t {
+        let pose = Pose::from_coordinates(robot.motion, &poses[k * n..(k + 1) * n]).unwrap();
+        inverse_kinematics(&robot, &pose, &mut geo).unwrap();
+        lengths[k * m..(k + 1) * m].copy_from_slice(&geo.length[..m]);
+    }
+    for k in [10, 50, 150, 190] {
+        for i in 0..m {
+            let j = k * m + i;
+            let v = -(lengths[j + m] - lengths[j - m]) / (2.0 * dt);
+            assert!((run.speed[j] - v).abs() < 1e-12, "{k} {i}");
+            let normal = 10.0 * coulomb.normal_factor(run.wrap[j]);
+            let want = 0.1 * normal * v.signum() + 5.0 * v;
+            assert!(
+                (run.friction[j] - want).abs() < 1e-6,
+                "{k} {i}: {} vs {want}",
+                run.friction[j]
+            );
+            assert!((run.pul[j] - 10.0 - run.friction[j]).abs() < 1e-12);
+            if v.abs() > 1e-3 {
+                assert_eq!(run.pul[j] > 10.0, v > 0.0);
+            }
+        }
+    }
+    // Dahl: the same Coulomb part once the state has saturated, less just after the reversal
+    let dahl = PathFriction {
+        law: PathLaw::Dahl {
+            presliding: 1e-3,
+            exponent: 1.0,
+        },
+        ..coulomb
+    };
+    let d = path_friction(&robot, &poses, &ee, dt, &[dahl]).unwrap();
+    for i in 0..m {
+        let j = 90 * m + i; // 0.9 s: far from the start and the reversal
+        if run.speed[j].abs() > 0.02 {
+            assert!((d.friction[j] - run.friction[j]).abs() < 1e-6, "{i}");
+            let after = 101 * m + i; // one sample after the reversal: the state is still turning
+            let coulomb_part = |f: f64, k: usize| f - 5.0 * run.speed[k * m + i];
+            assert!(
+                coulomb_part(d.friction[after], 101).abs()
+                    < coulomb_part(run.friction[after], 101).abs(),
+                "{i}"
+            );
+        }
+    }
+    // shapes and parameters
+    assert!(path_friction(&robot, &poses, &ee[1..], dt, &[coulomb]).is_err());
+    assert!(path_friction(&robot, &poses, &ee, dt, &[coulomb, coulomb]).is_err());
+    assert!(path_friction(&robot, &poses, &ee, 0.0, &[coulomb]).is_err());
+    let bad = PathFriction {
+        coefficient: -0.1,
+        ..coulomb
+    };
+    assert!(path_friction(&robot, &poses, &ee, dt, &[bad]).is_err());
+    assert!(PathFriction::per_cable(&[0.1; 3], &[1.0], &[0.0], dahl.law, m).is_err());
+    assert_eq!(
+        PathFriction::per_cable(&[0.1], &[1.0], &[0.0], dahl.law, m)
+            .unwrap()
+            .len(),
+        m
+    );
+}
+
+/// The equilibrium projection holds the wrench, leaves tensions already in equilibrium as they
+/// are, and removes exactly the part of an error that unbalances the platform (an internal
+/// force, in the null space of `Aᵀ`, stays).
+#[test]
+fn equilibrium_projection_removes_the_unbalancing_part_of_an_error() {
+    let robot = box_robot(true);
+    let (n, m) = (robot.dof(), robot.n_cables());
+    let mut rng = Rng(0x1234_5678_9abc_def1);
+    for _ in 0..20 {
+        let q: Vec<f64> = (0..n)
+            .map(|k| {
+                if k < 3 {
+                    rng.uniform(-0.2, 0.2)
+                } else {
+                    rng.uniform(-0.1, 0.1)
+                }
+            })
+            .collect();
+        let g = ik(&robot, &q);
+        let at = g.structure();
+        let mut w = [0.0; 6];
+        let pose = Pose::from_coordinates(robot.motion, &q).unwrap();
+        robot.gravity_wrench(&pose.rotation, &mut w);
+        let ext: Vec<f64> = (0..n).map(|_| rng.uniform(-2.0, 2.0)).collect();
+        for (a, e) in w.iter_mut().zip(&ext) {
+            *a += e;
+        }
+        // tensions in equilibrium: the minimum-norm ones plus an internal force
+        let base = minimum_norm(at, n, m, &w[..n]).unwrap();
+        let err: Vec<f64> = (0..m).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        let meas: Vec<f64> = (0..m).map(|i| base.f[i] + err[i]).collect();
+        let got = equilibrium_projection(&robot, &q, &meas, Some(&ext), true).unwrap();
+        // holds the wrench
+        for a in 0..n {
+            let s: f64 = (0..m).map(|i| at[a * m + i] * got[i]).sum::<f64>() + w[a];
+            assert!(s.abs() < 1e-9, "row {a}: {s}");
+        }
+        // the correction lies in the row space of Aᵀ (orthogonal to every internal force):
+        // projecting again changes nothing, and projecting the base changes nothing
+        let again = equilibrium_projection(&robot, &q, &got, Some(&ext), true).unwrap();
+        let same = equilibrium_projection(&robot, &q, &base.f[..m], Some(&ext), true).unwrap();
+        for i in 0..m {
+            assert!((again[i] - got[i]).abs() < 1e-9);
+            assert!((same[i] - base.f[i]).abs() < 1e-9);
+        }
+        // never further from the truth (here: the base plus the error's internal part) than the
+        // measurement
+        let dist = |a: &[f64]| -> f64 { (0..m).map(|i| (a[i] - base.f[i]).powi(2)).sum() };
+        assert!(dist(&got) <= dist(&meas) + 1e-12);
+    }
+    assert!(equilibrium_projection(&robot, &[0.0; 6], &[1.0; 7], None, true).is_err());
+    assert!(equilibrium_projection(&robot, &[0.0; 6], &[f64::NAN; 8], None, true).is_err());
+}
