@@ -216,6 +216,10 @@ def _calls() -> dict[str, Call]:
     out["Calibration.fit"] = Call(Calibration.fit, (loads, reads, loads[::-1].copy(), reads[::-1] + 0.1))
     out["Calibration.tension"] = Call(Calibration(10.0, 2.0).tension, (reads,))
     out["LoadCellPulley.push"] = Call(LoadCellPulley(0.1, 0.2).push, (5.0,))
+    out["LoadCellPulley.tension_range"] = Call(LoadCellPulley(0.1, 0.2).tension_range, (50.0,))
+    out["LoadCellPulley"] = Call(LoadCellPulley, (0.1, 0.2))
+    out["Calibration"] = Call(Calibration, (2.0, 1.0))
+    out["SignalChain"] = Call(SignalChain, (0.1, 0.03))
     from cablekit.cdpr import shipped
 
     mini = shipped("seed002_mini")

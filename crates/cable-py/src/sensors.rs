@@ -28,11 +28,11 @@ impl LoadCellPulley {
     fn ratio(&self) -> f64 {
         self.inner.ratio()
     }
-    fn push(&self, tension: f64) -> f64 {
-        self.inner.push(tension)
+    fn push(&self, tension: f64) -> PyResult<f64> {
+        guarded(|| self.inner.push(tension))
     }
-    fn tension_range(&self, rating: f64) -> f64 {
-        self.inner.tension_range(rating)
+    fn tension_range(&self, rating: f64) -> PyResult<f64> {
+        guarded(|| self.inner.tension_range(rating))
     }
 }
 

@@ -48,13 +48,30 @@ impl LoadCellPulley {
     }
 
     /// The push on the cell at cable tension `tension` (N), eq. 31.
-    pub fn push(&self, tension: f64) -> f64 {
-        tension * self.ratio()
+    pub fn push(&self, tension: f64) -> Result<f64> {
+        check::finite("tension", tension)?;
+        finite_result("push", tension * self.ratio())
     }
 
     /// The largest tension a cell rated `rating` (N) measures (eq. 32 read with eq. 31).
-    pub fn tension_range(&self, rating: f64) -> f64 {
-        rating / self.ratio()
+    pub fn tension_range(&self, rating: f64) -> Result<f64> {
+        check::finite("rating", rating)?;
+        finite_result("tension range", rating / self.ratio())
+    }
+}
+
+/// `value`, or an error naming `what` when finite input overflowed.
+fn finite_result(what: &str, value: f64) -> Result<f64> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(CableError::NonFiniteResult {
+            what: what.into(),
+            index: 0,
+            value,
+            location: String::new(),
+            hint: "the input is too large for the pulley's ratio",
+        })
     }
 }
 
@@ -314,8 +331,14 @@ mod tests {
     fn load_cell_pulley_push_and_range() {
         let s = LoadCellPulley::new(0.1, 0.2).unwrap();
         let ratio = 0.1_f64.sin() + 0.2_f64.sin();
-        assert!((s.push(50.0) - 50.0 * ratio).abs() < 1e-12);
-        assert!((s.tension_range(s.push(50.0)) - 50.0).abs() < 1e-12);
+        assert!((s.push(50.0).unwrap() - 50.0 * ratio).abs() < 1e-12);
+        assert!((s.tension_range(s.push(50.0).unwrap()).unwrap() - 50.0).abs() < 1e-12);
+        let wide = LoadCellPulley::new(1.5, 1.5).unwrap();
+        assert!(wide.push(f64::MAX).is_err() && s.push(f64::NAN).is_err());
+        assert!(LoadCellPulley::new(1e-3, 1e-3)
+            .unwrap()
+            .tension_range(f64::MAX)
+            .is_err());
         for bad in [0.0, -0.1, 2.0, f64::NAN] {
             assert!(LoadCellPulley::new(bad, 0.2).is_err());
         }
