@@ -621,7 +621,10 @@ fn eliminate<const N: usize, const W: usize>(
 ) -> bool {
     let mut t = [[0.0; W]; N];
     let mut u = [0.0; N];
-    let mut mm = [[0.0; N]; N];
+    // (rows padded to 8 lanes like `t`'s: the pivot's row swap then moves whole aligned
+    // vectors; 48-byte rows were swapped through a stack copy whose overlapping 32-byte
+    // halves defeated store forwarding, 8 % of the kernel)
+    let mut mm = [[0.0; 8]; N];
     let mut delta = [0.0; N];
     let mut largest: f64 = 0.0;
     for r in 0..N {
@@ -716,7 +719,7 @@ fn eliminate<const N: usize, const W: usize>(
         }
         out.g[b] = u[b] + g.iter().sum::<f64>();
         out.delta[b] = delta[b];
-        out.mm[b][..N].copy_from_slice(&mm[b]);
+        out.mm[b][..N].copy_from_slice(&mm[b][..N]);
     }
     // H = M·Mᵀ, for ‖c‖² = dᵀ·H·d.
     for a in 0..N {
