@@ -15,6 +15,7 @@ from cablekit.cdpr.compensate import (
     TWIN_FRICTION,
     compensate,
     first_test_trajectory,
+    path,
     report,
     second_test_trajectory,
     tensions,
@@ -94,6 +95,10 @@ def test_bad_friction_input_is_a_typed_error():
         ROBOT.path_friction(poses, ee[:, :7].copy(), 0.01, one, one, one)
     with pytest.raises(ck.NotFiniteError):
         ROBOT.path_friction(poses, np.full((3, 8), np.nan), 0.01, one, one, one)
+    # a trajectory leaving the workspace is named, not silently clamped
+    far = path("outside", [np.array([0.0, 0.0, 0.475]), np.array([0.54, 0.39, 0.9])])
+    with pytest.raises(ck.ParameterError, match="wrench-feasible workspace"):
+        tensions(ROBOT, far, rng=np.random.default_rng(0))
 
 
 def test_the_network_compensates_pulley_friction_on_unseen_trajectories(tmp_path):

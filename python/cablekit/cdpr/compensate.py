@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from cablekit.cdpr import Robot, shipped
+from cablekit.errors import ParameterError
 
 #: the seed's Tables 1–2: RMSE (N) per cable and mean, EE vs PUL and EE vs NN
 SEED_TABLE1 = {
@@ -161,7 +162,10 @@ def tensions(
     dist = robot.distribute(tr.poses, wrench)
     if not dist.feasible.all():
         bad = int(np.argmin(dist.feasible))
-        raise ValueError(f"{tr.name}: no feasible tensions at sample {bad} ({tr.poses[bad, :3]})")
+        raise ParameterError(
+            f"{tr.name}: no tensions within the bounds hold the platform at sample {bad} "
+            f"({tr.poses[bad, :3]} m): the trajectory leaves the wrench-feasible workspace"
+        )
     run = robot.path_friction(
         tr.poses,
         dist.f,
