@@ -252,7 +252,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     d.set_defaults(func=_distribute)
     wn = cs.add_parser(
         "winch",
-        help="seed 003's winch linearised: Table 5 recomputed, the seed's inconsistencies, root locus",
+        help="seed 003's winch: Table 5 and root locus, the nonlinear model stepped, the sensors and Fig. 18",
     )
     wn.add_argument("--out", default="out/winch", help="output folder")
     wn.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")

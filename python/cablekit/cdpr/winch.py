@@ -265,18 +265,24 @@ class StepResponse:
     linear_slowest: float | None
 
 
-def _without_static_friction(drive: WinchDrive) -> WinchDrive:
-    v = drive.winch.values.copy()
+def _frictionless(w: Winch) -> Winch:
+    """The same winch without its static friction."""
+    v = w.values.copy()
     v[list(Winch.NAMES).index("static_friction")] = 0.0
+    return Winch(v)
+
+
+def _without_static_friction(drive: WinchDrive) -> WinchDrive:
     t0, i_max, eps, c = drive.settings
     return WinchDrive(
-        Winch(v),
+        _frictionless(drive.winch),
         setup=drive.setup,
         lpf=drive.lpf,
         pretension=t0,
         current_limit=i_max,
         friction_smoothing=eps,
         cable_damping=c,
+        control=drive.control,
     )
 
 
@@ -347,9 +353,7 @@ def step_cases(w: Winch | None = None) -> list[tuple[str, WinchDrive, float]]:
     friction), then the seed's friction, the LPF left out, Setup 2 as built (the antagonist's
     drum following) and a step of a whole radian with the antagonist fixed."""
     w = w or Winch.seed003()
-    v = w.values.copy()
-    v[list(Winch.NAMES).index("static_friction")] = 0.0
-    frictionless = Winch(v)
+    frictionless = _frictionless(w)
     return [
         ("Setup 1, LPF, no static friction", WinchDrive(frictionless, setup="fixed"), 0.2),
         ("Setup 1, LPF, static friction", WinchDrive(w, setup="fixed"), 0.2),
