@@ -153,7 +153,7 @@ impl PathFriction {
 }
 
 /// `dz/ds` of the normalised Dahl state.
-fn dahl_slope(z: f64, dir: f64, presliding: f64, exponent: f64) -> f64 {
+pub(super) fn dahl_slope(z: f64, dir: f64, presliding: f64, exponent: f64) -> f64 {
     let s = 1.0 - z * dir;
     s.abs().powf(exponent) * s.signum() / presliding
 }

@@ -2,7 +2,7 @@ use super::*;
 
 /// An 8-cable spatial robot (the seed-002 frame): anchors at the corners of the frame, each
 /// attached to the platform corner below (top anchors) or above (bottom anchors) it.
-fn box_robot(pulleys: bool) -> Robot {
+pub(crate) fn box_robot(pulleys: bool) -> Robot {
     let (fx, fy, fz) = (0.55, 0.40, 0.475);
     let p = 0.05;
     let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
@@ -37,7 +37,7 @@ fn box_robot(pulleys: bool) -> Robot {
     .unwrap()
 }
 
-fn planar_robot() -> Robot {
+pub(crate) fn planar_robot() -> Robot {
     let (w, h) = (1.0, 0.8);
     let anchors = [[0.0, h], [w, h], [0.0, 0.0], [w, 0.0]];
     let attach = [[-0.05, 0.05], [0.05, 0.05], [-0.05, -0.05], [0.05, -0.05]];
