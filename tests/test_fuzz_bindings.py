@@ -241,7 +241,17 @@ def _calls() -> dict[str, Call]:
         lambda th, ftol, max_iter: _problem().fit(th, ftol=ftol, max_iter=max_iter),
         (_problem().reference(), 1e-8, 3),
     )
-    for name, model in (("R3", R3), ("AJ", AJ), ("Dahl", DAHL), ("WD", ck.WinchDrive.seed003())):
+    from cablekit.cdpr import CdprPlant, PulleyFriction
+
+    planar, home = shipped("seed003_planar"), np.array([0.6, 0.5, 0.0])
+    side = PulleyFriction(np.array([0.05]), np.array([1.0]), np.array([1.0]), law="coulomb")
+    out["PulleyFriction"] = Call(PulleyFriction, (one, one, one), dict(law="dahl", presliding=1e-3))
+    out["CdprPlant"] = Call(CdprPlant, (planar, home), dict(cable_damping=10.0, platform_side=side))
+    plant = CdprPlant(planar, home)
+    loop_kw = dict(gain=0.5, feedback="sensor", sensor_noise=np.zeros((20, 4)))
+    out["CdprPlant.closed_loop"] = Call(plant.closed_loop, (np.tile(home, (20, 1)), 1e-3), loop_kw)
+    models = (("R3", R3), ("AJ", AJ), ("Dahl", DAHL), ("WD", ck.WinchDrive.seed003()), ("CP", plant))
+    for name, model in models:
         x, u = _arr(model.n_states, value=0.0), _arr(model.n_inputs, value=0.0)
         out[f"{name}.derivative"] = Call(model.derivative, (x, u))
         out[f"{name}.output"] = Call(model.output, (x, u))

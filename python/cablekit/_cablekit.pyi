@@ -14,6 +14,7 @@ __all__ = [
     "Calibration",
     "CalibrationFit",
     "Capacity",
+    "CdprPlant",
     "ClampRun",
     "ClampStep",
     "DahlElement",
@@ -31,12 +32,14 @@ __all__ = [
     "Jtdo",
     "Kinematics",
     "LoadCellPulley",
+    "LoopRun",
     "Mlp",
     "Model",
     "ParamSpec",
     "PathRun",
     "PhysicsCalibration",
     "PhysicsObserver",
+    "PulleyFriction",
     "Robot",
     "SignalChain",
     "SrUkf",
@@ -79,6 +82,8 @@ class Model:
     def input_names(self) -> list[str]: ...
     @property
     def output_names(self) -> list[str]: ...
+    @property
+    def rest_state(self) -> _F: ...
     def derivative(self, x: _F, u: _F) -> _F:
         """f(x, u), shape (n_states,)."""
     def output(self, x: _F, u: _F) -> _F:
@@ -962,6 +967,94 @@ class WinchDrive(Model):
     def control(self) -> str: ...
     @property
     def settings(self) -> tuple[float, float, float, float]: ...
+
+@final
+class PulleyFriction:
+    """Pulley friction on one side of the winch-side sensor, per cable or shared."""
+
+    def __new__(
+        cls,
+        coefficient: _F,
+        viscous: _F,
+        guide_wrap: _F,
+        *,
+        law: str | None = None,
+        smoothing: float | None = None,
+        presliding: float | None = None,
+        exponent: float | None = None,
+    ) -> PulleyFriction: ...
+
+@final
+class CdprPlant(Model):
+    """A cable-driven parallel robot with its winches and pulleys as a model."""
+
+    def __new__(
+        cls,
+        robot: Robot,
+        home: _F,
+        winch: Winch | None = None,
+        *,
+        lpf: bool | None = None,
+        current_limit: float | None = None,
+        friction_smoothing: float | None = None,
+        cable_damping: float | None = None,
+        drum_side: PulleyFriction | None = None,
+        platform_side: PulleyFriction | None = None,
+        home_tensions: _F | None = None,
+    ) -> CdprPlant: ...
+    @property
+    def home(self) -> _F: ...
+    @property
+    def home_tensions(self) -> _F: ...
+    @property
+    def rest_length(self) -> _F: ...
+    @property
+    def tension_per_ampere(self) -> float: ...
+    @property
+    def winch(self) -> Winch: ...
+    def closed_loop(
+        self,
+        poses: _F,
+        dt: float,
+        *,
+        substeps: int = 5,
+        method: str = "auto",
+        gain: float = 0.0,
+        feedback: str = "open",
+        current_feedforward: bool = True,
+        sensor_noise: _F | None = None,
+        tension_offset: _F | None = None,
+        network: Mlp | None = None,
+    ) -> LoopRun: ...
+
+@final
+class LoopRun:
+    """``CdprPlant.closed_loop``: per controller period, tensions (T, m) and wrenches (T, n)."""
+
+    @property
+    def pose(self) -> _F: ...
+    @property
+    def desired(self) -> _F: ...
+    @property
+    def ee(self) -> _F: ...
+    @property
+    def sensor(self) -> _F: ...
+    @property
+    def feedback(self) -> _F: ...
+    @property
+    def current(self) -> _F: ...
+    @property
+    def alpha(self) -> _F: ...
+    @property
+    def wrench_desired(self) -> _F: ...
+    @property
+    def wrench_ee(self) -> _F: ...
+    @property
+    def wrench_sensor(self) -> _F: ...
+    @property
+    def wrench_feedback(self) -> _F: ...
+    @property
+    def infeasible(self) -> int: ...
 
 @final
 class TensionController:

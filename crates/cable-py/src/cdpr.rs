@@ -31,7 +31,7 @@ fn optional_wrenches(wrenches: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<
 /// gravity `(3,)`. Immutable; calls on many poses release the GIL and run in parallel.
 #[pyclass(subclass, frozen, module = "cablekit._cablekit")]
 pub struct Robot {
-    inner: core::Robot,
+    pub(crate) inner: core::Robot,
 }
 
 #[pymethods]

@@ -44,6 +44,11 @@ impl Model {
     fn output_names(&self) -> Vec<String> {
         self.inner.output_names()
     }
+    /// The model's state at rest (its equilibrium with zero input where it has one).
+    #[getter]
+    fn rest_state<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        to_vector(py, self.inner.rest_state())
+    }
 
     /// `f(x, u)`: the state derivative.
     fn derivative<'py>(
@@ -129,6 +134,9 @@ impl Model {
                 "WinchDrive(setup={:?}, lpf={}, pretension={}, current_limit={})",
                 w.setup, w.lpf, w.pretension, w.current_limit
             ),
+            AnyModel::Cdpr(p) => {
+                format!("CdprPlant(robot={:?}, home={:?})", p.robot().name, p.home())
+            }
         }
     }
 }

@@ -13,6 +13,7 @@ mod friction;
 mod identify;
 mod integrate;
 mod nn;
+mod plant;
 mod results;
 mod sensors;
 mod winch;
@@ -28,6 +29,9 @@ fn _cablekit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<dynamics::AntagonisticJoint>()?;
     m.add_class::<dynamics::DahlElement>()?;
     m.add_class::<winch::WinchDrive>()?;
+    m.add_class::<plant::CdprPlant>()?;
+    m.add_class::<plant::PulleyFriction>()?;
+    m.add_class::<plant::LoopRun>()?;
     m.add_class::<sensors::LoadCellPulley>()?;
     m.add_class::<sensors::Calibration>()?;
     m.add_class::<sensors::CalibrationFit>()?;

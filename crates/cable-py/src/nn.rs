@@ -24,7 +24,7 @@ type LayerArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
 /// the work buffers in use by another thread takes fresh ones (one small allocation).
 #[pyclass(frozen, module = "cablekit._cablekit")]
 pub struct Mlp {
-    inner: CoreMlp,
+    pub(crate) inner: CoreMlp,
     scratch: Mutex<Scratch>,
 }
 

@@ -193,11 +193,31 @@ def _winch(args: argparse.Namespace) -> int:
     return 0
 
 
+def _planar(args: argparse.Namespace) -> int:
+    from cablekit.cdpr.planar import report
+
+    text = report(args.out, plots=not args.no_plots)
+    if not args.quiet:
+        print(text)
+    print(f"wrote {Path(args.out) / 'planar.md'}")
+    return 0
+
+
 def _compensate(args: argparse.Namespace) -> int:
+    from cablekit.cdpr import force
     from cablekit.cdpr.compensate import compensate, report
 
     comp = compensate(hidden=args.hidden, epochs=args.epochs, seed=args.seed, progress=not args.quiet)
     text = report(args.out, comp, plots=not args.no_plots)
+    fc = force.force_control(comp.network, seed=args.seed, epochs=args.epochs, progress=not args.quiet)
+    extra = (
+        "\n## Force control (seed 002 §§4–5) on the twin as a dynamic plant\n\n" + force.markdown(fc) + "\n"
+    )
+    if not args.no_plots and (fig := force.plot(Path(args.out) / "force_control.png", fc)):
+        extra += f"\n![force loop along test 1]({fig.name})\n"
+    with open(Path(args.out) / "compensate.md", "a", encoding="utf-8") as f:
+        f.write(extra)
+    text += extra
     if not args.quiet:
         print(text)
     print(f"wrote {Path(args.out) / 'compensate.md'}")
@@ -205,7 +225,7 @@ def _compensate(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """``cablekit cdpr workspace``, ``distribute``, ``winch`` and ``compensate``."""
+    """``cablekit cdpr workspace``, ``distribute``, ``winch``, ``planar`` and ``compensate``."""
     p = sub.add_parser("cdpr", help="cable-driven parallel robots: workspace, tensions along a trajectory")
     cs = p.add_subparsers(dest="cdpr_command", required=True)
     w = cs.add_parser(
@@ -258,9 +278,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     wn.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
     wn.add_argument("--quiet", action="store_true", help="no table on stdout")
     wn.set_defaults(func=_winch)
+    pl = cs.add_parser(
+        "planar",
+        help="seed 003's planar 4-cable robot in closed loop: pose steps, a circle with the tension "
+        "distribution",
+    )
+    pl.add_argument("--out", default="out/planar", help="output folder")
+    pl.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
+    pl.add_argument("--quiet", action="store_true", help="no table on stdout")
+    pl.set_defaults(func=_planar)
     cp = cs.add_parser(
         "compensate",
-        help="seed 002's pulley-friction compensation on the twin: PUL vs EE, the 14-8 network, Tables 1-2",
+        help="seed 002 on the twin: PUL vs EE, the 14-8 network (Tables 1-2), the force loop on it "
+        "(Tables 3-4)",
     )
     cp.add_argument("--out", default="out/compensate", help="output folder")
     cp.add_argument("--hidden", type=int, default=20, help="hidden neurons")

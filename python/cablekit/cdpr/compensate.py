@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cablekit._cablekit import Mlp
 from cablekit.cdpr import Robot, shipped
 from cablekit.errors import ParameterError
 
@@ -206,6 +207,7 @@ class Compensation:
     tables: dict[str, tuple[np.ndarray, np.ndarray]]
     runs: dict[str, tuple[TensionRun, np.ndarray]]
     statics: dict[str, np.ndarray]
+    network: Mlp
 
 
 def compensate(
@@ -256,7 +258,7 @@ def compensate(
         tables[tr.name] = (rmse(run.pul, run.ee), rmse(nn, run.ee))
         runs[tr.name] = (run, nn)
         projected[tr.name] = rmse(statics(robot, run), run.ee)
-    return Compensation(hidden, x.shape[0], result.train_time_s, tables, runs, projected)
+    return Compensation(hidden, x.shape[0], result.train_time_s, tables, runs, projected, net)
 
 
 def table_markdown(

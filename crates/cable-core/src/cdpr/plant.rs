@@ -647,6 +647,9 @@ pub struct LoopRun {
 ///    stiff cable: a length alone would hold a tension only through the PID's integral);
 /// 5. the plant advances one period.
 ///
+/// `tension_offset` `(T, m)` N is added to `f_d` in step 4 (an excitation: in the null space
+/// of `Aᵀ` it changes the internal forces and not the wrench).
+///
 /// `network` (14 → 8 for seed 002's robot: inputs the desired position and linear velocity
 /// and the `m` sensor tensions, outputs the `m` platform-side tensions) is needed by
 /// [`Feedback::Network`]. A diverged plant is [`CableError::Diverged`] at its period.
@@ -655,6 +658,7 @@ pub fn closed_loop(
     poses: &[f64],
     opts: &LoopOptions,
     sensor_noise: Option<&[f64]>,
+    tension_offset: Option<&[f64]>,
     network: Option<&Mlp>,
 ) -> Result<LoopRun> {
     let (n, m) = plant.sizes();
@@ -679,6 +683,10 @@ pub fn closed_loop(
     if let Some(noise) = sensor_noise {
         check::len("sensor_noise", noise, t_len * m)?;
         check::all_finite("sensor_noise", noise, m)?;
+    }
+    if let Some(offset) = tension_offset {
+        check::len("tension_offset", offset, t_len * m)?;
+        check::all_finite("tension_offset", offset, m)?;
     }
     let translation = match plant.robot.motion {
         Motion::Planar => 2,
@@ -781,7 +789,8 @@ pub fn closed_loop(
         let wch = &plant.winch;
         let sd = geom.structure();
         for j in 0..m {
-            let target = (fd[j] + gain * (fd[j] - f_hat[j])).max(0.0);
+            let excite = tension_offset.map_or(0.0, |o| o[k * m + j]);
+            let target = (fd[j] + excite + gain * (fd[j] - f_hat[j])).max(0.0);
             u[j] = plant.angle_for_length(j, plant.unstretched_length(j, geom.length[j], target));
             // the drum rate that follows the desired motion (l̇ = −A·v), and its change
             let rate = (0..n).map(|i| sd[i * m + j] * vel[i]).sum::<f64>() / wch.drum_radius;
@@ -899,7 +908,7 @@ mod tests {
         let mut o = LoopOptions::new(1e-3);
         o.feedback = feedback;
         o.gain = gain;
-        closed_loop(plant, poses, &o, None, None).unwrap()
+        closed_loop(plant, poses, &o, None, None, None).unwrap()
     }
 
     /// At rest at home the plant is in equilibrium (every derivative 0) and both sensors and
@@ -1066,28 +1075,28 @@ mod tests {
         let mut o = LoopOptions::new(1e-3);
         o.feedback = Feedback::Network;
         assert!(matches!(
-            closed_loop(&plant, &poses, &o, None, None),
+            closed_loop(&plant, &poses, &o, None, None, None),
             Err(CableError::InvalidOption { .. })
         ));
         let mut o = LoopOptions::new(1e-3);
         o.substeps = 0;
         assert!(matches!(
-            closed_loop(&plant, &poses, &o, None, None),
+            closed_loop(&plant, &poses, &o, None, None, None),
             Err(CableError::InvalidParameter { .. })
         ));
         let o = LoopOptions::new(1e-3);
         assert!(matches!(
-            closed_loop(&plant, &poses[..4], &o, None, None),
+            closed_loop(&plant, &poses[..4], &o, None, None, None),
             Err(CableError::Shape { .. })
         ));
         assert!(matches!(
-            closed_loop(&plant, &poses, &o, Some(&[0.0; 3]), None),
+            closed_loop(&plant, &poses, &o, Some(&[0.0; 3]), None, None),
             Err(CableError::Shape { .. })
         ));
         let mut bad = poses.clone();
         bad[1] = f64::NAN;
         assert!(matches!(
-            closed_loop(&plant, &bad, &o, None, None),
+            closed_loop(&plant, &bad, &o, None, None, None),
             Err(CableError::NotFinite { .. })
         ));
         // outside the frame: the weight cannot be held

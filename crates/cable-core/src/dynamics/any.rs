@@ -2,6 +2,7 @@
 //! model at run time (the Python classes, model files).
 
 use super::{AntagonisticJoint, CableTransmission, DahlElement, Model, WinchDrive};
+use crate::cdpr::CdprPlant;
 use crate::error::{CableError, Result};
 
 /// One of cablekit's models. Implements [`Model`] by forwarding (one branch per call); hot
@@ -16,6 +17,8 @@ pub enum AnyModel {
     Dahl(DahlElement),
     /// Seed 003's winch, cable and EE under its PID.
     Winch(WinchDrive),
+    /// A cable-driven parallel robot with its winches and pulleys.
+    Cdpr(CdprPlant),
 }
 
 /// Evaluate `$body` with `$m` bound to the concrete model inside an [`AnyModel`]
@@ -28,6 +31,7 @@ macro_rules! with_model {
             $crate::dynamics::AnyModel::Antagonistic($m) => $body,
             $crate::dynamics::AnyModel::Dahl($m) => $body,
             $crate::dynamics::AnyModel::Winch($m) => $body,
+            $crate::dynamics::AnyModel::Cdpr($m) => $body,
         }
     };
 }
@@ -52,6 +56,7 @@ impl AnyModel {
             Self::Antagonistic(_) => "AntagonisticJoint",
             Self::Dahl(_) => "DahlElement",
             Self::Winch(_) => "WinchDrive",
+            Self::Cdpr(_) => "CdprPlant",
         }
     }
 }
@@ -112,6 +117,12 @@ impl From<AntagonisticJoint> for AnyModel {
 impl From<WinchDrive> for AnyModel {
     fn from(w: WinchDrive) -> Self {
         Self::Winch(w)
+    }
+}
+
+impl From<CdprPlant> for AnyModel {
+    fn from(p: CdprPlant) -> Self {
+        Self::Cdpr(p)
     }
 }
 

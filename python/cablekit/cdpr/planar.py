@@ -1,0 +1,220 @@
+"""Seed 003's planar 4-cable robot in closed loop (§2, Figs 1–3): the ``seed003_planar`` robot as
+a dynamic plant (:class:`cablekit.cdpr.CdprPlant`: platform, four elastic cables, four of the
+seed's winches under their PID) driven through its inverse kinematics, with the tension
+distribution of part 1 in the loop.
+
+* :func:`step_response` — a step of the reference pose: each winch's PID follows the step of its
+  drum angle from the inverse kinematics (seed 003 eq. 3, no feed-forward: the seed's position
+  control). Rise and settling times, overshoot and the cables' tension range during the step.
+* :func:`trajectory_response` — a circle at the platform's centre, with the tension distribution
+  in the loop (the current that carries ``f_d`` fed forward, the cable lengths stretched for it:
+  seed 003 Fig. 3's tension supervision) and without it (lengths from the kinematics only).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cablekit._cablekit import CdprPlant, LoopRun
+from cablekit.cdpr import Robot, Winch, shipped
+
+#: the home pose of the shipped planar robot (m, m, rad): the frame's centre
+HOME = np.array([0.6, 0.5, 0.0])
+
+
+def planar_plant(
+    robot: Robot | None = None, home: np.ndarray | None = None, winch: Winch | None = None
+) -> CdprPlant:
+    """The shipped ``seed003_planar`` robot (or ``robot``) resting at ``home`` under seed 003's
+    winches."""
+    robot = robot or shipped("seed003_planar")
+    return CdprPlant(robot, np.asarray(HOME if home is None else home, float), winch or Winch.seed003())
+
+
+@dataclass(frozen=True)
+class StepResponse:
+    """A reference step of ``size`` in pose coordinate ``axis``: the run, times (s) and the
+    response's figures."""
+
+    axis: int
+    size: float
+    t: np.ndarray
+    run: LoopRun
+    rise_time: float
+    settling_time: float
+    overshoot: float
+    final_error: float
+    tension_range: tuple[float, float]
+
+
+def _step_figures(t: np.ndarray, y: np.ndarray, t0: float, size: float) -> tuple[float, float, float, float]:
+    """10–90 % rise time, 2 % settling time (s after the step), overshoot (fraction), final
+    error (fraction of the step)."""
+    after = t >= t0
+    ts, r = t[after] - t0, (y[after] - y[after][0]) / size
+    rise = np.nan
+    if (r >= 0.9).any() and (r >= 0.1).any():
+        rise = float(ts[np.argmax(r >= 0.9)] - ts[np.argmax(r >= 0.1)])
+    outside = np.nonzero(np.abs(r - 1.0) > 0.02)[0]
+    settle = (
+        float(ts[outside[-1] + 1])
+        if outside.size and outside[-1] + 1 < ts.size
+        else (0.0 if not outside.size else np.nan)
+    )
+    return rise, settle, float(max(r.max() - 1.0, 0.0)), float(r[-1] - 1.0)
+
+
+def step_response(
+    plant: CdprPlant | None = None, *, axis: int = 0, size: float = 0.02, t_end: float = 3.0, dt: float = 1e-3
+) -> StepResponse:
+    """Step the reference pose by ``size`` along ``axis`` at 0.2 s, PID only (no feed-forward, no
+    tension distribution in the reference: the desired tensions are recorded for comparison)."""
+    plant = plant or planar_plant()
+    k = round(t_end / dt)
+    poses = np.tile(np.asarray(plant.home), (k, 1))
+    t = np.arange(k) * dt
+    poses[t >= 0.2, axis] += size
+    # a step has no finite acceleration: the desired tensions are the static ones at each pose
+    run = plant.closed_loop(poses, dt, current_feedforward=False)
+    rise, settle, over, final = _step_figures(t, run.pose[:, axis], 0.2, size)
+    return StepResponse(
+        axis, size, t, run, rise, settle, over, final, (float(run.ee.min()), float(run.ee.max()))
+    )
+
+
+@dataclass(frozen=True)
+class TrajectoryResponse:
+    """A circle with and without the tension distribution in the loop: RMSE of the pose (m) and
+    of the cable tensions against ``f_d`` (N), and the runs."""
+
+    t: np.ndarray
+    poses: np.ndarray
+    with_tensions: LoopRun
+    without: LoopRun
+    pose_rmse: tuple[float, float]
+    tension_rmse: tuple[float, float]
+
+
+def circle(
+    home: np.ndarray, radius: float = 0.1, period: float = 4.0, turns: float = 2.0, dt: float = 1e-3
+) -> np.ndarray:
+    """A circle of ``radius`` through ``home`` in the robot's plane, the radius eased in over one
+    period (smoothstep), at rest at both ends: poses ``(T, 3)``."""
+    t = np.arange(round((turns + 1) * period / dt)) * dt
+    s = np.clip(t / period, 0.0, 1.0)
+    ease = s * s * (3 - 2 * s)
+    fade = np.clip((t[-1] - t) / period, 0.0, 1.0)
+    ease = ease * fade * fade * (3 - 2 * fade)
+    ph = 2 * np.pi * t / period
+    poses = np.tile(np.asarray(home, float), (t.size, 1))
+    poses[:, 0] += ease * radius * np.sin(ph)
+    poses[:, 1] += ease * radius * (1 - np.cos(ph))
+    return poses
+
+
+def trajectory_response(
+    plant: CdprPlant | None = None, *, radius: float = 0.1, period: float = 4.0, dt: float = 1e-3
+) -> TrajectoryResponse:
+    """The circle with the tension distribution in the loop (feed-forward) and without it."""
+    plant = plant or planar_plant()
+    poses = circle(np.asarray(plant.home), radius, period, dt=dt)
+    runs = [plant.closed_loop(poses, dt, current_feedforward=ff) for ff in (True, False)]
+
+    def pose_rmse(r: LoopRun) -> float:
+        return float(np.sqrt(np.mean(np.sum((r.pose[:, :2] - poses[:, :2]) ** 2, axis=1))))
+
+    def tension_rmse(r: LoopRun) -> float:
+        return float(np.sqrt(np.mean((r.ee - r.desired) ** 2)))
+
+    t = np.arange(poses.shape[0]) * dt
+    return TrajectoryResponse(
+        t,
+        poses,
+        runs[0],
+        runs[1],
+        (pose_rmse(runs[0]), pose_rmse(runs[1])),
+        (tension_rmse(runs[0]), tension_rmse(runs[1])),
+    )
+
+
+def markdown(steps: list[StepResponse], tr: TrajectoryResponse) -> str:
+    """The step table and the trajectory comparison."""
+    names = ("x", "y", "θ")
+    lines = [
+        "**Pose steps** (PID position control of each winch, seed 003's gains)",
+        "",
+        "| step | rise 10–90 % (ms) | settling 2 % (s) | overshoot | final error | tension range (N) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for s in steps:
+        unit = "rad" if s.axis == 2 else "m"
+        late = f"not within {s.t[-1]:.0f} s"
+        rise = late if np.isnan(s.rise_time) else f"{1e3 * s.rise_time:.0f}"
+        settle = late if np.isnan(s.settling_time) else f"{s.settling_time:.2f}"
+        lines.append(
+            f"| {s.size:g} {unit} in {names[s.axis]} | {rise} | {settle} | "
+            f"{100 * s.overshoot:.1f} % | {100 * s.final_error:.2f} % | "
+            f"{s.tension_range[0]:.1f} – {s.tension_range[1]:.1f} |"
+        )
+    lines += [
+        "",
+        "**Circle** (radius 0.1 m, 4 s per turn, two turns)",
+        "",
+        "| controller | pose RMSE (mm) | tension RMSE vs f_d (N) |",
+        "|---|---|---|",
+        "| tension distribution in the loop (current and stretch fed forward) | "
+        f"{1e3 * tr.pose_rmse[0]:.2f} | {tr.tension_rmse[0]:.2f} |",
+        "| kinematics only (PID on the drum angles) | "
+        f"{1e3 * tr.pose_rmse[1]:.2f} | {tr.tension_rmse[1]:.2f} |",
+    ]
+    return "\n".join(lines)
+
+
+def plot(path: str | Path, steps: list[StepResponse], tr: TrajectoryResponse) -> Path | None:
+    """Step responses and the circle's tensions."""
+    from cablekit.plotting import pyplot_or_none
+
+    plt = pyplot_or_none()
+    if plt is None:
+        return None
+    fig, (a, b) = plt.subplots(2, 1, figsize=(10, 7))
+    for s in steps:
+        a.plot(
+            s.t,
+            (s.run.pose[:, s.axis] - s.run.pose[0, s.axis]) / s.size,
+            lw=1,
+            label=f"step in {'xyθ'[s.axis]}",
+        )
+    a.axhline(1.0, color="k", lw=0.5)
+    a.set_xlabel("t (s)")
+    a.set_ylabel("response / step")
+    a.legend(fontsize=8)
+    for j in range(tr.with_tensions.ee.shape[1]):
+        b.plot(tr.t, tr.with_tensions.desired[:, j], "k", lw=0.6)
+        b.plot(tr.t, tr.with_tensions.ee[:, j], lw=0.8, label=f"cable {j + 1}")
+    b.set_xlabel("t (s)")
+    b.set_ylabel("tension (N); black: f_d")
+    b.legend(fontsize=8)
+    a.set_title("Seed 003's planar robot in closed loop")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def report(out: str | Path, plots: bool = True) -> str:
+    """Steps in x, y and θ and the circle on the shipped robot; writes ``planar.md``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    plant = planar_plant()
+    steps = [step_response(plant, axis=a, size=s, t_end=6.0) for a, s in ((0, 0.02), (1, 0.02), (2, 0.05))]
+    tr = trajectory_response(plant)
+    text = "# Seed 003's planar robot in closed loop\n\n" + markdown(steps, tr) + "\n"
+    if plots and (fig := plot(out / "planar.png", steps, tr)):
+        text += f"\n![steps and the circle's tensions]({fig.name})\n"
+    (out / "planar.md").write_text(text, encoding="utf-8")
+    return text

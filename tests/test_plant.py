@@ -1,0 +1,184 @@
+"""``CdprPlant`` (issue #23): a cable-driven parallel robot with winches and pulleys as a model —
+f and h against a NumPy reference, rest at home, the closed loop's desired tensions against the
+tension distribution, the force loop's physics, seed 002's Tables 3–4 and seed 003's planar robot
+in closed loop, and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cablekit.cdpr import CdprPlant, PulleyFriction, Robot, Winch
+from cablekit.cdpr.planar import HOME, circle, planar_plant, step_response, trajectory_response
+from cablekit.errors import CablekitError, NotFiniteError, ParameterError, ShapeError
+from tests.reference.plant import planar_plant as reference
+
+# seed 003's planar robot (the shipped file's values) with its centre of mass off the origin
+SPEC = dict(
+    anchors=np.array([[0.0, 1.0, 0.0], [1.2, 1.0, 0.0], [0.0, 0.0, 0.0], [1.2, 0.0, 0.0]]),
+    attachments=np.array([[-0.05, 0.05, 0.0], [0.05, 0.05, 0.0], [-0.05, -0.05, 0.0], [0.05, -0.05, 0.0]]),
+    f_min=np.full(4, 1.0),
+    f_max=np.full(4, 98.0),
+    ea=np.full(4, 48.9e9 * 1.89e-6),
+    mass=1.0,
+    com=np.array([0.01, -0.005, 0.0]),
+    inertia=np.diag([0.0, 0.0, 1.7e-3]),
+    gravity=np.array([0.0, -9.80665, 0.0]),
+)
+PLANAR = Robot(name="planar", motion="planar", **SPEC)
+WINCH = dict(zip(Winch.NAMES, Winch.seed003().values, strict=True))
+
+
+def _rough(damping: float = 30.0) -> CdprPlant:
+    return CdprPlant(
+        PLANAR,
+        HOME,
+        Winch.seed003(),
+        cable_damping=damping,
+        platform_side=PulleyFriction(np.array([0.04]), np.array([3.0]), np.array([np.pi / 2]), law="coulomb"),
+        drum_side=PulleyFriction(np.array([0.02]), np.array([1.0]), np.array([np.pi]), law="coulomb"),
+    )
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_f_and_h_equal_the_numpy_reference(seed):
+    """A planar robot with Coulomb pulley friction on both sides: derivative and outputs at
+    random states about rest agree with the NumPy reference to 1e-9 (relative)."""
+    rng = np.random.default_rng(seed)
+    plant = _rough()
+    x = np.zeros(plant.n_states)
+    x[:3] = HOME + rng.normal(0, [0.02, 0.02, 0.05])
+    x[3:6] = rng.normal(0, 0.2, 3)
+    x[6:22] = rng.normal(0, [0.01] * 4 + [0.5] * 4 + [0.02] * 4 + [0.01] * 4)
+    u = np.concatenate(
+        [rng.normal(0, 0.01, 4), rng.normal(0, 0.3, 4), rng.normal(0, 0.5, 4), rng.normal(0, 1, 3)]
+    )
+    kw = dict(
+        anchors=SPEC["anchors"],
+        attach=SPEC["attachments"],
+        ea=SPEC["ea"],
+        mass=SPEC["mass"],
+        izz=SPEC["inertia"][2, 2],
+        com=SPEC["com"],
+        gravity=SPEC["gravity"],
+        rest=plant.rest_length,
+        winch=WINCH,
+        mu_d=0.04,
+        wrap_d=np.pi / 2,
+        mu_u=0.02,
+        wrap_u=np.pi,
+        visc_d=3.0,
+        visc_u=1.0,
+        eps_path=1e-3,
+        damping=30.0,
+        current_limit=10.0,
+        eps_drum=0.01,
+    )
+    dx, y = reference(x, u, **kw)
+    np.testing.assert_allclose(plant.derivative(x, u), dx, rtol=1e-9, atol=1e-9 * (1 + np.abs(dx).max()))
+    np.testing.assert_allclose(plant.output(x, u), y, rtol=1e-9, atol=1e-9)
+
+
+def test_rest_at_home_holds_the_distributed_tensions():
+    plant = planar_plant(PLANAR)
+    x, u = plant.rest_state, np.zeros(plant.n_inputs)
+    assert np.abs(plant.derivative(x, u)).max() < 1e-8
+    want = PLANAR.distribute(HOME[None, :]).f[0]
+    np.testing.assert_allclose(plant.home_tensions, want, rtol=1e-9)
+    y = plant.output(x, u)
+    np.testing.assert_allclose(y[3:7], want, rtol=1e-9)  # EE
+    np.testing.assert_allclose(y[15:19], want, rtol=1e-9)  # motor-current estimate
+    assert plant.tension_per_ampere == pytest.approx(
+        WINCH["torque_constant"] * WINCH["gear_ratio"] / WINCH["drum_radius"]
+    )
+
+
+def test_closed_loop_desired_tensions_are_the_distribution_of_weight_and_inertia():
+    """f_d at each period is Robot.distribute at the desired pose with the inertial wrench of the
+    desired motion (central differences); frictionless, the platform follows within 0.5 mm and
+    its tensions f_d within 0.2 N (the controller's inertial wrench leaves out the centre of
+    mass's offset, which this robot has)."""
+    plant = planar_plant(
+        PLANAR, winch=Winch(np.where(np.array(Winch.NAMES) == "static_friction", 0.0, Winch.seed003().values))
+    )
+    dt = 1e-3
+    poses = circle(HOME, radius=0.05, period=2.0, turns=1.0, dt=dt)
+    run = plant.closed_loop(poses, dt)
+    acc = np.zeros_like(poses)
+    acc[1:-1] = (poses[2:] - 2 * poses[1:-1] + poses[:-2]) / dt**2
+    m, izz = SPEC["mass"], SPEC["inertia"][2, 2]
+    wrench = -np.column_stack([m * acc[:, 0], m * acc[:, 1], izz * acc[:, 2]])
+    want = PLANAR.distribute(poses, wrench).f
+    np.testing.assert_allclose(run.desired, want, rtol=1e-9, atol=1e-9)
+    assert np.abs(run.pose - poses).max() < 5e-4
+    assert np.sqrt(np.mean((run.ee - run.desired) ** 2)) < 0.2
+    # the wrench of f_d is the desired one: M·a − m·g
+    np.testing.assert_allclose(run.wrench_desired[:, :2], m * (acc[:, :2] - SPEC["gravity"][:2]), atol=1e-6)
+
+
+def test_the_force_loop_corrects_platform_side_friction_only_through_a_platform_side_tension():
+    """Friction between the sensor and the platform: feeding the platform-side tension back takes
+    the tension error down (more with more gain); feeding the winch-side sensor back does not."""
+    plant = CdprPlant(
+        PLANAR,
+        HOME,
+        Winch(np.where(np.array(Winch.NAMES) == "static_friction", 0.0, Winch.seed003().values)),
+        platform_side=PulleyFriction(np.array([0.05]), np.array([2.0]), np.array([np.pi]), law="coulomb"),
+    )
+    poses = circle(HOME, radius=0.05, period=2.0, turns=1.0)
+
+    def err(feedback, gain):
+        r = plant.closed_loop(poses, 1e-3, feedback=feedback, gain=gain)
+        return np.sqrt(np.mean((r.ee - r.desired) ** 2))
+
+    open_ = err("open", 0.0)
+    assert err("platform", 0.7) < 0.75 * open_
+    assert err("platform", 3.0) < 0.4 * open_
+    assert err("sensor", 0.7) > 0.95 * open_
+
+
+def test_planar_robot_step_and_circle():
+    """Seed 003's robot: a 20 mm step settles with the PID's integral (no error left), and the
+    tension distribution in the loop tracks the circle's tensions better than kinematics alone."""
+    s = step_response(axis=0, size=0.02, t_end=3.0)
+    assert abs(s.final_error) < 0.02
+    assert 0.0 < s.rise_time < 1.0
+    assert s.tension_range[0] >= 0.0
+    tr = trajectory_response(radius=0.05, period=2.0)
+    assert tr.tension_rmse[0] < 0.8 * tr.tension_rmse[1]
+    assert tr.pose_rmse[0] < 1e-3
+
+
+def test_bad_input_is_a_typed_error():
+    plant = planar_plant()
+    poses = np.tile(HOME, (5, 1))
+    with pytest.raises(ShapeError):
+        plant.closed_loop(poses[:, :2].copy(), 1e-3)
+    with pytest.raises(ParameterError):
+        plant.closed_loop(poses, -1e-3)
+    with pytest.raises(ParameterError):
+        plant.closed_loop(poses, 1e-3, substeps=0)
+    with pytest.raises(ParameterError):
+        plant.closed_loop(poses, 1e-3, feedback="imu")
+    with pytest.raises(ParameterError):
+        plant.closed_loop(poses, 1e-3, feedback="network")  # no network
+    with pytest.raises(ShapeError):
+        plant.closed_loop(poses, 1e-3, sensor_noise=np.zeros((5, 3)))
+    bad = poses.copy()
+    bad[2, 1] = np.nan
+    with pytest.raises(NotFiniteError):
+        plant.closed_loop(bad, 1e-3)
+    with pytest.raises(ParameterError):
+        CdprPlant(PLANAR, np.array([0.6, 3.0, 0.0]))  # the weight cannot be held there
+    with pytest.raises(ParameterError):
+        CdprPlant(PLANAR, HOME, cable_damping=-1.0)
+    with pytest.raises(ShapeError):
+        CdprPlant(PLANAR, HOME, platform_side=PulleyFriction(np.zeros(3), np.zeros(3), np.zeros(3)))
+    with pytest.raises(ParameterError):
+        PulleyFriction(np.array([-0.1]), np.array([0.0]), np.array([0.0]))
+    light = Robot(name="light", motion="planar", **dict(SPEC, mass=0.0))
+    with pytest.raises(CablekitError):
+        CdprPlant(light, HOME)
