@@ -182,3 +182,39 @@ def test_bad_input_is_a_typed_error():
     light = Robot(name="light", motion="planar", **dict(SPEC, mass=0.0))
     with pytest.raises(CablekitError):
         CdprPlant(light, HOME)
+
+
+def test_the_diagnosis_finds_pulley_friction_and_its_cable_and_raises_no_false_alarm():
+    """A Dahl pulley between the drum and the sensor of a drawn cable (the candidate assumes
+    Coulomb) is found at that cable from the motor-current vs sensor residual; with nothing
+    withheld, nothing is reported."""
+    from cablekit.cdpr.diagnose import diagnose, twin_run
+
+    for cable in (2, 6):
+        winch, t, alpha, current, sensor = twin_run("pulley_friction", cable, seed=cable)
+        d = diagnose(winch, t, alpha, current, sensor)
+        assert d.found is not None and (d.found.effect, d.found.cable) == ("pulley_friction", cable), (
+            d.summary()
+        )
+        assert d.found.closed > 0.6
+    winch, t, alpha, current, sensor = twin_run(None, 0, seed=11)
+    d = diagnose(winch, t, alpha, current, sensor)
+    assert d.found is None, d.summary()
+    assert d.residual_rms.max() < 3 * d.noise
+
+
+def test_the_diagnosis_rejects_bad_runs():
+    from cablekit.cdpr.diagnose import diagnose
+
+    t = np.arange(100) * 1e-3
+    a = np.zeros((100, 4))
+    with pytest.raises(ShapeError):
+        diagnose(Winch.seed003(), t, a, a[:, :3], a)
+    bad = a.copy()
+    bad[5, 1] = np.inf
+    with pytest.raises(ParameterError):
+        diagnose(Winch.seed003(), t, a, bad, a)
+    with pytest.raises(ParameterError):
+        diagnose(Winch.seed003(), t[::-1].copy(), a, a, a)
+    with pytest.raises(ParameterError):
+        diagnose(Winch.seed003(), t, a, a, a, effects=("creep",))

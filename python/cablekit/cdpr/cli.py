@@ -203,6 +203,23 @@ def _planar(args: argparse.Namespace) -> int:
     return 0
 
 
+def _diagnose(args: argparse.Namespace) -> int:
+    from cablekit.cdpr.diagnose import markdown, self_test
+
+    cases = self_test(cases=args.cases, seed=args.seed, progress=not args.quiet)
+    text = "# Where the motors and the winch-side sensors disagree: self-test on the plant\n\n"
+    text += markdown(cases) + "\n"
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "diagnose.md").write_text(text, encoding="utf-8")
+    if not args.quiet:
+        print(text)
+    print(f"wrote {out / 'diagnose.md'}")
+    withheld = [c for c in cases if c.effect is not None]
+    ok = all(c.correct_effect for c in cases) and all(c.correct_site for c in withheld)
+    return 0 if ok else 1
+
+
 def _compensate(args: argparse.Namespace) -> int:
     from cablekit.cdpr import force
     from cablekit.cdpr.compensate import compensate, report
@@ -225,7 +242,7 @@ def _compensate(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """``cablekit cdpr workspace``, ``distribute``, ``winch``, ``planar`` and ``compensate``."""
+    """``cablekit cdpr workspace``, ``distribute``, ``winch``, ``planar``, ``diagnose`` and ``compensate``."""
     p = sub.add_parser("cdpr", help="cable-driven parallel robots: workspace, tensions along a trajectory")
     cs = p.add_subparsers(dest="cdpr_command", required=True)
     w = cs.add_parser(
@@ -287,6 +304,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     pl.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
     pl.add_argument("--quiet", action="store_true", help="no table on stdout")
     pl.set_defaults(func=_planar)
+    dg = cs.add_parser(
+        "diagnose",
+        help="locate pulley friction, sensor lag or a calibration error per cable from the motor-current "
+        "vs sensor residual: a self-test on the plant with withheld effects (exit 1 on a miss)",
+    )
+    dg.add_argument("--out", default="out/cdpr-diagnose", help="output folder")
+    dg.add_argument("--cases", type=int, default=3, help="runs per withheld effect (and with none)")
+    dg.add_argument("--seed", type=int, default=0, help="cables, excitation and noise")
+    dg.add_argument("--quiet", action="store_true", help="no table or progress on stdout")
+    dg.set_defaults(func=_diagnose)
     cp = cs.add_parser(
         "compensate",
         help="seed 002 on the twin: PUL vs EE, the 14-8 network (Tables 1-2), the force loop on it "

@@ -46,10 +46,14 @@ SEED_TABLE4 = {
 
 
 def mini_plant(
-    robot: Robot | None = None, home: np.ndarray | None = None, friction: dict | None = None
+    robot: Robot | None = None,
+    home: np.ndarray | None = None,
+    friction: dict | None = None,
+    drum_side: PulleyFriction | None = None,
 ) -> CdprPlant:
     """The Mini CDPR as a plant resting at ``home`` (default: test 1's first pose) with the
-    twin's platform-side pulley friction (Dahl) and seed 003's winch."""
+    twin's platform-side pulley friction (Dahl), seed 003's winch and any ``drum_side``
+    friction."""
     robot = robot or shipped("seed002_mini")
     fr = TWIN_FRICTION if friction is None else friction
     if home is None:
@@ -61,7 +65,7 @@ def mini_plant(
         law="dahl",
         presliding=float(fr["presliding"]),
     )
-    return CdprPlant(robot, np.asarray(home, float), Winch.seed003(), platform_side=side)
+    return CdprPlant(robot, np.asarray(home, float), Winch.seed003(), platform_side=side, drum_side=drum_side)
 
 
 def excitation(
@@ -74,8 +78,8 @@ def excitation(
     correlation: float = 0.5,
 ) -> np.ndarray:
     """Tension offsets ``(T, m)`` in the null space of ``Aᵀ`` at each pose (internal forces only:
-    the wrench stays): white noise low-passed over ``correlation`` s, projected, scaled to
-    ``rms`` N."""
+    the wrench stays): white noise low-passed twice over ``correlation`` s (smooth), projected,
+    scaled to ``rms`` N."""
     t_len, m = poses.shape[0], robot.n_cables
     a = np.exp(-dt / correlation)
     white = rng.normal(size=(t_len, m)) * np.sqrt(1 - a * a)
@@ -83,6 +87,11 @@ def excitation(
     r[0] = rng.normal(size=m)
     for k in range(1, t_len):
         r[k] = a * r[k - 1] + white[k]
+    smooth = np.empty_like(r)
+    smooth[0] = r[0]
+    for k in range(1, t_len):
+        smooth[k] = a * smooth[k - 1] + (1 - a) * r[k]
+    r = smooth
     at = robot.inverse_kinematics(poses).structure  # (T, n, m)
     _, _, vh = np.linalg.svd(at)
     null = vh[:, at.shape[1] :, :]  # (T, m − n, m)
