@@ -139,6 +139,14 @@ def test_the_force_loop_corrects_platform_side_friction_only_through_a_platform_
     assert err("platform", 3.0) < 0.4 * open_
     assert err("sensor", 0.7) > 0.95 * open_
 
+    # the same loop fed a measurement a few periods older rings on the drums' cable mode
+    def late(gain, delay):
+        r = plant.closed_loop(poses, 1e-3, feedback="platform", gain=gain, sensor_delay=delay)
+        return np.sqrt(np.mean((r.ee - r.desired) ** 2))
+
+    assert late(3.0, 2) > 10 * late(3.0, 0)
+    assert late(0.7, 5) > 10 * late(0.7, 0)
+
 
 def test_planar_robot_step_and_circle():
     """Seed 003's robot: a 20 mm step settles with the PID's integral (no error left), and the

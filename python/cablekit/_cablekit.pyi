@@ -1021,6 +1021,7 @@ class CdprPlant(Model):
         method: str = "auto",
         gain: float = 0.0,
         feedback: str = "open",
+        sensor_delay: int = 0,
         current_feedforward: bool = True,
         sensor_noise: _F | None = None,
         tension_offset: _F | None = None,

@@ -161,10 +161,11 @@ impl CdprPlant {
     /// `(T, n)` every `dt` s, from rest at home: the tension distribution (`method`) of weight
     /// and inertia gives `f_d`; the force loop `f_u = gain·(f_d − f̂)` feeds back `feedback`
     /// (`"open"`: none, `"platform"`, `"sensor"` with `sensor_noise` `(T, m)` N added, or
-    /// `"network"`: `network`'s estimate from the desired position, velocity and the sensor);
+    /// `"network"`: `network`'s estimate from the desired position, velocity and the sensor),
+    /// measured `sensor_delay` periods before the last one;
     /// the drums take the lengths and the current of `f_d + tension_offset + f_u`
     /// (`tension_offset` `(T, m)` N: an excitation). A `LoopRun` (GIL released).
-    #[pyo3(signature = (poses, dt, *, substeps = 5, method = "auto", gain = 0.0, feedback = "open", current_feedforward = true, sensor_noise = None, tension_offset = None, network = None))]
+    #[pyo3(signature = (poses, dt, *, substeps = 5, method = "auto", gain = 0.0, feedback = "open", sensor_delay = 0, current_feedforward = true, sensor_noise = None, tension_offset = None, network = None))]
     #[allow(clippy::too_many_arguments)]
     fn closed_loop(
         slf: PyRef<'_, Self>,
@@ -174,6 +175,7 @@ impl CdprPlant {
         method: &str,
         gain: f64,
         feedback: &str,
+        sensor_delay: usize,
         current_feedforward: bool,
         sensor_noise: Option<&Bound<'_, PyAny>>,
         tension_offset: Option<&Bound<'_, PyAny>>,
@@ -196,6 +198,7 @@ impl CdprPlant {
                 method: Method::from_name(method)?,
                 gain,
                 feedback: Feedback::from_name(feedback)?,
+                sensor_delay,
                 current_feedforward,
                 ..LoopOptions::new(dt)
             })

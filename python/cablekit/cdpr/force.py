@@ -149,6 +149,7 @@ class ForceControl:
 
     gains: tuple[float, ...]
     rmse: np.ndarray
+    rmse_delayed: dict[int, np.ndarray]
     gain: float
     network: PlantNetwork
     references: dict[str, float]
@@ -170,22 +171,24 @@ def force_control(
     *,
     gains: tuple[float, ...] = (*SEED_TABLE3, 1.0, 1.5, 2.0, 3.0),
     gain: float = 0.70,
+    delays: tuple[int, ...] = (2, 3),
     seed: int = 0,
     epochs: int = 150,
     progress: bool = False,
 ) -> ForceControl:
     """Tables 3–4 in simulation: the network trained on the plant (:func:`plant_network`)
-    closing the force loop along test 1; with ``quasi_static`` (the network of Tables 1–2) its
-    loop as a reference row."""
+    closing the force loop along test 1, as sampled (the measurement one period old) and with
+    the measurement older still by each of ``delays`` periods; with ``quasi_static`` (the network of
+    Tables 1–2) its loop as a reference row."""
     pn = plant_network(seed=seed, epochs=epochs, progress=progress)
     network = pn.network
     tr = first_test_trajectory(dt=1e-3)
     plant = mini_plant(home=tr.poses[0])
     noise = np.random.default_rng(seed).normal(0.0, float(TWIN_FRICTION["noise"]), (tr.poses.shape[0], 8))
 
-    def loop(feedback: str, k: float) -> LoopRun:
+    def loop(feedback: str, k: float, late: int = 0) -> LoopRun:
         return plant.closed_loop(
-            tr.poses, tr.dt, gain=k, feedback=feedback, sensor_noise=noise, network=network
+            tr.poses, tr.dt, gain=k, feedback=feedback, sensor_noise=noise, network=network, sensor_delay=late
         )
 
     def loop_with(net: Mlp, k: float) -> LoopRun:
@@ -199,6 +202,11 @@ def force_control(
             print(f"force loop on NN-tension, k_p = {k:.2f}: RMSE {rmse[-1]:.3f} N", flush=True)
         if abs(k - gain) < 1e-12:
             runs["NN"] = run
+    delayed = {}
+    for late in delays:
+        delayed[late] = np.array([_tension_rmse(loop("network", k, late)) for k in gains])
+        if progress:
+            print(f"force loop fed back {late} ms later: RMSE {np.round(delayed[late], 3)} N", flush=True)
     if "NN" not in runs:
         runs["NN"] = loop("network", gain)
     runs["open"] = loop("open", 0.0)
@@ -222,7 +230,7 @@ def force_control(
         "measured-wrench, loop on PUL": _wrench_rmse(runs["PUL"].wrench_ee, runs["PUL"].wrench_desired),
         "measured-wrench, no force loop": _wrench_rmse(runs["open"].wrench_ee, runs["open"].wrench_desired),
     }
-    return ForceControl(tuple(gains), np.array(rmse), gain, pn, references, wrench, runs, tr.t)
+    return ForceControl(tuple(gains), np.array(rmse), delayed, gain, pn, references, wrench, runs, tr.t)
 
 
 def markdown(fc: ForceControl) -> str:
@@ -239,6 +247,10 @@ def markdown(fc: ForceControl) -> str:
         head,
         "|---" * (len(fc.gains) + 1) + "|",
         "| twin | " + " | ".join(f"{v:.3f}" for v in fc.rmse) + " |",
+        *(
+            f"| twin, fed back {late} ms later | " + " | ".join(f"{v:.3f}" for v in row) + " |"
+            for late, row in fc.rmse_delayed.items()
+        ),
         "| seed | "
         + " | ".join(f"{SEED_TABLE3[k]:.3f}" if k in SEED_TABLE3 else "—" for k in fc.gains)
         + " |",

@@ -582,6 +582,9 @@ pub struct LoopOptions {
     pub gain: f64,
     /// The tension the force loop feeds back.
     pub feedback: Feedback,
+    /// Periods by which the fed-back tensions lag beyond the one period of any sampled loop
+    /// (a sensor's conversion and link latency); default 0.
+    pub sensor_delay: usize,
     /// Feed forward the current that carries the target tension at the drum and turns the drum
     /// as referenced (step 4 of [`closed_loop`]); default true.
     pub current_feedforward: bool,
@@ -596,6 +599,7 @@ impl LoopOptions {
             method: Method::Auto,
             gain: 0.0,
             feedback: Feedback::Open,
+            sensor_delay: 0,
             current_feedforward: true,
         }
     }
@@ -637,8 +641,8 @@ pub struct LoopRun {
 /// (which should be the first desired pose). Each period:
 ///
 /// 1. `f_d` = the tension distribution of the weight and the inertia `M·ẍ_d` at `q_d`;
-/// 2. `f̂` = the fed-back tension of the last period's measurement (`sensor_noise` `(T, m)`
-///    N is added to the sensor);
+/// 2. `f̂` = the fed-back tension measured at the end of period `k − 1 − sensor_delay` (the
+///    home tensions before; `sensor_noise` `(T, m)` N is added to the sensor);
 /// 3. `f_u = k_p·(f_d − f̂)` (0 under [`Feedback::Open`]);
 /// 4. the drums take the unstretched lengths that give the target `f_t = max(0, f_d + f_u)`
 ///    at `q_d` (the length loop of seed 002 eq. 15), the rate `α̇_ref = A·v_d/r` of the desired
@@ -739,6 +743,8 @@ pub fn closed_loop(
     };
     let row = |k: usize| &poses[k.min(t_len - 1) * n..(k.min(t_len - 1) + 1) * n];
     let mut last_rate: Option<Vec<f64>> = None;
+    // platform-side and (noiseless) sensor tensions at the end of each period, for the delay
+    let mut pul_raw = vec![0.0; tm];
     let mut measured_ee = plant.home_tensions.clone();
     let mut measured_pul = plant.home_tensions.clone();
     let mut f_hat = vec![0.0; m];
@@ -765,7 +771,11 @@ pub fn closed_loop(
             run.infeasible += 1;
         }
         geom.clone_from(ctl.geometry());
-        // the fed-back tension: last period's measurement
+        // the fed-back tension: the measurement `sensor_delay` periods before the last one
+        if let Some(p) = k.checked_sub(opts.sensor_delay.saturating_add(1)) {
+            measured_ee.copy_from_slice(&run.ee[p * m..(p + 1) * m]);
+            measured_pul.copy_from_slice(&pul_raw[p * m..(p + 1) * m]);
+        }
         let noisy: Vec<f64> = (0..m)
             .map(|j| measured_pul[j] + sensor_noise.map_or(0.0, |s| s[k * m + j]))
             .collect();
@@ -818,8 +828,7 @@ pub fn closed_loop(
         let s_d = geom.structure();
         run.pose[k * n..(k + 1) * n].copy_from_slice(&y[..n]);
         for j in 0..m {
-            measured_ee[j] = y[n + j];
-            measured_pul[j] = y[n + m + j];
+            pul_raw[k * m + j] = y[n + m + j];
             let i = k * m + j;
             run.desired[i] = fd[j];
             run.ee[i] = y[n + j];
