@@ -158,13 +158,21 @@ class CdprDiagnosis:
     noise: float
     found: Candidate | None
 
+    @property
+    def status(self) -> str:
+        """``"found"``, ``"no gap"`` (the held-out residual is noise) or ``"unexplained"`` (a gap
+        no candidate removes half of)."""
+        if self.found is not None:
+            return "found"
+        return "unexplained" if (self.residual_rms > 3 * self.noise).any() else "no gap"
+
     def summary(self) -> str:
         """One line."""
         if self.found is None:
             worst = int(np.argmax(self.residual_rms))
             return (
-                f"nothing found (largest held-out residual {self.residual_rms[worst]:.3f} N at cable "
-                f"{worst + 1}, noise {self.noise:.3f} N)"
+                f"nothing found, {self.status} (largest held-out residual {self.residual_rms[worst]:.3f} N "
+                f"at cable {worst + 1}, noise {self.noise:.3f} N)"
             )
         c = self.found
         return f"{c.effect} at cable {c.cable + 1}: closes {100 * c.closed:.0f} % of the held-out gap"
@@ -303,7 +311,7 @@ def markdown(cases: list[SelfTestCase]) -> str:
     for c in cases:
         f = c.diagnosis.found
         what = "nothing" if c.effect is None else f"{c.effect} at cable {c.cable + 1}"
-        got = "nothing" if f is None else f"{f.effect} at cable {f.cable + 1}"
+        got = f"nothing ({c.diagnosis.status})" if f is None else f"{f.effect} at cable {f.cable + 1}"
         closed = "—" if f is None else f"{100 * f.closed:.0f} %"
         lines.append(
             f"| {what} | {got} | {closed} | {'yes' if c.correct_effect else 'NO'} | "

@@ -591,7 +591,8 @@ pub struct LoopOptions {
 }
 
 impl LoopOptions {
-    /// 1 kHz, 5 substeps, `auto` distribution, no force loop, current feed-forward.
+    /// Period `dt`, 5 substeps, `auto` distribution, no force loop, no extra delay, current
+    /// feed-forward.
     pub fn new(dt: f64) -> Self {
         Self {
             dt,
