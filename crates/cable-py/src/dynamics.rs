@@ -45,7 +45,6 @@ impl Model {
         self.inner.output_names()
     }
     /// The model's state at rest (its equilibrium with zero input where it has one).
-    #[getter]
     fn rest_state<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         to_vector(py, self.inner.rest_state())
     }

@@ -216,8 +216,9 @@ impl CdprPlant {
 /// desired tensions `desired`, platform-side tensions `ee`, winch-side `sensor` (with noise),
 /// the fed-back `feedback`, motor `current` (A) and drum angles `alpha` (rad) `(T, m)`; the
 /// cable wrenches `(T, n)`: `wrench_desired` (`Aᵀ·f_d`), `wrench_ee` (the actual one),
-/// `wrench_sensor` and `wrench_feedback` (at the desired pose); and the number of periods whose
-/// `f_d` was `infeasible`.
+/// `wrench_sensor` and `wrench_feedback` (at the desired pose); the number of periods whose
+/// `f_d` was `infeasible`; and the plant's `inputs` `(T, 3m + n)` (held over each period) and
+/// `initial_state`, which replay the run through `simulate` or an sr-UKF.
 #[pyclass(frozen, get_all, module = "cablekit._cablekit")]
 pub struct LoopRun {
     pose: Py<PyArray2<f64>>,
@@ -232,6 +233,8 @@ pub struct LoopRun {
     wrench_sensor: Py<PyArray2<f64>>,
     wrench_feedback: Py<PyArray2<f64>>,
     infeasible: usize,
+    inputs: Py<PyArray2<f64>>,
+    initial_state: Py<numpy::PyArray1<f64>>,
 }
 
 impl LoopRun {
@@ -251,6 +254,8 @@ impl LoopRun {
             wrench_sensor: mat(r.wrench_sensor, n),
             wrench_feedback: mat(r.wrench_feedback, n),
             infeasible: r.infeasible,
+            inputs: mat(r.inputs, 3 * m + n),
+            initial_state: to_vector(py, r.initial_state).unbind(),
         }
     }
 }

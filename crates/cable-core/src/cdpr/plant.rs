@@ -635,6 +635,12 @@ pub struct LoopRun {
     pub wrench_feedback: Vec<f64>,
     /// Periods whose `f_d` was not feasible (the distribution's closest answer was used).
     pub infeasible: usize,
+    /// The plant's inputs per period `(T, 3m + n)`, held over the period: with
+    /// [`LoopRun::initial_state`] they replay the run through the model (the simulator, the
+    /// sr-UKF).
+    pub inputs: Vec<f64>,
+    /// The plant's state at the start.
+    pub initial_state: Vec<f64>,
 }
 
 /// Run `plant` under the trajectory controller: desired poses `(T, n)` every `opts.dt`
@@ -741,6 +747,8 @@ pub fn closed_loop(
         wrench_sensor: vec![0.0; tn],
         wrench_feedback: vec![0.0; tn],
         infeasible: 0,
+        inputs: vec![0.0; t_len * (3 * m + n)],
+        initial_state: x.clone(),
     };
     let row = |k: usize| &poses[k.min(t_len - 1) * n..(k.min(t_len - 1) + 1) * n];
     let mut last_rate: Option<Vec<f64>> = None;
@@ -817,6 +825,7 @@ pub fn closed_loop(
             };
         }
         last_rate = Some(u[m..2 * m].to_vec());
+        run.inputs[k * (3 * m + n)..(k + 1) * (3 * m + n)].copy_from_slice(&u);
         rk.advance(plant, &mut x, &u, &u, opts.dt, opts.substeps);
         if !x.iter().all(|v| v.is_finite()) {
             return Err(CableError::Diverged {
