@@ -5,10 +5,13 @@
 use std::hint::black_box;
 
 use cable_bench::ipanema_fixture;
+use cable_core::cdpr::winch::Winch;
 use cable_core::cdpr::{
-    capacity_batch, capacity_margin, distribute_batch, improved_closed_form, inverse_kinematics,
-    CableGeometry, CapacityMut, Distributor, Margins, Method, Pose, Requirement, TensionsMut,
+    capacity_batch, capacity_margin, closed_loop, distribute_batch, improved_closed_form,
+    inverse_kinematics, CableGeometry, CapacityMut, CdprPlant, Distributor, LoopOptions, Margins,
+    Method, PlantOptions, Pose, Requirement, TensionsMut,
 };
+use cable_core::dynamics::Model;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 
 fn per_pose(c: &mut Criterion) {
@@ -188,5 +191,33 @@ fn batch(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, per_pose, batch);
+/// The robot as a plant (issue #23): one derivative of the 60-state model, and one controller
+/// period of the closed loop (distribution, lengths and currents, five RK4 steps), 8 cables.
+fn plant(c: &mut Criterion) {
+    let (robot, poses) = ipanema_fixture(64);
+    let home = &poses[..6];
+    let plant = CdprPlant::new(&robot, Winch::seed003(), home, PlantOptions::default()).unwrap();
+    let mut g = c.benchmark_group("cdpr_plant");
+    g.bench_function("derivative_8x6", |b| {
+        let x = plant.rest_state();
+        let u = vec![0.0; plant.n_inputs()];
+        let mut dx = vec![0.0; plant.n_states()];
+        b.iter(|| {
+            plant.derivative(black_box(&x), &u, &mut dx);
+            black_box(&dx);
+        })
+    });
+    // 1,000 periods holding the home pose, timed per period
+    let held: Vec<f64> = home.iter().copied().cycle().take(6 * 1000).collect();
+    g.throughput(Throughput::Elements(1000));
+    g.bench_function("closed_loop_1000_periods_8x6", |b| {
+        let opts = LoopOptions::new(1e-3);
+        b.iter(|| {
+            black_box(closed_loop(&plant, black_box(&held), &opts, None, None, None).unwrap())
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, per_pose, batch, plant);
 criterion_main!(benches);
