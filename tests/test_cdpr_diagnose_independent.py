@@ -17,11 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import integrate as scipy_integrate
 
 from cablekit.cdpr import Winch
 from cablekit.cdpr.diagnose import diagnose
-
-scipy_integrate = pytest.importorskip("scipy.integrate", reason="the test extra (installed by .ci/run)")
 
 W = dict(zip(Winch.NAMES, Winch.seed003().values, strict=True))
 M = 4

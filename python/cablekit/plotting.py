@@ -32,6 +32,15 @@ def pyplot_or_none() -> Any:
         return None
 
 
+def save_figure(fig: Any, path: str | Path) -> Path:
+    """Lay out ``fig``, write it to ``path`` (90 dpi) and close it; returns the path."""
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=90)
+    _pyplot().close(fig)
+    return path
+
+
 def plot_run(result: SimulationResult, path: str | Path, title: str = "") -> Path:
     """Plot a run's positions, tensions and inputs to a PNG; returns the path."""
     plt = _pyplot()

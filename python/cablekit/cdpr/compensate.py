@@ -306,7 +306,7 @@ def report(out: str | Path, comp: Compensation, plots: bool = True) -> str:
 
 def plot_cable(path: str | Path, comp: Compensation, cable: int = 1) -> Path | None:
     """EE, PUL and NN tension of one cable along test 1, and the errors (seed 002 Fig. 6)."""
-    from cablekit.plotting import pyplot_or_none
+    from cablekit.plotting import pyplot_or_none, save_figure
 
     plt = pyplot_or_none()
     if plt is None:
@@ -325,8 +325,4 @@ def plot_cable(path: str | Path, comp: Compensation, cable: int = 1) -> Path | N
     b.set_xlabel("t (s)")
     b.legend(fontsize=8)
     a.set_title(f"Seed 002 Fig. 6 on the twin: {run.trajectory.name}")
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

@@ -28,6 +28,7 @@ tensions (the seed's IMU), the network and the sensor, at ``k_p = 0.70``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -271,12 +272,10 @@ def markdown(fc: ForceControl) -> str:
     return "\n".join(lines)
 
 
-def plot(path, fc: ForceControl, cable: int = 3):
+def plot(path: str | Path, fc: ForceControl, cable: int = 3) -> Path | None:
     """One cable's tension with and without the force loop (seed 002 Fig. 10) and the force
     wrench errors (Fig. 8)."""
-    from pathlib import Path
-
-    from cablekit.plotting import pyplot_or_none
+    from cablekit.plotting import pyplot_or_none, save_figure
 
     plt = pyplot_or_none()
     if plt is None:
@@ -294,8 +293,4 @@ def plot(path, fc: ForceControl, cable: int = 3):
     b.set_xlabel("t (s)")
     b.legend(fontsize=8)
     a.set_title("Seed 002 Figs 8 and 10 on the twin: the force loop on the NN-tension, test 1")
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

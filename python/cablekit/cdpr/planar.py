@@ -175,7 +175,7 @@ def markdown(steps: list[StepResponse], tr: TrajectoryResponse) -> str:
 
 def plot(path: str | Path, steps: list[StepResponse], tr: TrajectoryResponse) -> Path | None:
     """Step responses and the circle's tensions."""
-    from cablekit.plotting import pyplot_or_none
+    from cablekit.plotting import pyplot_or_none, save_figure
 
     plt = pyplot_or_none()
     if plt is None:
@@ -199,11 +199,7 @@ def plot(path: str | Path, steps: list[StepResponse], tr: TrajectoryResponse) ->
     b.set_ylabel("tension (N); black: f_d")
     b.legend(fontsize=8)
     a.set_title("Seed 003's planar robot in closed loop")
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def report(out: str | Path, plots: bool = True) -> str:

@@ -213,7 +213,7 @@ def fig18_table(sweeps: list[CurrentSweep], w: Winch | None = None) -> str:
 
 def plot_fig18(path: str | Path, sweeps: list[CurrentSweep]) -> Path | None:
     """Measured tension against the motor-current estimate, loading and unloading (Fig. 18)."""
-    from cablekit.plotting import pyplot_or_none
+    from cablekit.plotting import pyplot_or_none, save_figure
 
     plt = pyplot_or_none()
     if plt is None:
@@ -238,8 +238,4 @@ def plot_fig18(path: str | Path, sweeps: list[CurrentSweep]) -> Path | None:
     ax.set_ylabel("tension read by the inline sensor (N)")
     ax.set_title("Seed 003 Fig. 18 on the twin: current up, then down")
     ax.legend(fontsize=6, ncol=2)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

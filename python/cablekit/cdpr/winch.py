@@ -166,7 +166,7 @@ def inconsistencies(w: Winch | None = None) -> list[str]:
 
 def plot_root_locus(path: str | Path, w: Winch | None = None) -> Path | None:
     """Closed-loop poles over ``K_p`` from 0.01 to 100 for the six columns, ``K_p = 6`` marked."""
-    from cablekit.plotting import pyplot_or_none
+    from cablekit.plotting import pyplot_or_none, save_figure
 
     plt = pyplot_or_none()
     if plt is None:
@@ -188,11 +188,7 @@ def plot_root_locus(path: str | Path, w: Winch | None = None) -> Path | None:
         ax.set_xlabel("Re (1/s)")
         ax.set_ylabel("Im (rad/s)")
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def report(out: str | Path, plots: bool = True) -> str:
@@ -393,7 +389,7 @@ def step_markdown(rows: list[StepResponse]) -> str:
 
 def plot_steps(path: str | Path, rows: list[StepResponse]) -> Path | None:
     """α/step and T_A over time for every step."""
-    from cablekit.plotting import pyplot_or_none
+    from cablekit.plotting import pyplot_or_none, save_figure
 
     plt = pyplot_or_none()
     if plt is None:
@@ -409,8 +405,4 @@ def plot_steps(path: str | Path, rows: list[StepResponse]) -> Path | None:
     b.set_xlabel("t (s)")
     a.legend(fontsize=7)
     a.set_title("Seed 003's winch, nonlinear model: reference steps (T₀ = 20 N)")
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
