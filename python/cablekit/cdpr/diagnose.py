@@ -78,8 +78,7 @@ def drum_residual(
     alpha, current, sensor = arrays
     w = dict(zip(Winch.NAMES, winch.values, strict=True))
     r = w["drum_radius"]
-    jl = w["rotor_inertia"] * w["gear_ratio"] ** 2 + w["gearbox_inertia"] + w["drum_inertia"]
-    bl = w["rotor_viscous"] * w["gear_ratio"] ** 2 + w["drum_viscous"]
+    jl, bl = winch.load  # J_l, B_l (eq. 17)
     rate = np.gradient(alpha, t, axis=0)
     acc = np.gradient(rate, t, axis=0)
     drum = (
@@ -97,7 +96,7 @@ def _regressors(
     t: np.ndarray,
     alpha: np.ndarray,
     sensor: np.ndarray,
-    drum: np.ndarray,
+    drum_smooth: np.ndarray,
     r: float,
     smoothing: float,
     lag: float = 0.0,
@@ -109,9 +108,8 @@ def _regressors(
         return np.column_stack([p * _sgn(v, 1e-3), v])
     if effect == "sensor_lag":
         # what a delay `lag` takes off the drum-side tension (the motor's estimate, which does not
-        # lag), smoothed over 21 samples against its noise
-        k = np.ones(21) / 21
-        d = np.convolve(np.pad(drum[:, j], 10, mode="edge"), k, "valid")
+        # lag; smoothed, see `diagnose`)
+        d = drum_smooth[:, j]
         shift = max(1, round(lag / float(np.median(np.diff(t)))))
         return (d - np.concatenate([np.full(shift, d[0]), d[:-shift]]))[:, None]
     if effect == "sensor_gain":
@@ -204,13 +202,19 @@ def diagnose(
         )
     )
     rms = np.sqrt(np.mean(held**2, axis=0))
+    # the motor's drum-side tension, smoothed over 21 samples against its noise (the lag's regressor)
+    kernel = np.ones(21) / 21
+    drum = res + sensor
+    drum_smooth = np.column_stack(
+        [np.convolve(np.pad(drum[:, j], 10, mode="edge"), kernel, "valid") for j in range(drum.shape[1])]
+    )
     cands = []
     for e in effects:
         for j in range(res.shape[1]):
             lags = LAGS if e == "sensor_lag" else (0.0,)
             fits = []
             for lag in lags:
-                x = _regressors(e, j, t, alpha, sensor, res + sensor, r, smoothing, lag)
+                x = _regressors(e, j, t, alpha, sensor, drum_smooth, r, smoothing, lag)
                 coef = _fit(x[:half], res[:half, j], _SIGNS[e])
                 fits.append((float(np.sum((res[:half, j] - x[:half] @ coef) ** 2)), lag, x, coef))
             _, lag, x, coef = min(fits, key=lambda f: f[0])

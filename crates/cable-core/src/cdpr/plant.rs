@@ -757,6 +757,7 @@ pub fn closed_loop(
     let mut measured_ee = plant.home_tensions.clone();
     let mut measured_pul = plant.home_tensions.clone();
     let mut f_hat = vec![0.0; m];
+    let mut noisy = vec![0.0; m];
     let mut net_in = vec![0.0; 2 * translation + m];
     let mut geom = CableGeometry::default();
     let mut inertial = [0.0; 6];
@@ -785,9 +786,9 @@ pub fn closed_loop(
             measured_ee.copy_from_slice(&run.ee[p * m..(p + 1) * m]);
             measured_pul.copy_from_slice(&pul_raw[p * m..(p + 1) * m]);
         }
-        let noisy: Vec<f64> = (0..m)
-            .map(|j| measured_pul[j] + sensor_noise.map_or(0.0, |s| s[k * m + j]))
-            .collect();
+        for (j, v) in noisy.iter_mut().enumerate() {
+            *v = measured_pul[j] + sensor_noise.map_or(0.0, |s| s[k * m + j]);
+        }
         match opts.feedback {
             Feedback::Open | Feedback::Sensor => f_hat.copy_from_slice(&noisy),
             Feedback::Platform => f_hat.copy_from_slice(&measured_ee),
