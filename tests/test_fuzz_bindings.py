@@ -246,7 +246,9 @@ def _calls() -> dict[str, Call]:
     planar, home = shipped("seed003_planar"), np.array([0.6, 0.5, 0.0])
     side = PulleyFriction(np.array([0.05]), np.array([1.0]), np.array([1.0]), law="coulomb")
     out["PulleyFriction"] = Call(PulleyFriction, (one, one, one), dict(law="dahl", presliding=1e-3))
-    out["CdprPlant"] = Call(CdprPlant, (planar, home), dict(cable_damping=10.0, platform_side=side))
+    out["CdprPlant"] = Call(
+        CdprPlant, (planar, home), dict(cable_damping=10.0, platform_side=side, creep=(one, one))
+    )
     plant = CdprPlant(planar, home)
     loop_kw = dict(gain=0.5, feedback="sensor", sensor_noise=np.zeros((20, 4)))
     out["CdprPlant.closed_loop"] = Call(plant.closed_loop, (np.tile(home, (20, 1)), 1e-3), loop_kw)

@@ -39,6 +39,7 @@ def _rough(damping: float = 30.0) -> CdprPlant:
         cable_damping=damping,
         platform_side=PulleyFriction(np.array([0.04]), np.array([3.0]), np.array([np.pi / 2]), law="coulomb"),
         drum_side=PulleyFriction(np.array([0.02]), np.array([1.0]), np.array([np.pi]), law="coulomb"),
+        creep=(np.array([0.3]), np.array([2.0])),
     )
 
 
@@ -53,6 +54,7 @@ def test_f_and_h_equal_the_numpy_reference(seed):
     x[:3] = HOME + rng.normal(0, [0.02, 0.02, 0.05])
     x[3:6] = rng.normal(0, 0.2, 3)
     x[6:22] = rng.normal(0, [0.01] * 4 + [0.5] * 4 + [0.02] * 4 + [0.01] * 4)
+    x[30:34] = rng.normal(0, 1e-4, 4)  # creep stretches (m)
     u = np.concatenate(
         [rng.normal(0, 0.01, 4), rng.normal(0, 0.3, 4), rng.normal(0, 0.5, 4), rng.normal(0, 1, 3)]
     )
@@ -76,6 +78,8 @@ def test_f_and_h_equal_the_numpy_reference(seed):
         damping=30.0,
         current_limit=10.0,
         eps_drum=0.01,
+        creep_ratio=0.3,
+        creep_tau=2.0,
     )
     dx, y = reference(x, u, **kw)
     np.testing.assert_allclose(plant.derivative(x, u), dx, rtol=1e-9, atol=1e-9 * (1 + np.abs(dx).max()))
@@ -185,6 +189,14 @@ def test_bad_input_is_a_typed_error():
         CdprPlant(PLANAR, HOME, cable_damping=-1.0)
     with pytest.raises(ShapeError):
         CdprPlant(PLANAR, HOME, platform_side=PulleyFriction(np.zeros(3), np.zeros(3), np.zeros(3)))
+    with pytest.raises(ParameterError):
+        CdprPlant(PLANAR, HOME, creep=(np.array([-0.1]), np.array([1.0])))
+    with pytest.raises(ParameterError):
+        CdprPlant(PLANAR, HOME, creep=(np.array([0.1]), np.array([0.0])))
+    with pytest.raises(ShapeError):
+        CdprPlant(PLANAR, HOME, creep=(np.zeros(3), np.ones(1)))
+    with pytest.raises(ParameterError, match="finite"):
+        CdprPlant(PLANAR, HOME, creep=(np.array([np.nan]), np.ones(1)))
     with pytest.raises(ParameterError):
         PulleyFriction(np.array([-0.1]), np.array([0.0]), np.array([0.0]))
     light = Robot(name="light", motion="planar", **dict(SPEC, mass=0.0))

@@ -1000,6 +1000,7 @@ class CdprPlant(Model):
         drum_side: PulleyFriction | None = None,
         platform_side: PulleyFriction | None = None,
         home_tensions: _F | None = None,
+        creep: tuple[_F, _F] | None = None,
     ) -> CdprPlant: ...
     @property
     def home(self) -> _F: ...

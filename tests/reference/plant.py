@@ -1,6 +1,6 @@
 """NumPy reference of ``CdprPlant`` for a planar robot without pulleys, written from the module
 docs of ``cable_core::cdpr::plant`` (seed 002 eqs 6, 7, 15; seed 003 eqs 13, 16–19) with
-Coulomb pulley friction on both sides of the sensor."""
+Coulomb pulley friction on both sides of the sensor and a Kelvin–Voigt creep element per cable."""
 
 from __future__ import annotations
 
@@ -34,11 +34,14 @@ def planar_plant(
     damping,
     current_limit,
     eps_drum,
+    creep_ratio=0.0,
+    creep_tau=1.0,
 ):
     """``(dx, y)`` of the planar plant; ``winch`` a dict of seed 003's parameters."""
     m = len(anchors)
     q, v = x[:3], x[3:6]
     al, om, zi, dd = x[6 : 6 + m], x[6 + m : 6 + 2 * m], x[6 + 2 * m : 6 + 3 * m], x[6 + 3 * m : 6 + 4 * m]
+    crept = x[6 + 6 * m : 6 + 7 * m]
     a_ref, w_ref, i_ff, w_ext = u[:m], u[m : 2 * m], u[2 * m : 3 * m], u[3 * m : 3 * m + 3]
     c, s = np.cos(q[2]), np.sin(q[2])
     rot = np.array([[c, -s], [s, c]])
@@ -58,7 +61,10 @@ def planar_plant(
         col = np.array([e[0], e[1], rb[0] * e[1] - rb[1] * e[0]])
         l_rate = -col @ v
         unstretched = rest[j] - r * al[j]
-        t_ee = max(0.0, ea[j] * (length - unstretched) / unstretched + damping * (l_rate + r * om[j]))
+        elastic = length - unstretched - crept[j]
+        dc = (creep_ratio * max(elastic, 0.0) - crept[j]) / creep_tau if creep_ratio > 0 else 0.0
+        t_ee = max(0.0, ea[j] * elastic / unstretched + damping * (l_rate + r * om[j] - dc))
+        dx[6 + 6 * m + j] = dc
         vd = -l_rate
         normal = 2 * np.sin(wrap_d / 2)  # no exit pulley: its wrap is 0
         p = max(0.0, t_ee + mu_d * normal * t_ee * _sgn(vd, eps_path) + visc_d * vd)

@@ -74,7 +74,9 @@ impl PulleyFriction {
 /// under its PID, and pulley friction between the drum and the winch-side sensor
 /// (`drum_side`) and between the sensor and the platform (`platform_side`). At α = 0 it rests
 /// at `home` holding `home_tensions` (default: the tension distribution of its weight).
-/// State `[q, v, α, α̇, z, D, z_drum, z_platform]`, input `[α_ref, α̇_ref, i_ff, w_ext]`, output
+/// `creep=(ratio, time_constant)` (`(m,)` or `(1,)` each): polymer-cable creep, settled
+/// stretch `1 + ratio` times the elastic one, reached with time constant (s).
+/// State `[q, v, α, α̇, z, D, z_drum, z_platform, creep]`, input `[α_ref, α̇_ref, i_ff, w_ext]`, output
 /// `[q, T_EE, T_PUL, i, T̂, α]` (see `state_names`, `input_names`, `output_names`).
 #[pyclass(extends = Model, frozen, module = "cablekit._cablekit")]
 pub struct CdprPlant;
@@ -89,7 +91,7 @@ fn plant<'a>(slf: &'a PyRef<'_, CdprPlant>) -> &'a core::CdprPlant {
 #[pymethods]
 impl CdprPlant {
     #[new]
-    #[pyo3(signature = (robot, home, winch = None, *, lpf = None, current_limit = None, friction_smoothing = None, cable_damping = None, drum_side = None, platform_side = None, home_tensions = None))]
+    #[pyo3(signature = (robot, home, winch = None, *, lpf = None, current_limit = None, friction_smoothing = None, cable_damping = None, drum_side = None, platform_side = None, home_tensions = None, creep = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         robot: PyRef<'_, Robot>,
@@ -102,6 +104,7 @@ impl CdprPlant {
         drum_side: Option<PyRef<'_, PulleyFriction>>,
         platform_side: Option<PyRef<'_, PulleyFriction>>,
         home_tensions: Option<&Bound<'_, PyAny>>,
+        creep: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>)>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let r = &robot.inner;
         let home = any_vector(home, "home")?;
@@ -110,6 +113,13 @@ impl CdprPlant {
             .transpose()?;
         let d = core::PlantOptions::default();
         let m = r.n_cables();
+        let creep = match creep {
+            Some((ratio, tau)) => {
+                let (ratio, tau) = (any_vector(&ratio, "creep")?, any_vector(&tau, "creep")?);
+                guarded(|| core::Creep::per_cable(&ratio, &tau, m))?
+            }
+            None => Vec::new(),
+        };
         let p = guarded(|| {
             let options = core::PlantOptions {
                 lpf: lpf.unwrap_or(d.lpf),
@@ -119,6 +129,7 @@ impl CdprPlant {
                 drum_side: drum_side.map_or(Ok(Vec::new()), |f| f.paths(m))?,
                 platform_side: platform_side.map_or(Ok(Vec::new()), |f| f.paths(m))?,
                 home_tensions,
+                creep,
             };
             let w = winch.map_or_else(core::winch::Winch::seed003, |w| w.inner);
             core::CdprPlant::new(r, w, &home, options)

@@ -26,7 +26,7 @@ pub use kinematics::{
     ForwardKinematics, Pose, FK_MAX_ITER,
 };
 pub use path::{equilibrium_projection, path_friction, PathFriction, PathLaw, PathRun};
-pub use plant::{closed_loop, CdprPlant, Feedback, LoopOptions, LoopRun, PlantOptions};
+pub use plant::{closed_loop, CdprPlant, Creep, Feedback, LoopOptions, LoopRun, PlantOptions};
 pub use qp::{Distributor, LEAST_ERROR_REGULARISATION, QP_MAX_ITER};
 pub use robot::{Cable, Motion, Platform, Pulley, Robot, MAX_CABLES};
 pub use tension::{

@@ -95,17 +95,7 @@ impl PathFriction {
         law: PathLaw,
         m: usize,
     ) -> Result<Vec<Self>> {
-        let pick = |what: &str, v: &[f64], i: usize| -> Result<f64> {
-            match v.len() {
-                1 => Ok(v[0]),
-                len if len == m => Ok(v[i]),
-                len => Err(CableError::Shape {
-                    what: what.into(),
-                    expected: format!("1 or {m} values"),
-                    got: format!("{len}"),
-                }),
-            }
-        };
+        let pick = |what: &str, v: &[f64], i: usize| shared_or_own(what, v, i, m);
         (0..m)
             .map(|i| {
                 let p = Self {
@@ -351,6 +341,19 @@ pub fn equilibrium_projection(
         }
     })?;
     Ok(out)
+}
+
+/// Cable `i`'s value of a column given shared `(1,)` or per cable `(m,)`.
+pub(super) fn shared_or_own(what: &str, v: &[f64], i: usize, m: usize) -> Result<f64> {
+    match v.len() {
+        1 => Ok(v[0]),
+        len if len == m => Ok(v[i]),
+        len => Err(CableError::Shape {
+            what: what.into(),
+            expected: format!("1 or {m} values"),
+            got: format!("{len}"),
+        }),
+    }
 }
 
 #[cfg(test)]

@@ -14,6 +14,9 @@
 //!            drum → sensor:     T_drum = T_PUL + F_u, F_u = μ_u·N(θ_g)·T_PUL·s + σ_u·v
 //!            s = σ_ε(v) (Coulomb, eq. 7) or a Dahl state z (eq. 8), v the hauled-in speed
 //!            (−l̇ on the platform side, r·α̇ at the drum); see [`super::path`]
+//! creep      c_j: a Kelvin–Voigt element in series with the elastic stretch (polymer cables),
+//!            ċ = (ρ·max(0, l_j − L_j − c_j) − c_j)/τ,  T_EE = max(0, E·A·(l_j − L_j − c_j)/L_j
+//!            + c·(l̇_j + r·α̇_j − ċ_j)); settled, the cable's compliance is (1 + ρ)·L/(E·A)
 //! winch j    J_l·α̈ = k_φ·r_gb·i − B_l·α̇ − τ_st·σ_ε(α̇) − r·T_drum          (seed 003 eqs 16–19)
 //!            i = clamp(K_p·(e + D + z/t_i) + i_ff, ±I_max), e = α_ref − α   (eq. 13; eq. 12
 //!            without the LPF), ż = e (held while saturated and e pushes further),
@@ -23,21 +26,25 @@
 //! Rotations: planar `θ` about `z`; spatial roll–pitch–yaw (`R = R_z·R_y·R_x`) with the angular
 //! velocity `ω` in the world frame as the velocity state (singular at pitch ±90°).
 //!
-//! State `x = [q (n), v (n), α (m), α̇ (m), z (m), D (m), z_u (m), z_d (m)]`: pose
+//! State `x = [q (n), v (n), α (m), α̇ (m), z (m), D (m), z_u (m), z_d (m), c (m)]`: pose
 //! coordinates, platform velocity (planar `[ẋ, ẏ, θ̇]`; spatial `[ṗ, ω]`), drum angles and
-//! rates, PID integrals and filtered derivatives, and the Dahl states of the drum-side and
-//! platform-side paths (held at 0 under Coulomb). Input `u = [α_ref (m), α̇_ref (m), i_ff (m),
+//! rates, PID integrals and filtered derivatives, the Dahl states of the drum-side and
+//! platform-side paths (held at 0 under Coulomb), and the creep stretches (m; held at 0
+//! without creep). Input `u = [α_ref (m), α̇_ref (m), i_ff (m),
 //! w_ext (n)]`. Output `y = [q (n), T_EE (m), T_PUL (m), i (m), T̂ (m), α (m)]` with the
 //! motor-current tension estimate `T̂ = k_φ·r_gb·i/r` (seed 003 eqs 34–35).
 //!
 //! At α = 0 the platform rests at the home pose holding its weight with the home tensions (by
-//! default the tension distribution there): `L0_j = l_j(home)/(1 + f0_j/(E·A)_j)`. The cable
-//! stretches over its length from the frame (or its pulley) to the platform; the run from the
-//! drum to the frame is taken as inextensible.
+//! default the tension distribution there), its creep settled:
+//! `L0_j = l_j(home)/(1 + (1 + ρ_j)·f0_j/(E·A)_j)`. The cable stretches over its length from the
+//! frame (or its pulley) to the platform; the run from the drum to the frame is taken as
+//! inextensible. [`closed_loop`] commands lengths with the settled compliance (a controller
+//! calibrated statically), so creep shows in the transients: the platform sags or rises for
+//! `τ` after each change of tension.
 
 use super::controller::Controller;
 use super::kinematics::{inverse_kinematics, CableGeometry, Pose};
-use super::path::{dahl_slope, PathFriction, PathLaw};
+use super::path::{dahl_slope, shared_or_own, PathFriction, PathLaw};
 use super::robot::{Motion, Robot, MAX_CABLES};
 use super::tension::Method;
 use super::winch::Winch;
@@ -60,6 +67,7 @@ pub struct CdprPlant {
     cable_damping: f64,
     drum_side: Vec<PathFriction>,
     platform_side: Vec<PathFriction>,
+    creep: Vec<Creep>,
     home: Vec<f64>,
     home_tensions: Vec<f64>,
     rest_length: Vec<f64>,
@@ -84,6 +92,48 @@ pub struct PlantOptions {
     /// Tensions at the home pose (N, `m`); `None`: the tension distribution (`auto`) of the
     /// platform's weight there.
     pub home_tensions: Option<Vec<f64>>,
+    /// Creep per cable (empty: none).
+    pub creep: Vec<Creep>,
+}
+
+/// Creep of one cable (polymer cables: Dyneema, Kevlar): a Kelvin–Voigt element in series with
+/// the elastic stretch, so that after a change of tension the cable keeps lengthening (or
+/// recovering) with time constant `time_constant` until its stretch is `1 + ratio` times the
+/// elastic one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Creep {
+    /// `ρ = (E·A)/(E·A)_creep`, ≥ 0: the settled creep stretch per elastic stretch (0: none).
+    pub ratio: f64,
+    /// `τ` (s), > 0.
+    pub time_constant: f64,
+}
+
+impl Creep {
+    /// No creep.
+    pub const NONE: Self = Self {
+        ratio: 0.0,
+        time_constant: 1.0,
+    };
+
+    /// Per cable from `(m,)` or shared `(1,)` columns.
+    pub fn per_cable(ratio: &[f64], time_constant: &[f64], m: usize) -> Result<Vec<Self>> {
+        (0..m)
+            .map(|j| {
+                let c = Self {
+                    ratio: shared_or_own("creep ratio", ratio, j, m)?,
+                    time_constant: shared_or_own("creep time_constant", time_constant, j, m)?,
+                };
+                c.validate().map(|()| c)
+            })
+            .collect()
+    }
+
+    /// `ratio` finite and ≥ 0, `time_constant` finite and > 0.
+    pub fn validate(&self) -> Result<()> {
+        check::non_negative("creep ratio", self.ratio)?;
+        check::positive("creep time_constant", self.time_constant)?;
+        Ok(())
+    }
 }
 
 impl Default for PlantOptions {
@@ -96,6 +146,7 @@ impl Default for PlantOptions {
             drum_side: Vec::new(),
             platform_side: Vec::new(),
             home_tensions: None,
+            creep: Vec::new(),
         }
     }
 }
@@ -181,6 +232,18 @@ impl CdprPlant {
             v.iter().try_for_each(PathFriction::validate)?;
             Ok(v)
         };
+        let creep = match options.creep.len() {
+            0 => vec![Creep::NONE; m],
+            k if k == m => options.creep,
+            k => {
+                return Err(CableError::Shape {
+                    what: "creep".into(),
+                    expected: format!("{m} cables or none"),
+                    got: format!("{k}"),
+                })
+            }
+        };
+        creep.iter().try_for_each(Creep::validate)?;
         let drum_side = paths("drum_side", options.drum_side)?;
         let platform_side = paths("platform_side", options.platform_side)?;
         let pose = Pose::from_coordinates(robot.motion, home)?;
@@ -208,7 +271,10 @@ impl CdprPlant {
             }
         };
         let rest_length: Vec<f64> = (0..m)
-            .map(|i| g.length[i] / (1.0 + home_tensions[i] / robot.cables[i].ea))
+            .map(|i| {
+                let compliance = (1.0 + creep[i].ratio) / robot.cables[i].ea;
+                g.length[i] / (1.0 + home_tensions[i] * compliance)
+            })
             .collect();
         Ok(Self {
             robot: robot.clone(),
@@ -219,6 +285,7 @@ impl CdprPlant {
             cable_damping: options.cable_damping,
             drum_side,
             platform_side,
+            creep,
             home: home.to_vec(),
             home_tensions,
             rest_length,
@@ -261,9 +328,15 @@ impl CdprPlant {
         (self.rest_length[j] - length) / self.winch.drum_radius
     }
 
-    /// The unstretched length at which cable `j` holds `tension` at geometric length `l`.
+    /// The unstretched length at which cable `j` holds `tension` at geometric length `l`, its
+    /// creep settled.
     pub fn unstretched_length(&self, j: usize, l: f64, tension: f64) -> f64 {
-        l / (1.0 + tension / self.robot.cables[j].ea)
+        l / (1.0 + tension * (1.0 + self.creep[j].ratio) / self.robot.cables[j].ea)
+    }
+
+    /// The creep of each cable.
+    pub fn creep(&self) -> &[Creep] {
+        &self.creep
     }
 
     fn sizes(&self) -> (usize, usize) {
@@ -281,6 +354,7 @@ impl CdprPlant {
         let (alpha, omega) = (&x[off..off + m], &x[off + m..off + 2 * m]);
         let (zi, dd) = (&x[off + 2 * m..off + 3 * m], &x[off + 3 * m..off + 4 * m]);
         let (zu, zd) = (&x[off + 4 * m..off + 5 * m], &x[off + 5 * m..off + 6 * m]);
+        let crept = &x[off + 6 * m..off + 7 * m];
         let (a_ref, w_ref, i_ff) = (&u[..m], &u[m..2 * m], &u[2 * m..3 * m]);
         let w_ext = &u[3 * m..3 * m + n];
         let pose = Pose::from_coordinates(self.robot.motion, q).ok()?;
@@ -294,13 +368,20 @@ impl CdprPlant {
             current: [0.0; MAX_CABLES],
             command: [0.0; MAX_CABLES],
         };
-        let mut dz = [[0.0; MAX_CABLES]; 2];
+        let mut dz = [[0.0; MAX_CABLES]; 3];
         for j in 0..m {
             let l_rate: f64 = -(0..n).map(|k| s[k * m + j] * v[k]).sum::<f64>();
             let len = self.rest_length[j] - r * alpha[j];
             let ea = self.robot.cables[j].ea;
+            let cr = &self.creep[j];
+            let elastic = g.length[j] - len - crept[j];
+            dz[2][j] = if cr.ratio > 0.0 {
+                (cr.ratio * elastic.max(0.0) - crept[j]) / cr.time_constant
+            } else {
+                0.0
+            };
             let stretch =
-                ea * (g.length[j] - len) / len + self.cable_damping * (l_rate + r * omega[j]);
+                ea * elastic / len + self.cable_damping * (l_rate + r * omega[j] - dz[2][j]);
             let t_ee = if len > 0.0 {
                 stretch.max(0.0)
             } else {
@@ -364,6 +445,7 @@ impl CdprPlant {
             };
             dx[off + 4 * m + j] = dz[0][j];
             dx[off + 5 * m + j] = dz[1][j];
+            dx[off + 6 * m + j] = dz[2][j];
         }
         Some(e)
     }
@@ -426,7 +508,7 @@ impl CdprPlant {
 impl Model for CdprPlant {
     fn n_states(&self) -> usize {
         let (n, m) = self.sizes();
-        2 * n + 6 * m
+        2 * n + 7 * m
     }
     fn n_inputs(&self) -> usize {
         let (n, m) = self.sizes();
@@ -463,12 +545,17 @@ impl Model for CdprPlant {
     }
 
     /// At rest at home: α = 0, each PID integral holding the current that carries the home
-    /// tension at the drum (zero with `K_p = 0`).
+    /// tension at the drum (zero with `K_p = 0`), the creep settled.
     fn rest_state(&self) -> Vec<f64> {
         let (n, m) = self.sizes();
         let w = &self.winch;
-        let mut x = vec![0.0; 2 * n + 6 * m];
+        let mut x = vec![0.0; 2 * n + 7 * m];
         x[..n].copy_from_slice(&self.home);
+        for j in 0..m {
+            let ea = self.robot.cables[j].ea;
+            x[2 * n + 6 * m + j] =
+                self.creep[j].ratio * self.home_tensions[j] * self.rest_length[j] / ea;
+        }
         if w.kp.abs() > 0.0 {
             for j in 0..m {
                 let hold = (self.home_tensions[j] / self.tension_per_ampere())
@@ -495,6 +582,7 @@ impl Model for CdprPlant {
             "derivative_filtered",
             "dahl_drum_side",
             "dahl_platform_side",
+            "creep",
         ] {
             names.extend((0..m).map(|j| format!("{prefix}_{j}")));
         }
@@ -968,6 +1056,59 @@ mod tests {
             assert_eq!(plant.state_names().len(), plant.n_states());
             assert_eq!(plant.input_names().len(), plant.n_inputs());
             assert_eq!(plant.output_names().len(), plant.n_outputs());
+        }
+    }
+
+    /// Creep: at rest with settled creep the plant is in equilibrium; after a push held for
+    /// 20 s (`τ` = 3 s) the platform has sunk further than without creep, and each cable's
+    /// creep has settled at `ρ` times its elastic stretch.
+    #[test]
+    fn creep_lets_the_platform_sink_further_and_settles_at_its_ratio() {
+        let robot = planar_robot();
+        let home = [0.5, 0.4, 0.0];
+        let (n, m) = (robot.dof(), robot.n_cables());
+        let sink = |ratio: f64| {
+            let opts = PlantOptions {
+                creep: vec![
+                    Creep {
+                        ratio,
+                        time_constant: 3.0,
+                    };
+                    m
+                ],
+                ..PlantOptions::default()
+            };
+            let plant = CdprPlant::new(&robot, Winch::seed003(), &home, opts).unwrap();
+            let mut x = plant.rest_state();
+            let mut u = vec![0.0; plant.n_inputs()];
+            let mut dx = vec![1.0; plant.n_states()];
+            plant.derivative(&x, &u, &mut dx);
+            assert!(dx.iter().all(|d| d.abs() < 1e-8), "rest with creep {ratio}");
+            u[3 * m + 1] = -20.0;
+            let mut rk = Rk4::for_model(&plant);
+            let mut y = 0.0;
+            for k in 0..20_000 {
+                rk.advance(&plant, &mut x, &u, &u, 1e-3, 2);
+                if k == 19_999 {
+                    y = home[1] - x[1];
+                }
+            }
+            (plant, x, y)
+        };
+        let (_, _, stiff) = sink(0.0);
+        let (plant, x, creepy) = sink(0.5);
+        assert!(stiff > 0.0 && creepy > 1.3 * stiff, "{creepy} vs {stiff}");
+        let pose = Pose::from_coordinates(robot.motion, &x[..n]).unwrap();
+        let mut g = CableGeometry::default();
+        inverse_kinematics(&robot, &pose, &mut g).unwrap();
+        for j in 0..m {
+            let len = plant.rest_length()[j] - plant.winch().drum_radius * x[2 * n + j];
+            let c = x[2 * n + 6 * m + j];
+            let elastic = g.length[j] - len - c;
+            assert!(
+                (c - 0.5 * elastic).abs() < 1e-3 * c.abs(),
+                "{j}: {c} vs {elastic}"
+            );
         }
     }
 
