@@ -96,8 +96,96 @@ def _simulate(effect: str | None, cable: int, seed: int) -> tuple[np.ndarray, ..
 def test_the_diagnosis_locates_effects_in_an_independent_simulator(effect, cable):
     t, alpha, current, sensor = _simulate(effect, cable, seed=7 + cable)
     d = diagnose(Winch.seed003(), t, alpha, current, sensor)
+    assert d.length is None
     if effect is None:
-        assert d.found is None, d.summary()
+        assert d.force.found is None, d.summary()
     else:
-        assert d.found is not None, d.summary()
-        assert (d.found.effect, d.found.cable) == (effect, cable), d.summary()
+        assert d.force.found is not None, d.summary()
+        assert (d.force.found.effect, d.force.found.cable) == (effect, cable), d.summary()
+
+
+# ---- the length channel: a quasi-static planar robot with its own cable laws -----------------
+#
+# Written from the physics, not from the plant: seed 003's planar robot moves slowly along a
+# Lissajous path holding its weight, its internal force swept; each cable's unstretched length
+# follows from the geometric length less the stretch of the cable law below, and the drum angle
+# from the unstretched length. The laws differ in form from the candidates':
+#
+# * a softer cable with a toe region: δ = T·L/(0.6·E·A)·(1 + 0.2·e^(−T/5 N)) (the candidate is
+#   linear);
+# * creep as a Burgers body: a Kelvin–Voigt element (ρ = 0.4, τ = 8 s) plus a Maxwell dashpot's
+#   irreversible flow (the candidate has one Kelvin–Voigt element and no flow);
+# * a cable whose drum was zeroed 0.3 mm off.
+
+
+def _lengths_run(effect: str | None, cable: int, seed: int):
+    from cablekit.cdpr import shipped
+    from cablekit.cdpr.diagnose import Lengths
+    from cablekit.cdpr.planar import HOME
+
+    rng = np.random.default_rng(seed)
+    robot = shipped("seed003_planar")
+    dt, t_end = 1e-3, 40.0
+    t = np.arange(0.0, t_end, dt)
+    poses = np.tile(HOME, (t.size, 1))
+    poses[:, 0] += 0.06 * np.sin(2 * np.pi * t / 13.0)
+    poses[:, 1] += 0.04 * np.sin(2 * np.pi * t / 9.0 + 0.7)
+    base = robot.distribute(poses).f
+    at = robot.inverse_kinematics(poses).structure  # (T, 3, 4)
+    null = np.linalg.svd(at)[2][:, -1, :]  # (T, 4): A^T n = 0
+    null *= np.sign(null.sum(axis=1, keepdims=True))
+    freq = rng.uniform(0.02, 0.2, 3)
+    phase = rng.uniform(0, 2 * np.pi, 3)
+    sweep = 12.0 + 8.0 * np.sin(2 * np.pi * freq[:, None] * t + phase[:, None]).mean(axis=0)
+    tension = base + sweep[:, None] * null / np.abs(null).max(axis=1, keepdims=True)
+    assert (tension > 1.0).all()
+    ea = robot.ea
+    length = robot.inverse_kinematics(poses).length
+    stretch = tension * length / ea
+    if effect == "cable_elasticity":
+        j = cable
+        toe = 1 + 0.2 * np.exp(-tension[:, j] / 5.0)
+        stretch[:, j] = tension[:, j] * length[:, j] / (0.6 * ea[j]) * toe
+    elif effect == "cable_creep":
+        j, kv, flow = cable, 0.0, 0.0
+        a = np.exp(-dt / 8.0)
+        target = 0.4 * stretch[:, j]
+        extra = np.empty(t.size)
+        kv = target[0]
+        for k in range(t.size):
+            kv = a * kv + (1 - a) * target[k]
+            flow += dt * stretch[k, j] / 400.0  # 0.25 %/s of the elastic stretch
+            extra[k] = kv + flow
+        stretch[:, j] += extra
+    unstretched = length - stretch
+    w = dict(zip(Winch.NAMES, Winch.seed003().values, strict=True))
+    r = w["drum_radius"]
+    rest = unstretched[0].copy()
+    if effect == "length_offset":
+        rest[cable] += 3e-4
+    alpha = (unstretched[0] - unstretched) / r
+    rate = np.gradient(alpha, t, axis=0)
+    acc = np.gradient(rate, t, axis=0)
+    jl, bl = Winch.seed003().load
+    kt = w["torque_constant"] * w["gear_ratio"]
+    current = (jl * acc + bl * rate + w["static_friction"] * np.tanh(rate / 0.01) + r * tension) / kt
+    current += rng.normal(0.0, 0.003, current.shape)
+    sensor = tension + rng.normal(0.0, 0.1, tension.shape)
+    measured = poses + rng.normal(0.0, [10e-6, 10e-6, 20e-6], poses.shape)
+    return t, alpha, current, sensor, Lengths(robot, rest, measured)
+
+
+@pytest.mark.parametrize(
+    ("effect", "cable"),
+    [("cable_elasticity", 1), ("cable_creep", 2), ("length_offset", 0), (None, 0)],
+)
+def test_the_length_channel_locates_cable_effects_written_independently(effect, cable):
+    t, alpha, current, sensor, lengths = _lengths_run(effect, cable, seed=11 + cable)
+    d = diagnose(Winch.seed003(), t, alpha, current, sensor, lengths=lengths)
+    assert d.length is not None
+    assert d.force.found is None, d.summary()
+    if effect is None:
+        assert d.length.found is None, d.summary()
+    else:
+        assert d.length.found is not None, d.summary()
+        assert (d.length.found.effect, d.length.found.cable) == (effect, cable), d.summary()

@@ -582,6 +582,8 @@ class Robot:
     @property
     def mass(self) -> float: ...
     @property
+    def ea(self) -> _F: ...
+    @property
     def bounds(self) -> tuple[_F, _F]:
         """(f_min, f_max) per cable (N)."""
     def inverse_kinematics(self, poses: _F) -> Kinematics:

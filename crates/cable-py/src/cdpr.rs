@@ -97,6 +97,11 @@ impl Robot {
     fn mass(&self) -> f64 {
         self.inner.platform.mass
     }
+    /// Axial stiffness `E·A` per cable (N).
+    #[getter]
+    fn ea<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        to_vector(py, self.inner.cables.iter().map(|c| c.ea).collect())
+    }
     /// `(f_min, f_max)` per cable (N).
     #[getter]
     fn bounds<'py>(

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cablekit.cdpr import Robot, shipped, shipped_names
+from cablekit.cdpr import Robot, Winch, shipped, shipped_names
 from cablekit.cdpr.workspace import DEFAULT_COUNTS, Requirement, plot_workspace, workspace
 from cablekit.errors import DataError
 
@@ -203,18 +203,63 @@ def _planar(args: argparse.Namespace) -> int:
     return 0
 
 
-def _diagnose(args: argparse.Namespace) -> int:
-    from cablekit.cdpr.diagnose import markdown, self_test
+def _winch_with(text: str | None) -> Winch:
+    """Seed 003's winch with ``name=value,...`` overrides."""
+    values = dict(zip(Winch.NAMES, Winch.seed003().values, strict=True))
+    for item in (text or "").split(","):
+        if not item.strip():
+            continue
+        name, _, value = item.partition("=")
+        name = name.strip()
+        if name not in values:
+            raise DataError(f"--winch: unknown parameter {name!r}; known: {', '.join(Winch.NAMES)}")
+        try:
+            values[name] = float(value)
+        except ValueError:
+            raise DataError(f"--winch: {name} must be a number, got {value!r}") from None
+    return Winch(np.array(list(values.values())))
 
-    cases = self_test(cases=args.cases, seed=args.seed, progress=not args.quiet)
-    text = "# Where the motors and the winch-side sensors disagree: self-test on the plant\n\n"
-    text += markdown(cases) + "\n"
+
+def _diagnose_run(args: argparse.Namespace) -> int:
+    from cablekit.cdpr.diagnose import diagnose_file, report
+
+    robot = robot_from(args.robot)
+    friction = None
+    if args.platform_friction is not None:
+        mu, visc, wrap, presliding = _floats(args.platform_friction, 4, "platform-friction")
+        m = robot.n_cables
+        friction = {
+            "coefficient": np.full(m, mu),
+            "viscous": np.full(m, visc),
+            "guide_wrap": np.full(m, wrap),
+            "presliding": presliding,
+        }
+    d = diagnose_file(args.run, robot, _winch_with(args.winch_parameters), platform_side=friction)
+    _write_diagnosis(
+        args, f"# Where {robot.name} disagrees with its nominal model: {Path(args.run).name}\n\n" + report(d)
+    )
+    return 0
+
+
+def _write_diagnosis(args: argparse.Namespace, text: str) -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "diagnose.md").write_text(text, encoding="utf-8")
     if not args.quiet:
         print(text)
     print(f"wrote {out / 'diagnose.md'}")
+
+
+def _diagnose(args: argparse.Namespace) -> int:
+    from cablekit.cdpr.diagnose import markdown, self_test
+
+    if args.run is not None:
+        if args.robot is None:
+            raise DataError("--run needs --robot (a robot file or a shipped robot's name)")
+        return _diagnose_run(args)
+    cases = self_test(cases=args.cases, seed=args.seed, progress=not args.quiet)
+    text = "# Where the motors and the winch-side sensors disagree: self-test on the plant\n\n"
+    _write_diagnosis(args, text + markdown(cases) + "\n")
     withheld = [c for c in cases if c.effect is not None]
     ok = all(c.correct_effect for c in cases) and all(c.correct_site for c in withheld)
     return 0 if ok else 1
@@ -306,8 +351,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     pl.set_defaults(func=_planar)
     dg = cs.add_parser(
         "diagnose",
-        help="locate pulley friction, sensor lag or a calibration error per cable from the motor-current "
-        "vs sensor residual: a self-test on the plant with withheld effects (exit 1 on a miss)",
+        help="locate pulley friction, sensor lag, a calibration error (motor current vs sensor) or cable "
+        "creep, elasticity, a length offset (cable lengths vs measured poses) per cable: in a run file "
+        "(--run), or a self-test on the plant with withheld effects (exit 1 on a miss)",
+    )
+    dg.add_argument(
+        "--run",
+        help="a run table: t, alpha_j, current_j, sensor_j (j = 1..m) and optionally the pose columns",
+    )
+    dg.add_argument("--robot", help="with --run: a robot file or a shipped robot's name")
+    dg.add_argument(
+        "--winch",
+        dest="winch_parameters",
+        help="with --run: seed 003's winch with overrides, e.g. drum_radius=0.02,gear_ratio=51",
+    )
+    dg.add_argument(
+        "--platform-friction",
+        help="with --run: the nominal pulley friction between sensor and platform, every cable: "
+        "mu,viscous,guide_wrap,presliding (seed 002 eq. 8)",
     )
     dg.add_argument("--out", default="out/cdpr-diagnose", help="output folder")
     dg.add_argument("--cases", type=int, default=3, help="runs per withheld effect (and with none)")

@@ -51,10 +51,11 @@ def mini_plant(
     home: np.ndarray | None = None,
     friction: dict | None = None,
     drum_side: PulleyFriction | None = None,
+    creep: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> CdprPlant:
     """The Mini CDPR as a plant resting at ``home`` (default: test 1's first pose) with the
     twin's platform-side pulley friction (Dahl), seed 003's winch and any ``drum_side``
-    friction."""
+    friction and cable ``creep``."""
     robot = robot or shipped("seed002_mini")
     fr = TWIN_FRICTION if friction is None else friction
     if home is None:
@@ -66,7 +67,9 @@ def mini_plant(
         law="dahl",
         presliding=float(fr["presliding"]),
     )
-    return CdprPlant(robot, np.asarray(home, float), Winch.seed003(), platform_side=side, drum_side=drum_side)
+    return CdprPlant(
+        robot, np.asarray(home, float), Winch.seed003(), platform_side=side, drum_side=drum_side, creep=creep
+    )
 
 
 def excitation(

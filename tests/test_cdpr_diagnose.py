@@ -1,0 +1,130 @@
+"""The CDPR diagnosis on run files: a twin run written as a table and read back by the CLI, and
+the run loader against any bytes and any cell."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import cablekit as ck
+from cablekit.cdpr import shipped
+from cablekit.cdpr.diagnose import load_cdpr_run, twin_run
+
+POSE = ("x", "y", "z", "roll", "pitch", "yaw")
+
+
+def _write(path, run, poses=True, rows=None):
+    m = run.alpha.shape[1]
+    header = ["t", *(f"{k}_{j + 1}" for k in ("alpha", "current", "sensor") for j in range(m))]
+    data = [run.t[:, None], run.alpha, run.current, run.sensor]
+    if poses:
+        header += list(POSE)
+        data.append(run.lengths.poses)
+    table = np.hstack(data)[: rows or len(run.t)]
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(table.tolist())
+
+
+def test_a_creeping_cable_in_a_run_file_is_found_by_the_cli(tmp_path, capsys):
+    """A twin run with a creeping cable 3, written as CSV with its poses, read by
+    ``cablekit cdpr diagnose --run``: the length channel names creep at cable 3 though the rest
+    lengths come from the first sample (not the twin's) and the friction from the command line."""
+    from cablekit.cdpr.compensate import TWIN_FRICTION
+    from cablekit.cli import main
+
+    run = twin_run("cable_creep", 2, seed=4)
+    _write(tmp_path / "run.csv", run)
+    mu = float(TWIN_FRICTION["coefficient"].mean())
+    visc = float(TWIN_FRICTION["viscous"].mean())
+    args = ["cdpr", "diagnose", "--run", str(tmp_path / "run.csv"), "--robot", "seed002_mini"]
+    args += ["--platform-friction", f"{mu},{visc},{np.pi},{TWIN_FRICTION['presliding']}"]
+    args += ["--out", str(tmp_path / "out"), "--quiet"]
+    assert main(args) == 0
+    text = (tmp_path / "out" / "diagnose.md").read_text(encoding="utf-8")
+    assert "length: cable_creep at cable 3" in text, text
+    assert "## force channel" in text and "## length channel" in text
+    # without poses only the force channel runs
+    _write(tmp_path / "nopose.csv", run, poses=False)
+    args[3] = str(tmp_path / "nopose.csv")
+    assert main(args) == 0
+    text = (tmp_path / "out" / "diagnose.md").read_text(encoding="utf-8")
+    assert "## length channel" not in text and "## force channel" in text
+
+
+def test_run_file_defects_are_data_errors_naming_them(tmp_path):
+    run = twin_run(None, 0, seed=1)
+    robot = shipped("seed002_mini")
+    path = tmp_path / "run.csv"
+    _write(path, run, rows=500)
+    ok = load_cdpr_run(path, robot)
+    assert ok.alpha.shape == (500, 8) and ok.poses is not None and ok.poses.shape == (500, 6)
+    text = path.read_text(encoding="utf-8").splitlines()
+    cases = {
+        "missing": [text[0].replace("sensor_8", "sensor_9"), *text[1:]],
+        "unknown": [text[0] + ",colour", *(r + ",1" for r in text[1:])],
+        "pose": [text[0].replace(",yaw", ",yew"), *text[1:]],
+        "finite": [text[0], text[1], text[2].replace(text[2].split(",")[3], "nan"), *text[3:]],
+        "increase": [text[0], text[2], text[1], *text[3:]],
+        "rows": text[:50],
+    }
+    for name, lines in cases.items():
+        bad = tmp_path / f"{name}.csv"
+        bad.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        with pytest.raises(ck.DataError):
+            load_cdpr_run(bad, robot)
+    with pytest.raises(ck.DataError):  # a planar robot's run has 4 cables
+        load_cdpr_run(path, shipped("seed003_planar"))
+
+
+@settings(max_examples=120, deadline=None)
+@given(
+    blob=st.binary(max_size=400)
+    | st.text(alphabet="t,alph_curensox1234567890.e-+\n nai", max_size=400).map(str.encode)
+)
+def test_any_bytes_as_a_cdpr_run_load_or_raise_data_error(tmp_path_factory, blob):
+    robot = shipped("seed003_planar")
+    p = tmp_path_factory.mktemp("fuzz") / "run.csv"
+    p.write_bytes(blob)
+    try:
+        run = load_cdpr_run(p, robot)
+    except ck.DataError:
+        return
+    assert run.alpha.shape[1] == 4 and np.isfinite(run.alpha).all()
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    row=st.integers(0, 149),
+    col=st.integers(0, 15),
+    value=st.sampled_from(["nan", "inf", "-inf", "1e308", "-1e308", "", "x", "1e-320", "0"]),
+)
+def test_any_cell_of_a_cdpr_run_loads_or_raises_data_error(tmp_path_factory, row, col, value):
+    """Rows of a planar robot's run with one cell replaced: a DataError naming the defect, or a
+    run whose diagnosis is finite or a CablekitError."""
+    from cablekit.cdpr.diagnose import diagnose_file
+
+    robot = shipped("seed003_planar")
+    rng = np.random.default_rng(row)
+    t = np.arange(150) * 1e-3
+    cells = np.column_stack([t, rng.normal(0, 0.01, (150, 4)), rng.normal(0.5, 0.1, (150, 4))])
+    cells = np.column_stack([cells, rng.normal(20, 1, (150, 4)), np.tile([0.6, 0.5, 0.0], (150, 1))])
+    header = ["t", *(f"{k}_{j + 1}" for k in ("alpha", "current", "sensor") for j in range(4)), "x", "y"]
+    header.append("theta")
+    lines = [",".join(header)] + [",".join(repr(float(v)) for v in r) for r in cells]
+    parts = lines[row + 1].split(",")
+    parts[col] = value
+    lines[row + 1] = ",".join(parts)
+    p = tmp_path_factory.mktemp("cell") / "run.csv"
+    p.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    try:
+        d = diagnose_file(p, robot)
+    except ck.CablekitError:
+        return
+    for ch in d.channels:
+        assert np.isfinite(ch.residual_rms).all() and np.isfinite(ch.noise)
