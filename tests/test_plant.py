@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cablekit.cdpr import CdprPlant, PulleyFriction, Robot, Winch
-from cablekit.cdpr.planar import HOME, circle, planar_plant, step_response, trajectory_response
+from cablekit.cdpr import CdprPlant, PulleyFriction, Robot, Winch, shipped
+from cablekit.cdpr.planar import HOME, circle, planar_plant
 from cablekit.errors import CablekitError, NotFiniteError, ParameterError, ShapeError
 from tests.reference.plant import planar_plant as reference
 
@@ -153,15 +153,27 @@ def test_the_force_loop_corrects_platform_side_friction_only_through_a_platform_
 
 
 def test_planar_robot_step_and_circle():
-    """Seed 003's robot: a 20 mm step settles with the PID's integral (no error left), and the
-    tension distribution in the loop tracks the circle's tensions better than kinematics alone."""
-    s = step_response(axis=0, size=0.02, t_end=3.0)
+    """Seed 003's robot (``PlanarRobot``): a 20 mm step settles with the PID's integral (no error
+    left), the tension distribution in the loop tracks the circle's tensions better than
+    kinematics alone, and ``follow`` equals the plant's closed loop."""
+    from cablekit.cdpr import PlanarRobot
+
+    robot = PlanarRobot()
+    s = robot.step(0, 0.02, t_end=3.0)
     assert abs(s.final_error) < 0.02
     assert 0.0 < s.rise_time < 1.0
     assert s.tension_range[0] >= 0.0
-    tr = trajectory_response(radius=0.05, period=2.0)
+    tr = robot.circle(radius=0.05, period=2.0)
     assert tr.tension_rmse[0] < 0.8 * tr.tension_rmse[1]
     assert tr.pose_rmse[0] < 1e-3
+    poses = tr.poses[:500]
+    np.testing.assert_array_equal(robot.follow(poses).ee, robot.plant.closed_loop(poses, 1e-3).ee)
+    with pytest.raises(ParameterError):
+        robot.step(3)
+    with pytest.raises(ParameterError):
+        PlanarRobot(shipped("seed002_mini"))  # spatial
+    with pytest.raises(ParameterError):  # options reach the plant and are checked there
+        PlanarRobot(creep=(np.array([-1.0]), np.array([1.0])))
 
 
 def test_bad_input_is_a_typed_error():

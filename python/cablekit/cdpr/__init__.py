@@ -11,6 +11,9 @@
   :class:`WinchDrive` — the same winch as a nonlinear model (static friction, current limit,
   PID with the derivative's filter) for :func:`cablekit.simulate`, the sr-UKF and the
   diagnosis; :mod:`cablekit.cdpr.winch` the seed's Table 5 and step responses.
+* :class:`CdprPlant` — a robot with its winches and pulleys as a dynamic model, and its closed
+  loop; :class:`PlanarRobot` — seed 003's planar robot in closed loop (steps, a circle, any
+  trajectory).
 
 Conventions: a pose is ``[x, y, θ]`` (planar) or ``[x, y, z, roll, pitch, yaw]`` (spatial,
 ``R = R_z(yaw) R_y(pitch) R_x(roll)``); tensions ``f`` hold an external wrench ``w`` when
@@ -54,6 +57,7 @@ __all__ = [
     "Kinematics",
     "LoadCellPulley",
     "LoopRun",
+    "PlanarRobot",
     "PulleyFriction",
     "Requirement",
     "Robot",
@@ -253,3 +257,7 @@ def shipped(name: str | None = None) -> Robot | list[str]:
     if name not in names:
         raise DataError(f"no shipped robot {name!r}; shipped: {names}")
     return Robot.from_toml((folder / f"{name}.toml").read_text(encoding="utf-8"), source=f"{name}.toml")
+
+
+# after Robot and shipped: the planar module builds on them
+from cablekit.cdpr.planar import PlanarRobot  # noqa: E402

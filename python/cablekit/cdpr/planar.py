@@ -3,6 +3,9 @@ a dynamic plant (:class:`cablekit.cdpr.CdprPlant`: platform, four elastic cables
 seed's winches under their PID) driven through its inverse kinematics, with the tension
 distribution of part 1 in the loop.
 
+* :class:`PlanarRobot` — the robot, its winches and the plant together: ``step``, ``circle`` and
+  ``follow`` (any trajectory) in closed loop.
+
 * :func:`step_response` — a step of the reference pose: each winch's PID follows the step of its
   drum angle from the inverse kinematics (seed 003 eq. 3, no feed-forward: the seed's position
   control). Rise and settling times, overshoot and the cables' tension range during the step.
@@ -15,11 +18,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from cablekit._cablekit import CdprPlant, LoopRun
 from cablekit.cdpr import Robot, Winch, shipped
+from cablekit.errors import ParameterError
 
 #: the home pose of the shipped planar robot (m, m, rad): the frame's centre
 HOME = np.array([0.6, 0.5, 0.0])
@@ -214,3 +219,55 @@ def report(out: str | Path, plots: bool = True) -> str:
         text += f"\n![steps and the circle's tensions]({fig.name})\n"
     (out / "planar.md").write_text(text, encoding="utf-8")
     return text
+
+
+class PlanarRobot:
+    """Seed 003's planar 4-cable robot in closed loop: ``robot`` (default the shipped
+    ``seed003_planar``; any planar robot), one ``winch`` per cable (default
+    :meth:`Winch.seed003`), resting at ``home`` (default :data:`HOME`), with any further
+    :class:`CdprPlant` options (``cable_damping``, ``drum_side``, ``platform_side``, ``creep``,
+    ...). The plant is built once; every response runs on it."""
+
+    def __init__(
+        self,
+        robot: Robot | None = None,
+        *,
+        home: np.ndarray | None = None,
+        winch: Winch | None = None,
+        **plant_options: Any,
+    ) -> None:
+        robot = robot or shipped("seed003_planar")
+        if robot.motion != "planar":
+            raise ParameterError(f"PlanarRobot needs a planar robot, got {robot.name!r} ({robot.motion})")
+        self.robot = robot
+        self.winch = winch or Winch.seed003()
+        self.plant = CdprPlant(
+            robot, np.asarray(HOME if home is None else home, float), self.winch, **plant_options
+        )
+
+    @property
+    def home(self) -> np.ndarray:
+        """The home pose ``[x, y, θ]``."""
+        return np.asarray(self.plant.home)
+
+    def step(
+        self, axis: int = 0, size: float = 0.02, *, t_end: float = 3.0, dt: float = 1e-3
+    ) -> StepResponse:
+        """A reference step of ``size`` along ``axis`` (0: x, 1: y, 2: θ) at 0.2 s, PID only; see
+        :func:`step_response`."""
+        if axis not in (0, 1, 2):
+            raise ParameterError(f"axis must be 0 (x), 1 (y) or 2 (θ), got {axis!r}")
+        return step_response(self.plant, axis=axis, size=size, t_end=t_end, dt=dt)
+
+    def circle(self, radius: float = 0.1, period: float = 4.0, *, dt: float = 1e-3) -> TrajectoryResponse:
+        """Two turns of a circle through home with and without the tension distribution in the
+        loop; see :func:`trajectory_response`."""
+        return trajectory_response(self.plant, radius=radius, period=period, dt=dt)
+
+    def follow(self, poses: np.ndarray, dt: float = 1e-3, **loop_options: Any) -> LoopRun:
+        """Desired ``poses`` ``(T, 3)`` every ``dt`` s through the trajectory controller with the
+        tension distribution in the loop (:meth:`CdprPlant.closed_loop` and its options)."""
+        return self.plant.closed_loop(np.ascontiguousarray(poses, dtype=float), dt, **loop_options)
+
+    def __repr__(self) -> str:
+        return f"PlanarRobot(robot={self.robot.name!r}, home={self.home.tolist()})"
