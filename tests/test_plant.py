@@ -28,6 +28,7 @@ SPEC = dict(
     gravity=np.array([0.0, -9.80665, 0.0]),
 )
 PLANAR = Robot(name="planar", motion="planar", **SPEC)
+DRUM_SCALE = np.array([1.0, 1.5, 0.5, 1.2])
 WINCH = dict(zip(Winch.NAMES, Winch.seed003().values, strict=True))
 
 
@@ -40,6 +41,7 @@ def _rough(damping: float = 30.0) -> CdprPlant:
         platform_side=PulleyFriction(np.array([0.04]), np.array([3.0]), np.array([np.pi / 2]), law="coulomb"),
         drum_side=PulleyFriction(np.array([0.02]), np.array([1.0]), np.array([np.pi]), law="coulomb"),
         creep=(np.array([0.3]), np.array([2.0])),
+        drum_friction=DRUM_SCALE,
     )
 
 
@@ -80,6 +82,7 @@ def test_f_and_h_equal_the_numpy_reference(seed):
         eps_drum=0.01,
         creep_ratio=0.3,
         creep_tau=2.0,
+        drum_scale=DRUM_SCALE,
     )
     dx, y = reference(x, u, **kw)
     np.testing.assert_allclose(plant.derivative(x, u), dx, rtol=1e-9, atol=1e-9 * (1 + np.abs(dx).max()))
@@ -209,6 +212,10 @@ def test_bad_input_is_a_typed_error():
         CdprPlant(PLANAR, HOME, creep=(np.zeros(3), np.ones(1)))
     with pytest.raises(ParameterError, match="finite"):
         CdprPlant(PLANAR, HOME, creep=(np.array([np.nan]), np.ones(1)))
+    with pytest.raises(ShapeError):
+        CdprPlant(PLANAR, HOME, drum_friction=np.ones(3))
+    with pytest.raises(ParameterError):
+        CdprPlant(PLANAR, HOME, drum_friction=np.array([1.0, -0.5, 1.0, 1.0]))
     with pytest.raises(ParameterError):
         PulleyFriction(np.array([-0.1]), np.array([0.0]), np.array([0.0]))
     light = Robot(name="light", motion="planar", **dict(SPEC, mass=0.0))

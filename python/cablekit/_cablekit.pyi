@@ -1003,6 +1003,7 @@ class CdprPlant(Model):
         platform_side: PulleyFriction | None = None,
         home_tensions: _F | None = None,
         creep: tuple[_F, _F] | None = None,
+        drum_friction: _F | None = None,
     ) -> CdprPlant: ...
     @property
     def home(self) -> _F: ...

@@ -36,6 +36,7 @@ def planar_plant(
     eps_drum,
     creep_ratio=0.0,
     creep_tau=1.0,
+    drum_scale=None,
 ):
     """``(dx, y)`` of the planar plant; ``winch`` a dict of seed 003's parameters."""
     m = len(anchors)
@@ -76,7 +77,9 @@ def planar_plant(
         ee[j], pul[j], cur[j] = t_ee, p, i
         wrench += col * t_ee
         dx[6 + j] = om[j]
-        dx[6 + m + j] = (kt * i - bl * om[j] - w["static_friction"] * _sgn(om[j], eps_drum) - r * drum) / jl
+        k_st = 1.0 if drum_scale is None else drum_scale[j]
+        friction = k_st * w["static_friction"] * _sgn(om[j], eps_drum)
+        dx[6 + m + j] = (kt * i - bl * om[j] - friction - r * drum) / jl
         winding = abs(cmd) > current_limit and w["kp"] * err * cmd > 0
         dx[6 + 2 * m + j] = 0.0 if winding else err
         dx[6 + 3 * m + j] = w["cutoff"] * (w["td"] * (w_ref[j] - om[j]) - dd[j])

@@ -76,6 +76,7 @@ impl PulleyFriction {
 /// at `home` holding `home_tensions` (default: the tension distribution of its weight).
 /// `creep=(ratio, time_constant)` (`(m,)` or `(1,)` each): polymer-cable creep, settled
 /// stretch `1 + ratio` times the elastic one, reached with time constant (s).
+/// `drum_friction` `(m,)`: each winch's static friction as a multiple of the winch's.
 /// State `[q, v, α, α̇, z, D, z_drum, z_platform, creep]`, input `[α_ref, α̇_ref, i_ff, w_ext]`, output
 /// `[q, T_EE, T_PUL, i, T̂, α]` (see `state_names`, `input_names`, `output_names`).
 #[pyclass(extends = Model, frozen, module = "cablekit._cablekit")]
@@ -91,7 +92,7 @@ fn plant<'a>(slf: &'a PyRef<'_, CdprPlant>) -> &'a core::CdprPlant {
 #[pymethods]
 impl CdprPlant {
     #[new]
-    #[pyo3(signature = (robot, home, winch = None, *, lpf = None, current_limit = None, friction_smoothing = None, cable_damping = None, drum_side = None, platform_side = None, home_tensions = None, creep = None))]
+    #[pyo3(signature = (robot, home, winch = None, *, lpf = None, current_limit = None, friction_smoothing = None, cable_damping = None, drum_side = None, platform_side = None, home_tensions = None, creep = None, drum_friction = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         robot: PyRef<'_, Robot>,
@@ -105,12 +106,17 @@ impl CdprPlant {
         platform_side: Option<PyRef<'_, PulleyFriction>>,
         home_tensions: Option<&Bound<'_, PyAny>>,
         creep: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>)>,
+        drum_friction: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let r = &robot.inner;
         let home = any_vector(home, "home")?;
         let home_tensions = home_tensions
             .map(|h| any_vector(h, "home_tensions"))
             .transpose()?;
+        let drum_friction = drum_friction
+            .map(|h| any_vector(h, "drum_friction"))
+            .transpose()?
+            .unwrap_or_default();
         let d = core::PlantOptions::default();
         let m = r.n_cables();
         let creep = match creep {
@@ -130,6 +136,7 @@ impl CdprPlant {
                 platform_side: platform_side.map_or(Ok(Vec::new()), |f| f.paths(m))?,
                 home_tensions,
                 creep,
+                drum_friction,
             };
             let w = winch.map_or_else(core::winch::Winch::seed003, |w| w.inner);
             core::CdprPlant::new(r, w, &home, options)

@@ -52,10 +52,12 @@ def mini_plant(
     friction: dict | None = None,
     drum_side: PulleyFriction | None = None,
     creep: tuple[np.ndarray, np.ndarray] | None = None,
+    drum_friction: np.ndarray | None = None,
 ) -> CdprPlant:
     """The Mini CDPR as a plant resting at ``home`` (default: test 1's first pose) with the
     twin's platform-side pulley friction (Dahl), seed 003's winch and any ``drum_side``
-    friction and cable ``creep``."""
+    friction, cable ``creep`` and winch static friction (``drum_friction``, per cable, a multiple
+    of the winch's)."""
     robot = robot or shipped("seed002_mini")
     fr = TWIN_FRICTION if friction is None else friction
     if home is None:
@@ -68,7 +70,13 @@ def mini_plant(
         presliding=float(fr["presliding"]),
     )
     return CdprPlant(
-        robot, np.asarray(home, float), Winch.seed003(), platform_side=side, drum_side=drum_side, creep=creep
+        robot,
+        np.asarray(home, float),
+        Winch.seed003(),
+        platform_side=side,
+        drum_side=drum_side,
+        creep=creep,
+        drum_friction=drum_friction,
     )
 
 

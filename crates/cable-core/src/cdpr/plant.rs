@@ -17,7 +17,8 @@
 //! creep      c_j: a Kelvin–Voigt element in series with the elastic stretch (polymer cables),
 //!            ċ = (ρ·max(0, l_j − L_j − c_j) − c_j)/τ,  T_EE = max(0, E·A·(l_j − L_j − c_j)/L_j
 //!            + c·(l̇_j + r·α̇_j − ċ_j)); settled, the cable's compliance is (1 + ρ)·L/(E·A)
-//! winch j    J_l·α̈ = k_φ·r_gb·i − B_l·α̇ − τ_st·σ_ε(α̇) − r·T_drum          (seed 003 eqs 16–19)
+//! winch j    J_l·α̈ = k_φ·r_gb·i − B_l·α̇ − k_j·τ_st·σ_ε(α̇) − r·T_drum     (seed 003 eqs 16–19;
+//!            k_j = 1 unless a winch's friction differs)
 //!            i = clamp(K_p·(e + D + z/t_i) + i_ff, ±I_max), e = α_ref − α   (eq. 13; eq. 12
 //!            without the LPF), ż = e (held while saturated and e pushes further),
 //!            Ḋ = ω_c·(t_d·(α̇_ref − α̇) − D)
@@ -68,6 +69,7 @@ pub struct CdprPlant {
     drum_side: Vec<PathFriction>,
     platform_side: Vec<PathFriction>,
     creep: Vec<Creep>,
+    drum_friction: Vec<f64>,
     home: Vec<f64>,
     home_tensions: Vec<f64>,
     rest_length: Vec<f64>,
@@ -94,6 +96,9 @@ pub struct PlantOptions {
     pub home_tensions: Option<Vec<f64>>,
     /// Creep per cable (empty: none).
     pub creep: Vec<Creep>,
+    /// Each winch's static friction as a multiple of the winch's `τ_st` (≥ 0; empty: 1 for
+    /// every cable): winches of one design that differ (a worn gearbox, a tight bearing).
+    pub drum_friction: Vec<f64>,
 }
 
 /// Creep of one cable (polymer cables: Dyneema, Kevlar): a Kelvin–Voigt element in series with
@@ -147,6 +152,7 @@ impl Default for PlantOptions {
             platform_side: Vec::new(),
             home_tensions: None,
             creep: Vec::new(),
+            drum_friction: Vec::new(),
         }
     }
 }
@@ -244,6 +250,16 @@ impl CdprPlant {
             }
         };
         creep.iter().try_for_each(Creep::validate)?;
+        let drum_friction = match options.drum_friction.len() {
+            0 => vec![1.0; m],
+            _ => {
+                check::len("drum_friction", &options.drum_friction, m)?;
+                for (j, v) in options.drum_friction.iter().enumerate() {
+                    check::non_negative(&format!("drum_friction[{j}]"), *v)?;
+                }
+                options.drum_friction
+            }
+        };
         let drum_side = paths("drum_side", options.drum_side)?;
         let platform_side = paths("platform_side", options.platform_side)?;
         let pose = Pose::from_coordinates(robot.motion, home)?;
@@ -286,6 +302,7 @@ impl CdprPlant {
             drum_side,
             platform_side,
             creep,
+            drum_friction,
             home: home.to_vec(),
             home_tensions,
             rest_length,
@@ -430,7 +447,9 @@ impl CdprPlant {
         for j in 0..m {
             let torque = w.torque_constant * w.gear_ratio * e.current[j]
                 - w.load_viscous() * omega[j]
-                - w.static_friction * smooth_sign(omega[j], self.friction_smoothing)
+                - self.drum_friction[j]
+                    * w.static_friction
+                    * smooth_sign(omega[j], self.friction_smoothing)
                 - r * e.drum[j];
             dx[off + j] = omega[j];
             dx[off + m + j] = torque / w.load_inertia();
