@@ -128,3 +128,26 @@ def test_any_cell_of_a_cdpr_run_loads_or_raises_data_error(tmp_path_factory, row
         return
     for ch in d.channels:
         assert np.isfinite(ch.residual_rms).all() and np.isfinite(ch.noise)
+
+
+def test_cablekit_diagnose_takes_a_robot_file_as_the_model(tmp_path):
+    """``cablekit diagnose FIT --holdout HOLD --model robot.toml``: the engine's command routes a
+    cable robot's file to the CDPR diagnosis, fitted on one run and scored on another (both with
+    a Dahl pulley before cable 6's sensor): the force channel names the pulley and its cable."""
+    from importlib import resources
+
+    from cablekit.cli import main
+
+    for name, seed in (("fit", 3), ("hold", 4)):
+        _write(tmp_path / f"{name}.csv", twin_run("pulley_friction", 5, seed=seed))
+    robot = tmp_path / "mini.toml"
+    robot.write_text(
+        (resources.files("cablekit.cdpr") / "robots" / "seed002_mini.toml").read_text(encoding="utf-8"),
+        encoding="utf-8",
+    )
+    out = tmp_path / "out"
+    args = [str(tmp_path / "fit.csv"), "--holdout", str(tmp_path / "hold.csv"), "--model", str(robot)]
+    assert main(["diagnose", *args, "--out", str(out), "--quiet"]) == 0
+    text = (out / "diagnose.md").read_text(encoding="utf-8")
+    assert "force: pulley_friction at cable 6" in text, text
+    assert "fitted on fit.csv, held out hold.csv" in text

@@ -162,10 +162,36 @@ def _diagnose(args: argparse.Namespace) -> int:
             [Path(p) for p in args.holdout],
             Path(args.model),
         )
+    if _is_robot_file(model_path):
+        from cablekit.cdpr import Robot
+        from cablekit.cdpr.cli import write_run_diagnosis
+        from cablekit.cdpr.diagnose import diagnose_runs
+
+        robot = Robot.load(model_path)
+        print(
+            f"cablekit: {robot.name} is a cable robot: the CDPR diagnosis "
+            "(seed 003's winch; see docs/cdpr.md)"
+        )
+        d = diagnose_runs(fit_paths, hold_paths, robot)
+        write_run_diagnosis(
+            robot, d, [str(p) for p in fit_paths], [str(p) for p in hold_paths], out, args.quiet
+        )
+        return 0
     spec = load_model_spec(model_path)
     fit = [load_run(p) for p in fit_paths]
     hold = [load_run(p) for p in hold_paths]
     return _run_diagnosis(spec, fit, hold, out, args, str(model_path))
+
+
+def _is_robot_file(path: Path) -> bool:
+    """A cable robot's file (``motion`` and ``[[cables]]``) rather than a joint model's."""
+    import tomllib
+
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return False  # the model loader reports it
+    return "cables" in doc and "motion" in doc
 
 
 def _run_diagnosis(

@@ -6,12 +6,16 @@ import argparse
 import csv
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cablekit.cdpr import Robot, Winch, shipped, shipped_names
 from cablekit.cdpr.workspace import DEFAULT_COUNTS, Requirement, plot_workspace, workspace
 from cablekit.errors import DataError
+
+if TYPE_CHECKING:
+    from cablekit.cdpr.diagnose import CdprDiagnosis
 
 #: trajectory CSV columns: the pose, then optional external wrench columns and time
 POSE_COLUMNS = {"planar": ("x", "y", "theta"), "spatial": ("x", "y", "z", "roll", "pitch", "yaw")}
@@ -221,7 +225,7 @@ def _winch_with(text: str | None) -> Winch:
 
 
 def _diagnose_run(args: argparse.Namespace) -> int:
-    from cablekit.cdpr.diagnose import diagnose_file, report
+    from cablekit.cdpr.diagnose import diagnose_file, diagnose_runs
 
     robot = robot_from(args.robot)
     friction = None
@@ -234,18 +238,42 @@ def _diagnose_run(args: argparse.Namespace) -> int:
             "guide_wrap": np.full(m, wrap),
             "presliding": presliding,
         }
-    d = diagnose_file(args.run, robot, _winch_with(args.winch_parameters), platform_side=friction)
-    _write_diagnosis(
-        args, f"# Where {robot.name} disagrees with its nominal model: {Path(args.run).name}\n\n" + report(d)
-    )
+    winch = _winch_with(args.winch_parameters)
+    if args.holdout:
+        d = diagnose_runs(args.run, args.holdout, robot, winch, platform_side=friction)
+    elif len(args.run) == 1:
+        d = diagnose_file(args.run[0], robot, winch, platform_side=friction)
+    else:
+        raise DataError("several --run files need --holdout runs (one run alone is split in halves)")
+    write_run_diagnosis(robot, d, args.run, args.holdout, Path(args.out), args.quiet)
     return 0
 
 
+def write_run_diagnosis(
+    robot: Robot, d: CdprDiagnosis, fit: list[str], holdout: list[str] | None, out: Path, quiet: bool
+) -> None:
+    """``diagnose.md`` of a run diagnosis (also ``cablekit diagnose`` with a robot file)."""
+    from cablekit.cdpr.diagnose import report
+
+    names = ", ".join(Path(p).name for p in fit)
+    split = (
+        f"fitted on {names}, held out {', '.join(Path(p).name for p in holdout)}"
+        if holdout
+        else f"{names}, fitted on its first half and held out on its second"
+    )
+    _write_text(
+        out, f"# Where {robot.name} disagrees with its nominal model\n\n{split}\n\n" + report(d), quiet
+    )
+
+
 def _write_diagnosis(args: argparse.Namespace, text: str) -> None:
-    out = Path(args.out)
+    _write_text(Path(args.out), text, args.quiet)
+
+
+def _write_text(out: Path, text: str, quiet: bool) -> None:
     out.mkdir(parents=True, exist_ok=True)
     (out / "diagnose.md").write_text(text, encoding="utf-8")
-    if not args.quiet:
+    if not quiet:
         print(text)
     print(f"wrote {out / 'diagnose.md'}")
 
@@ -357,8 +385,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     )
     dg.add_argument(
         "--run",
-        help="a run table: t, alpha_j, current_j, sensor_j (j = 1..m) and optionally the pose columns",
+        nargs="+",
+        help="run table(s): t, alpha_j, current_j, sensor_j (j = 1..m) and optionally the pose columns; "
+        "one run alone is fitted on its first half and scored on its second",
     )
+    dg.add_argument("--holdout", nargs="+", help="with --run: held-out run table(s), never fitted")
     dg.add_argument("--robot", help="with --run: a robot file or a shipped robot's name")
     dg.add_argument(
         "--winch",

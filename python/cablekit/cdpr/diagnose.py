@@ -323,6 +323,7 @@ class CdprDiagnosis:
 def _locate(
     name: str,
     res: np.ndarray,
+    half: int,
     effects: tuple[str, ...],
     regress: Callable[[str, int, Any], np.ndarray],
     grids: Mapping[str, tuple[Any, ...]],
@@ -330,8 +331,7 @@ def _locate(
 ) -> Channel:
     """Fit, score and rank every (effect, cable); a grid's point is chosen on the fit half by its
     residual, or, for the ``validated`` effects, by fitting on the fit half's first half and
-    scoring on its second."""
-    half = res.shape[0] // 2
+    scoring on its second. Rows before ``half`` are fitted, the rest held out."""
     held = res[half:]
     noise = float(
         np.median(
@@ -401,39 +401,63 @@ def diagnose(
     """Locate the effects behind the force residual and, given ``lengths`` (measured poses and
     the nominal geometry), the length residual; see the module docs. Values so large that the
     residuals or their energies overflow are a :class:`~cablekit.errors.ParameterError`."""
+    return _checked(winch, [_Segment(t, alpha, current, sensor, lengths)], None, effects, smoothing)
+
+
+def _checked(
+    winch: Winch, runs: list[_Segment], n_fit: int | None, effects: tuple[str, ...], smoothing: float
+) -> CdprDiagnosis:
+    """:func:`_channels` after checking the effects, with an overflow a ``ParameterError``."""
     for e in effects:
         if e not in EFFECTS:
             raise ParameterError(f"unknown effect {e!r}; expected one of {EFFECTS}")
     try:
         with np.errstate(over="raise", invalid="raise"):
-            return _diagnose(winch, t, alpha, current, sensor, lengths, effects, smoothing)
+            return _channels(winch, runs, n_fit, effects, smoothing)
     except FloatingPointError as e:
         raise ParameterError(f"the run's values overflow the residuals ({e}); check its units") from None
 
 
-def _diagnose(
+@dataclass(frozen=True)
+class _Segment:
+    """One run as the channels read it."""
+
+    t: np.ndarray
+    alpha: np.ndarray
+    current: np.ndarray
+    sensor: np.ndarray
+    lengths: Lengths | None
+
+
+def _channels(
     winch: Winch,
-    t: np.ndarray,
-    alpha: np.ndarray,
-    current: np.ndarray,
-    sensor: np.ndarray,
-    lengths: Lengths | None,
+    runs: list[_Segment],
+    n_fit: int | None,
     effects: tuple[str, ...],
     smoothing: float,
 ) -> CdprDiagnosis:
-    res = drum_residual(winch, t, alpha, current, sensor, smoothing=smoothing)
-    t, alpha, sensor = np.asarray(t, float), np.asarray(alpha, float), np.asarray(sensor, float)
+    """Both channels over ``runs``: fitted on the first ``n_fit`` runs and scored on the rest, or
+    (``None``) on the first and second half of a single run."""
     r = float(dict(zip(Winch.NAMES, winch.values, strict=True))["drum_radius"])
-    dt = float(np.median(np.diff(t)))
-    rate = np.gradient(alpha, t, axis=0)
-    # the motor's drum-side tension, smoothed over 21 samples against its noise (the lag's regressor)
-    kernel = np.ones(21) / 21
-    drum = res + sensor
-    drum_smooth = np.column_stack(
-        [np.convolve(np.pad(drum[:, j], 10, mode="edge"), kernel, "valid") for j in range(drum.shape[1])]
-    )
+    force_runs = []
+    for run in runs:
+        res = drum_residual(winch, run.t, run.alpha, run.current, run.sensor, smoothing=smoothing)
+        t, alpha, sensor = (np.asarray(a, float) for a in (run.t, run.alpha, run.sensor))
+        dt = float(np.median(np.diff(t)))
+        rate = np.gradient(alpha, t, axis=0)
+        # the motor's drum-side tension, smoothed over 21 samples against its noise (the lag's
+        # regressor)
+        drum = res + sensor
+        drum_smooth = np.column_stack(
+            [
+                np.convolve(np.pad(drum[:, j], 10, mode="edge"), np.ones(21) / 21, "valid")
+                for j in range(drum.shape[1])
+            ]
+        )
+        force_runs.append((res, sensor, rate, drum_smooth, dt))
 
-    def force_regressors(effect: str, j: int, lag: float) -> np.ndarray:
+    def force_one(run: tuple[np.ndarray, ...], effect: str, j: int, lag: float) -> np.ndarray:
+        _, sensor, rate, drum_smooth, dt = run
         p = sensor[:, j]
         if effect == "pulley_friction":
             v = r * rate[:, j]
@@ -448,38 +472,62 @@ def _diagnose(
             return np.column_stack([p, np.ones_like(p)])
         return np.column_stack([_sgn(rate[:, j], smoothing) / r, rate[:, j] / r])
 
-    force_effects = tuple(e for e in effects if e in FORCE_EFFECTS)
-    force = _locate("force", res, force_effects, force_regressors, {"sensor_lag": LAGS})
-    length_effects = tuple(e for e in effects if e in LENGTH_EFFECTS)
-    if lengths is None or not length_effects:
-        return CdprDiagnosis(force, None)
-    read = sensor.copy()
-    if force.found is not None and force.found.effect == "sensor_gain":
-        a, b = force.found.coefficients[:2]
-        read[:, force.found.cable] = (1 + a) * read[:, force.found.cable] + b
-    e, load = length_residual(lengths, winch, t, alpha, read)
-    k = max(1, round(BLOCK / dt))
-    e_b, load_b = _blocks(e, k), _blocks(load, k)
-    if e_b.shape[0] < MIN_BLOCKS:
-        raise ParameterError(
-            f"the length channel needs at least {MIN_BLOCKS} blocks of {BLOCK * 1e3:.0f} ms "
-            f"({MIN_BLOCKS * BLOCK:.1f} s); the run has {e_b.shape[0]}"
-        )
-    creep = {tau: _low_pass(load_b, k * dt, tau) for tau in CREEP_TIMES}
-    flow = np.cumsum(load_b, axis=0) * k * dt
+    def split(sizes: list[int]) -> int:
+        return sizes[0] // 2 if n_fit is None else sum(sizes[:n_fit])
 
-    def length_regressors(effect: str, j: int, h: Any) -> np.ndarray:
+    res = np.concatenate([f[0] for f in force_runs])
+    force_effects = tuple(e for e in effects if e in FORCE_EFFECTS)
+    force = _locate(
+        "force",
+        res,
+        split([f[0].shape[0] for f in force_runs]),
+        force_effects,
+        lambda e, j, h: np.concatenate([force_one(f, e, j, h) for f in force_runs]),
+        {"sensor_lag": LAGS},
+    )
+    length_effects = tuple(e for e in effects if e in LENGTH_EFFECTS)
+    if any(run.lengths is None for run in runs) or not length_effects:
+        return CdprDiagnosis(force, None)
+    length_runs = []
+    for run, (_, sensor, _, _, dt) in zip(runs, force_runs, strict=True):
+        read = sensor.copy()
+        if force.found is not None and force.found.effect == "sensor_gain":
+            a, b = force.found.coefficients[:2]
+            read[:, force.found.cable] = (1 + a) * read[:, force.found.cable] + b
+        assert run.lengths is not None
+        e, load = length_residual(run.lengths, winch, run.t, run.alpha, read)
+        k = max(1, round(BLOCK / dt))
+        e_b, load_b = _blocks(e, k), _blocks(load, k)
+        if e_b.shape[0] < MIN_BLOCKS:
+            raise ParameterError(
+                f"the length channel needs at least {MIN_BLOCKS} blocks of {BLOCK * 1e3:.0f} ms "
+                f"({MIN_BLOCKS * BLOCK:.1f} s) per run; a run has {e_b.shape[0]}"
+            )
+        creep = {tau: _low_pass(load_b, k * dt, tau) for tau in CREEP_TIMES}
+        flow = np.cumsum(load_b, axis=0) * k * dt
+        length_runs.append((e_b, load_b, creep, flow, np.arange(e_b.shape[0]) * k * dt))
+
+    def length_one(run: tuple[Any, ...], effect: str, j: int, h: Any) -> np.ndarray:
+        e_b, load_b, creep, flow, tb = run
         one = np.ones(e_b.shape[0])
         if effect == "cable_elasticity":
             return np.column_stack([load_b[:, j], one])
         if effect == "cable_creep":
             tau, flows = h
-            start = np.exp(-np.arange(one.size) * k * dt / tau)  # the creep state at t = 0 is unknown
+            start = np.exp(-tb / tau)  # the creep state at a run's start is unknown
             return np.column_stack([creep[tau][:, j], flow[:, j] if flows else 0 * one, start, one])
         return one[:, None]
 
     grid = {"cable_creep": tuple((tau, flows) for tau in CREEP_TIMES for flows in (False, True))}
-    length = _locate("length", e_b, length_effects, length_regressors, grid, frozenset({"cable_creep"}))
+    length = _locate(
+        "length",
+        np.concatenate([lr[0] for lr in length_runs]),
+        split([lr[0].shape[0] for lr in length_runs]),
+        length_effects,
+        lambda e, j, h: np.concatenate([length_one(lr, e, j, h) for lr in length_runs]),
+        grid,
+        frozenset({"cable_creep"}),
+    )
     return CdprDiagnosis(force, length)
 
 
@@ -572,6 +620,32 @@ def diagnose_file(
         rest = rest_from_first_sample(robot, winch, run) if rest_length is None else rest_length
         lengths = Lengths(robot, np.asarray(rest, float), run.poses, platform_side)
     return diagnose(winch, run.t, run.alpha, run.current, run.sensor, lengths=lengths)
+
+
+def diagnose_runs(
+    fit: list[str | Path],
+    holdout: list[str | Path],
+    robot: Robot,
+    winch: Winch | None = None,
+    *,
+    platform_side: Mapping[str, Any] | None = None,
+    effects: tuple[str, ...] = EFFECTS,
+) -> CdprDiagnosis:
+    """:func:`diagnose` with the candidates fitted on the ``fit`` run files and scored on the
+    ``holdout`` run files (never fitted), as ``cablekit diagnose`` does for a joint model. The
+    length channel runs when every file has poses; each run's rest lengths come from its first
+    sample (:func:`rest_from_first_sample`)."""
+    if not fit or not holdout:
+        raise ParameterError("give at least one fit run and one held-out run")
+    winch = winch or Winch.seed003()
+    segments = []
+    for path in [*fit, *holdout]:
+        run = load_cdpr_run(path, robot)
+        lengths = None
+        if run.poses is not None:
+            lengths = Lengths(robot, rest_from_first_sample(robot, winch, run), run.poses, platform_side)
+        segments.append(_Segment(run.t, run.alpha, run.current, run.sensor, lengths))
+    return _checked(winch, segments, len(fit), effects, 0.01)
 
 
 def report(d: CdprDiagnosis, *, top: int = 5) -> str:
