@@ -57,10 +57,8 @@ channel finds a calibration error, the length channel uses the corrected sensor.
 drawn cable, the internal forces excited so that the tensions vary: a Dahl pulley (the candidate
 assumes Coulomb), an HX711 + BLE signal chain (sample-and-hold and latency; the candidate
 assumes a pure delay), a calibration error, a winch with 50 % more static friction, a cable 40 %
-softer than nominal, a creeping cable, and none (false alarms). Its settings are fixed here; one
-was changed after a first run: the internal forces gained a second, 5 s time scale when creep at
-some cables stayed invisible under 0.5 s excitation alone (a creep shows only where the load
-changes on its own time scale — an experiment design rule, not a fit to the result).
+softer than nominal, a creeping cable, and none (false alarms). Its settings are fixed here and
+not tuned on its result.
 """
 
 from __future__ import annotations
@@ -160,12 +158,15 @@ class Lengths:
     lengths ``rest_length`` ``(m,)`` at ``α = 0`` (m), the measured platform ``poses`` ``(T, n)``
     and, optionally, the nominal platform-side pulley friction (``coefficient``, ``viscous``,
     ``guide_wrap`` per cable, ``presliding``: seed 002's Dahl law, as in
-    :data:`cablekit.cdpr.compensate.TWIN_FRICTION`)."""
+    :data:`cablekit.cdpr.compensate.TWIN_FRICTION`). With ``estimated_rest`` the rest lengths are
+    only estimates: each cable's offset, fitted on the fit data, is part of the nominal model
+    (and ``length_offset`` is no candidate)."""
 
     robot: Robot
     rest_length: np.ndarray
     poses: np.ndarray
     platform_side: Mapping[str, Any] | None = None
+    estimated_rest: bool = False
 
 
 def length_residual(
@@ -519,10 +520,16 @@ def _channels(
         return one[:, None]
 
     grid = {"cable_creep": tuple((tau, flows) for tau in CREEP_TIMES for flows in (False, True))}
+    e_all = np.concatenate([lr[0] for lr in length_runs])
+    half = split([lr[0].shape[0] for lr in length_runs])
+    if any(run.lengths is not None and run.lengths.estimated_rest for run in runs):
+        # estimated rest lengths: each cable's offset on the fit data belongs to the nominal model
+        e_all = e_all - e_all[:half].mean(axis=0)
+        length_effects = tuple(e for e in length_effects if e != "length_offset")
     length = _locate(
         "length",
-        np.concatenate([lr[0] for lr in length_runs]),
-        split([lr[0].shape[0] for lr in length_runs]),
+        e_all,
+        half,
         length_effects,
         lambda e, j, h: np.concatenate([length_one(lr, e, j, h) for lr in length_runs]),
         grid,
@@ -618,7 +625,7 @@ def diagnose_file(
     lengths = None
     if run.poses is not None:
         rest = rest_from_first_sample(robot, winch, run) if rest_length is None else rest_length
-        lengths = Lengths(robot, np.asarray(rest, float), run.poses, platform_side)
+        lengths = Lengths(robot, np.asarray(rest, float), run.poses, platform_side, rest_length is None)
     return diagnose(winch, run.t, run.alpha, run.current, run.sensor, lengths=lengths)
 
 
@@ -643,7 +650,8 @@ def diagnose_runs(
         run = load_cdpr_run(path, robot)
         lengths = None
         if run.poses is not None:
-            lengths = Lengths(robot, rest_from_first_sample(robot, winch, run), run.poses, platform_side)
+            rest = rest_from_first_sample(robot, winch, run)
+            lengths = Lengths(robot, rest, run.poses, platform_side, estimated_rest=True)
         segments.append(_Segment(run.t, run.alpha, run.current, run.sensor, lengths))
     return _checked(winch, segments, len(fit), effects, 0.01)
 
@@ -761,10 +769,7 @@ def twin_run(effect: str | None, cable: int, *, seed: int = 0) -> TwinRun:
     elif effect not in (None, "sensor_lag", "sensor_gain"):
         raise ParameterError(f"the twin cannot withhold {effect!r}")
     plant = mini_plant(robot, home=poses[0], drum_side=drum_side, creep=creep, drum_friction=drum)
-    # internal forces over two time scales: 0.5 s (friction, lags) and 5 s (creep needs loads
-    # that change on its own time scale)
-    offset = sum(excitation(plant_robot(), poses, rng, correlation=c) for c in (0.5, 5.0))
-    run = plant.closed_loop(poses, 1e-3, tension_offset=offset)
+    run = plant.closed_loop(poses, 1e-3, tension_offset=excitation(plant_robot(), poses, rng))
     t = np.arange(poses.shape[0]) * 1e-3
     sensor = run.sensor.copy()
     if effect == "sensor_lag":
