@@ -278,3 +278,23 @@ def test_winch_drive_bad_input_is_a_typed_error():
         WinchDrive.seed003().derivative(np.full(6, np.nan), np.zeros(2))
     with pytest.raises(ck.ShapeError):
         WinchDrive.seed003().derivative(np.zeros(5), np.zeros(2))
+
+
+def test_linearise_and_root_locus_are_the_polynomials_roots():
+    """``linearise``: the zeros and poles are the roots of ``num`` and ``den`` (NumPy); the root
+    locus at each gain is the roots of ``den + K_p·num`` (the PID closing the loop)."""
+    from cablekit.cdpr import linearise, root_locus
+
+    for setup in ("fixed", "synchronized"):
+        for lpf in (True, False):
+            lin = linearise(setup=setup, lpf=lpf)
+            for got, poly in ((lin.zeros, lin.num), (lin.poles, lin.den)):
+                want = np.roots(np.trim_zeros(poly, "f"))
+                np.testing.assert_allclose(np.sort_complex(got), np.sort_complex(want), rtol=1e-6, atol=1e-6)
+            kps, locus = root_locus(setup=setup, lpf=lpf, kps=np.array([0.5, 5.0]))
+            for kp, poles in zip(kps, locus, strict=True):
+                num = np.concatenate([np.zeros(len(lin.den) - len(lin.num)), lin.num])
+                want = np.roots(lin.den + kp * num)
+                np.testing.assert_allclose(
+                    np.sort_complex(poles), np.sort_complex(want), rtol=1e-6, atol=1e-6 * np.abs(want).max()
+                )

@@ -10,7 +10,8 @@
 * :class:`Winch` — seed 003's winch linearised (eq. 26: zeros, poles, root locus);
   :class:`WinchDrive` — the same winch as a nonlinear model (static friction, current limit,
   PID with the derivative's filter) for :func:`cablekit.simulate`, the sr-UKF and the
-  diagnosis; :mod:`cablekit.cdpr.winch` the seed's Table 5 and step responses.
+  diagnosis; :mod:`cablekit.cdpr.winch` the seed's Table 5 and step responses; :func:`linearise` (eqs
+  26–27) and :func:`root_locus`.
 * :class:`CdprPlant` — a robot with its winches and pulleys as a dynamic model, and its closed
   loop; :class:`PlanarRobot` — seed 003's planar robot in closed loop (steps, a circle, any
   trajectory).
@@ -55,6 +56,7 @@ __all__ = [
     "Capacity",
     "CdprPlant",
     "Kinematics",
+    "Linearised",
     "LoadCellPulley",
     "LoopRun",
     "PlanarRobot",
@@ -68,7 +70,9 @@ __all__ = [
     "Winch",
     "WinchDrive",
     "Workspace",
+    "linearise",
     "plot_workspace",
+    "root_locus",
     "shipped",
     "shipped_names",
     "workspace",
@@ -261,3 +265,4 @@ def shipped(name: str | None = None) -> Robot | list[str]:
 
 # after Robot and shipped: the planar module builds on them
 from cablekit.cdpr.planar import PlanarRobot  # noqa: E402
+from cablekit.cdpr.winch import Linearised, linearise, root_locus  # noqa: E402

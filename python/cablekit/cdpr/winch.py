@@ -282,6 +282,40 @@ def _without_static_friction(drive: WinchDrive) -> WinchDrive:
     )
 
 
+@dataclass(frozen=True)
+class Linearised:
+    """Seed 003 eq. 26 (``setup="fixed"``) or eq. 27 (``"synchronized"``): the open loop
+    ``PID·plant`` at ``K_p = 1`` as ``num``/``den`` (highest power first), its ``zeros`` and
+    ``poles`` (complex), with or without the derivative's low-pass filter."""
+
+    setup: str
+    lpf: bool
+    num: np.ndarray
+    den: np.ndarray
+    zeros: np.ndarray
+    poles: np.ndarray
+
+
+def linearise(w: Winch | None = None, setup: str = "fixed", *, lpf: bool = True) -> Linearised:
+    """The winch's open-loop transfer function about its working point (seed 003 eqs 26–27);
+    the core's (``Winch.open_loop``, ``Winch.zeros_and_poles``)."""
+    w = w or Winch.seed003()
+    num, den = w.open_loop(setup, lpf)
+    z, p = w.zeros_and_poles(setup, lpf)
+    return Linearised(setup, lpf, np.asarray(num), np.asarray(den), _complex(z), _complex(p))
+
+
+def root_locus(
+    w: Winch | None = None, setup: str = "fixed", *, lpf: bool = True, kps: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(kps, poles)``: the closed-loop poles ``(K, n)`` (complex) at each gain ``K_p`` (A/rad;
+    default 200 gains from 0.01 to 100, log-spaced)."""
+    w = w or Winch.seed003()
+    gains = np.geomspace(0.01, 100.0, 200) if kps is None else np.asarray(kps, float)
+    poles = np.asarray(w.root_locus(setup, lpf, [float(k) for k in gains]))
+    return gains, poles[..., 0] + 1j * poles[..., 1]
+
+
 def linearised_poles(drive: WinchDrive) -> np.ndarray:
     """Closed-loop poles of the model linearised at its working point without static friction
     (the eigenvalues of ``∂f/∂x`` at rest; for Setup 1 these are eq. 26 closed by the PID, a
