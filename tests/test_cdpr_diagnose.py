@@ -49,6 +49,7 @@ def test_a_creeping_cable_in_a_run_file_is_found_by_the_cli(tmp_path, capsys):
     text = (tmp_path / "out" / "diagnose.md").read_text(encoding="utf-8")
     assert "length: cable_creep at cable 3" in text, text
     assert "## force channel" in text and "## length channel" in text
+    assert (tmp_path / "out" / "diagnose.png").stat().st_size > 10_000  # the plot of both channels
     # without poses only the force channel runs
     _write(tmp_path / "nopose.csv", run, poses=False)
     args[3] = str(tmp_path / "nopose.csv")

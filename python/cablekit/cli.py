@@ -173,9 +173,8 @@ def _diagnose(args: argparse.Namespace) -> int:
             "(seed 003's winch; see docs/cdpr.md)"
         )
         d = diagnose_runs(fit_paths, hold_paths, robot)
-        write_run_diagnosis(
-            robot, d, [str(p) for p in fit_paths], [str(p) for p in hold_paths], out, args.quiet
-        )
+        fit_names, hold_names = [str(p) for p in fit_paths], [str(p) for p in hold_paths]
+        write_run_diagnosis(robot, d, fit_names, hold_names, out, args.quiet, plots=not args.no_html)
         return 0
     spec = load_model_spec(model_path)
     fit = [load_run(p) for p in fit_paths]

@@ -245,15 +245,23 @@ def _diagnose_run(args: argparse.Namespace) -> int:
         d = diagnose_file(args.run[0], robot, winch, platform_side=friction)
     else:
         raise DataError("several --run files need --holdout runs (one run alone is split in halves)")
-    write_run_diagnosis(robot, d, args.run, args.holdout, Path(args.out), args.quiet)
+    write_run_diagnosis(robot, d, args.run, args.holdout, Path(args.out), args.quiet, plots=not args.no_plots)
     return 0
 
 
 def write_run_diagnosis(
-    robot: Robot, d: CdprDiagnosis, fit: list[str], holdout: list[str] | None, out: Path, quiet: bool
+    robot: Robot,
+    d: CdprDiagnosis,
+    fit: list[str],
+    holdout: list[str] | None,
+    out: Path,
+    quiet: bool,
+    *,
+    plots: bool = True,
 ) -> None:
-    """``diagnose.md`` of a run diagnosis (also ``cablekit diagnose`` with a robot file)."""
-    from cablekit.cdpr.diagnose import report
+    """``diagnose.md`` (and ``diagnose.png``) of a run diagnosis (also ``cablekit diagnose`` with a
+    robot file)."""
+    from cablekit.cdpr.diagnose import plot, report
 
     names = ", ".join(Path(p).name for p in fit)
     split = (
@@ -261,9 +269,11 @@ def write_run_diagnosis(
         if holdout
         else f"{names}, fitted on its first half and held out on its second"
     )
-    _write_text(
-        out, f"# Where {robot.name} disagrees with its nominal model\n\n{split}\n\n" + report(d), quiet
-    )
+    text = f"# Where {robot.name} disagrees with its nominal model\n\n{split}\n\n" + report(d)
+    out.mkdir(parents=True, exist_ok=True)
+    if plots and (fig := plot(d, out / "diagnose.png")):
+        text += f"\n![each channel's residual and finding]({fig.name})\n"
+    _write_text(out, text, quiet)
 
 
 def _write_diagnosis(args: argparse.Namespace, text: str) -> None:
@@ -390,6 +400,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "one run alone is fitted on its first half and scored on its second",
     )
     dg.add_argument("--holdout", nargs="+", help="with --run: held-out run table(s), never fitted")
+    dg.add_argument("--no-plots", action="store_true", help="with --run: no PNG (no matplotlib needed)")
     dg.add_argument("--robot", help="with --run: a robot file or a shipped robot's name")
     dg.add_argument(
         "--winch",

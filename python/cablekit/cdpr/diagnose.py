@@ -257,7 +257,9 @@ class Candidate:
 class Channel:
     """One residual channel (``"force"``, N; ``"length"``, m): its ranked candidates; per cable
     the held-out residual RMS, the part of it above the noise (``gap_rms``) and whether that part
-    is significant; the noise estimate; and its verdict (``None``: nothing found)."""
+    is significant; the noise estimate; its verdict (``None``: nothing found); and for plots the
+    residual ``(T, m)`` (rows before ``split`` fitted), the finding's fitted signature at its
+    cable ``(T,)``."""
 
     name: str
     candidates: list[Candidate]
@@ -266,6 +268,9 @@ class Channel:
     significant: np.ndarray
     noise: float
     found: Candidate | None
+    residual: np.ndarray
+    split: int
+    explained: np.ndarray | None
 
     @property
     def status(self) -> str:
@@ -348,6 +353,7 @@ def _locate(
     total = float(np.sum(np.maximum(energy - floor, 0.0)))
     rms = np.sqrt(energy / size)
     cands = []
+    chosen: dict[tuple[str, int], tuple[Any, np.ndarray]] = {}
     for e in effects:
         for j in range(res.shape[1]):
             fits = []
@@ -363,6 +369,7 @@ def _locate(
                     score = float(np.sum((res[:half, j] - x[:half] @ coef) ** 2))
                 fits.append((score, h, x, coef))
             _, h, x, coef = min(fits, key=lambda f: f[0])
+            chosen[e, j] = (h, coef)
             after = held[:, j] - x[half:] @ coef
             gain = float(np.sum(held[:, j] ** 2) - np.sum(after**2))
             if e in grids:
@@ -385,7 +392,11 @@ def _locate(
                 break
             found = s
     gap = np.sqrt(np.maximum(energy - floor, 0.0) / size)
-    return Channel(name, cands, rms, gap, significant, noise, found)
+    explained = None
+    if found is not None:
+        h, coef = chosen[found.effect, found.cable]
+        explained = regress(found.effect, found.cable, h) @ coef
+    return Channel(name, cands, rms, gap, significant, noise, found, res, half, explained)
 
 
 def diagnose(
@@ -681,6 +692,32 @@ def report(d: CdprDiagnosis, *, top: int = 5) -> str:
         ]
         lines.append("")
     return "\n".join(lines)
+
+
+def plot(d: CdprDiagnosis, path: str | Path) -> Path | None:
+    """Per channel, the residual at the finding's cable (else at the largest gap) over the fit
+    and held-out samples, with the finding's fitted signature."""
+    from cablekit.plotting import pyplot_or_none, save_figure
+
+    plt = pyplot_or_none()
+    if plt is None:
+        return None
+    chans = d.channels
+    fig, axes = plt.subplots(len(chans), 1, figsize=(10, 3.2 * len(chans)), squeeze=False)
+    for ax, ch in zip(axes[:, 0], chans, strict=True):
+        unit, scale = ("N", 1.0) if ch.name == "force" else ("µm", 1e6)
+        j = ch.found.cable if ch.found is not None else int(np.argmax(ch.gap_rms))
+        k = np.arange(ch.residual.shape[0])
+        ax.plot(k, scale * ch.residual[:, j], lw=0.6, color="0.5", label=f"residual, cable {j + 1}")
+        if ch.explained is not None and ch.found is not None:
+            ax.plot(k, scale * ch.explained, lw=1.0, color="C3", label=f"{ch.found.effect} (fitted)")
+        ax.axvspan(ch.split, k[-1], color="C0", alpha=0.08, label="held out")
+        ax.set_ylabel(f"{ch.name} residual ({unit})")
+        ax.set_xlabel("sample" if ch.name == "force" else "20 ms block")
+        ax.set_title(ch.summary(), fontsize=8)
+        ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    return save_figure(fig, path)
 
 
 # ---- self-test on the plant ----------------------------------------------------------------
