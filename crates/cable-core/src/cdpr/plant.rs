@@ -728,7 +728,10 @@ pub struct LoopRun {
     pub sensor: Vec<f64>,
     /// The tension the force loop used `(T, m)` (N; the sensor under `Open`).
     pub feedback: Vec<f64>,
-    /// Motor currents `(T, m)` (A).
+    /// Motor currents `(T, m)` (A), each its period's mean (trapezoidal: just after the
+    /// period's reference step and at its end), as a drive's current measurement averages. (The
+    /// PID runs continuously inside the period, so the current at the period's end alone sits
+    /// about `K_p·α̇·Δt/2` below the mean that turned the drum.)
     pub current: Vec<f64>,
     /// Drum angles `(T, m)` (rad).
     pub alpha: Vec<f64>,
@@ -839,6 +842,7 @@ pub fn closed_loop(
     }
     let mut u = vec![0.0; 3 * m + n];
     let mut y = vec![0.0; n + 5 * m];
+    let mut y_start = y.clone();
     let (tm, tn) = (t_len * m, t_len * n);
     let mut run = LoopRun {
         samples: t_len,
@@ -934,6 +938,7 @@ pub fn closed_loop(
         }
         last_rate = Some(u[m..2 * m].to_vec());
         run.inputs[k * (3 * m + n)..(k + 1) * (3 * m + n)].copy_from_slice(&u);
+        plant.output(&x, &u, &mut y_start);
         rk.advance(plant, &mut x, &u, &u, opts.dt, opts.substeps);
         if !x.iter().all(|v| v.is_finite()) {
             return Err(CableError::Diverged {
@@ -952,7 +957,7 @@ pub fn closed_loop(
             run.ee[i] = y[n + j];
             run.sensor[i] = noisy[j];
             run.feedback[i] = f_hat[j];
-            run.current[i] = y[n + 2 * m + j];
+            run.current[i] = 0.5 * (y_start[n + 2 * m + j] + y[n + 2 * m + j]);
             run.alpha[i] = y[n + 4 * m + j];
         }
         let actual = Pose::from_coordinates(plant.robot.motion, &y[..n])?;
