@@ -155,17 +155,16 @@ impl Robot {
         let (n, m) = (self.inner.dof(), self.inner.n_cables());
         let (p, t) = matrix(poses, "poses", Some(n))?;
         let (e, _) = matrix(ee, "ee", Some(m))?;
-        let [mu, sv, gw] = [
-            (coefficient, "coefficient"),
-            (viscous, "viscous"),
-            (guide_wrap, "guide_wrap"),
-        ]
-        .map(|(a, name)| any_vector(a, name));
-        let (mu, sv, gw) = (mu?, sv?, gw?);
-        let paths = guarded(|| {
-            let law = core::PathLaw::named(law, smoothing, presliding, exponent)?;
-            core::PathFriction::per_cable(&mu, &sv, &gw, law, m)
-        })?;
+        let friction = crate::plant::PulleyFriction::new(
+            coefficient,
+            viscous,
+            guide_wrap,
+            law,
+            smoothing,
+            presliding,
+            exponent,
+        )?;
+        let paths = guarded(|| friction.paths(m))?;
         let (p, e) = (p.as_slice()?, e.as_slice()?);
         let run = py.detach(|| guarded(|| core::path_friction(&self.inner, p, e, dt, &paths)))?;
         Ok(PathRun::new(py, run, (t, m)))

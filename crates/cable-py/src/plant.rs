@@ -29,7 +29,7 @@ pub struct PulleyFriction {
 impl PulleyFriction {
     #[new]
     #[pyo3(signature = (coefficient, viscous, guide_wrap, *, law = None, smoothing = None, presliding = None, exponent = None))]
-    fn new(
+    pub(crate) fn new(
         coefficient: &Bound<'_, PyAny>,
         viscous: &Bound<'_, PyAny>,
         guide_wrap: &Bound<'_, PyAny>,
@@ -58,7 +58,7 @@ impl PulleyFriction {
 }
 
 impl PulleyFriction {
-    fn paths(&self, m: usize) -> cable_core::error::Result<Vec<PathFriction>> {
+    pub(crate) fn paths(&self, m: usize) -> cable_core::error::Result<Vec<PathFriction>> {
         PathFriction::per_cable(
             &self.coefficient,
             &self.viscous,

@@ -190,20 +190,20 @@ def _distribute(args: argparse.Namespace) -> int:
 def _winch(args: argparse.Namespace) -> int:
     from cablekit.cdpr.winch import report
 
-    text = report(args.out, plots=not args.no_plots)
-    if not args.quiet:
-        print(text)
-    print(f"wrote {Path(args.out) / 'winch.md'}")
-    return 0
+    return _reported(args, report(args.out, plots=not args.no_plots), "winch.md")
 
 
 def _planar(args: argparse.Namespace) -> int:
     from cablekit.cdpr.planar import report
 
-    text = report(args.out, plots=not args.no_plots)
+    return _reported(args, report(args.out, plots=not args.no_plots), "planar.md")
+
+
+def _reported(args: argparse.Namespace, text: str, name: str) -> int:
+    """Print a report written to ``args.out/name`` (unless ``--quiet``) and where it went."""
     if not args.quiet:
         print(text)
-    print(f"wrote {Path(args.out) / 'planar.md'}")
+    print(f"wrote {Path(args.out) / name}")
     return 0
 
 
