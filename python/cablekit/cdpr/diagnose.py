@@ -194,20 +194,26 @@ def length_residual(
     if fr is not None:
         dt = float(np.median(np.diff(t)))
         args = [np.asarray(fr[k], float) for k in ("coefficient", "viscous", "guide_wrap")]
-        # T_PUL = T_EE + F(T_EE): three fixed-point steps (F is affine in T_EE for a given
-        # motion, with a slope μN·z ≪ 1)
+        presliding = float(fr["presliding"])
         # the friction's direction from poses smoothed over a block (a tracker's noise would
         # chatter the speed)
-        k = max(1, round(BLOCK / dt)) | 1
-        pad = np.pad(poses, ((k // 2, k // 2), (0, 0)), mode="edge")
-        smooth = np.stack([np.convolve(pad[:, i], np.ones(k) / k, "valid") for i in range(poses.shape[1])], 1)
+        smooth = _moving_average(poses, max(1, round(BLOCK / dt)) | 1)
+        # T_PUL = T_EE + F(T_EE): three fixed-point steps (F is affine in T_EE for a given
+        # motion, with a slope μN·z ≪ 1)
         for _ in range(3):
-            presliding = float(fr["presliding"])
             pul = robot.path_friction(smooth, ee, dt, *args, law="dahl", presliding=presliding).pul
             ee = ee - (pul - sensor)
     load = ee * unstretched
     e = robot.inverse_kinematics(poses).length - unstretched - load / robot.ea[None, :]
     return e, load
+
+
+def _moving_average(a: np.ndarray, k: int) -> np.ndarray:
+    """Centred moving average of the columns of ``a`` ``(T, c)`` over an odd ``k``, edges held."""
+    pad = np.pad(a, ((k // 2, k // 2), (0, 0)), mode="edge")
+    return np.ascontiguousarray(
+        np.stack([np.convolve(pad[:, i], np.ones(k) / k, "valid") for i in range(a.shape[1])], 1)
+    )
 
 
 def _blocks(a: np.ndarray, k: int) -> np.ndarray:
@@ -459,13 +465,7 @@ def _channels(
         rate = np.gradient(alpha, t, axis=0)
         # the motor's drum-side tension, smoothed over 21 samples against its noise (the lag's
         # regressor)
-        drum = res + sensor
-        drum_smooth = np.column_stack(
-            [
-                np.convolve(np.pad(drum[:, j], 10, mode="edge"), np.ones(21) / 21, "valid")
-                for j in range(drum.shape[1])
-            ]
-        )
+        drum_smooth = _moving_average(res + sensor, 21)
         force_runs.append((res, sensor, rate, drum_smooth, dt))
 
     def force_one(run: tuple[np.ndarray, ...], effect: str, j: int, lag: float) -> np.ndarray:
