@@ -152,3 +152,23 @@ def test_cablekit_diagnose_takes_a_robot_file_as_the_model(tmp_path):
     text = (out / "diagnose.md").read_text(encoding="utf-8")
     assert "force: pulley_friction at cable 6" in text, text
     assert "fitted on fit.csv, held out hold.csv" in text
+
+
+def test_a_creeping_cable_is_found_across_runs_with_estimated_rest_lengths(tmp_path):
+    """Fitted on one run and scored on another, each run's rest lengths estimated from its first
+    sample: every run's offsets are its own (a held-out run's from its first 2 s, not scored), so
+    the creep is found at its cable and nothing is found with nothing withheld."""
+    from cablekit.cdpr.compensate import TWIN_FRICTION
+    from cablekit.cdpr.diagnose import diagnose_runs
+
+    robot = shipped("seed002_mini")
+    for effect, cable in (("cable_creep", 2), (None, 0)):
+        for name, seed in (("fit", 3), ("hold", 4)):
+            _write(tmp_path / f"{name}.csv", twin_run(effect, cable, seed=seed))
+        d = diagnose_runs([tmp_path / "fit.csv"], [tmp_path / "hold.csv"], robot, platform_side=TWIN_FRICTION)
+        assert d.length is not None
+        got = d.length.found
+        if effect is None:
+            assert got is None and d.length.status == "no gap", d.summary()
+        else:
+            assert got is not None and (got.effect, got.cable) == (effect, cable), d.summary()

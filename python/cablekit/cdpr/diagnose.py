@@ -84,6 +84,8 @@ CREEP_TIMES = tuple(np.geomspace(0.5, 60.0, 22))
 #: the length channel's averaging block (s) and the fewest blocks it fits
 BLOCK = 0.02
 MIN_BLOCKS = 40
+#: with estimated rest lengths, a held-out run's offsets come from its first seconds (not scored)
+CALIBRATION = 2.0
 _SIGNS = {
     "pulley_friction": (1, 1),
     "sensor_lag": (1,),
@@ -531,18 +533,34 @@ def _channels(
         return one[:, None]
 
     grid = {"cable_creep": tuple((tau, flows) for tau in CREEP_TIMES for flows in (False, True))}
-    e_all = np.concatenate([lr[0] for lr in length_runs])
-    half = split([lr[0].shape[0] for lr in length_runs])
-    if any(run.lengths is not None and run.lengths.estimated_rest for run in runs):
-        # estimated rest lengths: each cable's offset on the fit data belongs to the nominal model
-        e_all = e_all - e_all[:half].mean(axis=0)
+    estimated = any(run.lengths is not None and run.lengths.estimated_rest for run in runs)
+    # (rows an offset is taken over, rows dropped from the front) per run
+    centring: list[tuple[slice, int] | None] = [None] * len(length_runs)
+    if estimated:
+        # estimated rest lengths: each cable's offset is part of the nominal model
         length_effects = tuple(e for e in length_effects if e != "length_offset")
+        if n_fit is not None:
+            # each run has its own: a fit run's is its mean; a held-out run's is the mean of a
+            # calibration prefix, which is then not scored
+            for i, lr in enumerate(length_runs):
+                prefix = min(round(CALIBRATION / BLOCK), lr[0].shape[0] // 2)
+                centring[i] = (slice(None), 0) if i < n_fit else (slice(0, prefix), prefix)
+
+    def centred(a: np.ndarray, c: tuple[slice, int] | None) -> np.ndarray:
+        return a if c is None else (a - a[c[0]].mean(axis=0))[c[1] :]
+
+    e_all = np.concatenate([centred(lr[0], c) for lr, c in zip(length_runs, centring, strict=True)])
+    half = split([centred(lr[0], c).shape[0] for lr, c in zip(length_runs, centring, strict=True)])
+    if estimated and n_fit is None:
+        e_all = e_all - e_all[:half].mean(axis=0)
     length = _locate(
         "length",
         e_all,
         half,
         length_effects,
-        lambda e, j, h: np.concatenate([length_one(lr, e, j, h) for lr in length_runs]),
+        lambda e, j, h: np.concatenate(
+            [centred(length_one(lr, e, j, h), c) for lr, c in zip(length_runs, centring, strict=True)]
+        ),
         grid,
         frozenset({"cable_creep"}),
     )
