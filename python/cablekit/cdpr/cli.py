@@ -49,7 +49,7 @@ def read_trajectory(path: str | Path, motion: str) -> Trajectory:
     (planar ``x, y, theta``; spatial ``x, y, z, roll, pitch, yaw``), optionally all the wrench
     columns (planar ``fx, fy, mz``; spatial ``fx, fy, fz, mx, my, mz``) and ``t``. Other
     columns, missing ones and cells that are not finite numbers are ``DataError``s naming them."""
-    from cablekit.diagnose.data import read_table
+    from cablekit.diagnose.data import read_table, require_finite_cells
 
     p = Path(path)
     header, data = read_table(p)
@@ -66,10 +66,7 @@ def read_trajectory(path: str | Path, motion: str) -> Trajectory:
         raise DataError(f"{p}: give all wrench columns {list(wrench_cols)} or none, got {given}")
     if data.shape[0] == 0:
         raise DataError(f"{p}: no rows after the header")
-    bad = ~np.isfinite(data)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise DataError(f"{p}: row {i + 2}, column {header[j]!r}: missing or not finite")
+    require_finite_cells(p, header, data)
     col = {c: data[:, header.index(c)] for c in header}
     return Trajectory(
         poses=np.ascontiguousarray(np.column_stack([col[c] for c in pose_cols])),

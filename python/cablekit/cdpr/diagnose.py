@@ -589,7 +589,7 @@ def load_cdpr_run(path: str | Path, robot: Robot) -> RunFile:
     duplicate columns, non-finite cells, a time that does not increase and fewer than 100 rows
     are :class:`~cablekit.errors.DataError` errors naming them."""
     from cablekit.cdpr.cli import POSE_COLUMNS
-    from cablekit.diagnose.data import read_table
+    from cablekit.diagnose.data import read_table, require_finite_cells
 
     p = Path(path)
     header, data = read_table(p)
@@ -609,10 +609,7 @@ def load_cdpr_run(path: str | Path, robot: Robot) -> RunFile:
         raise DataError(f"{p}: give all pose columns {pose} or none, got {given}")
     if data.shape[0] < 100:
         raise DataError(f"{p}: needs at least 100 rows, got {data.shape[0]}")
-    bad = ~np.isfinite(data)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise DataError(f"{p}: row {i + 2}, column {header[j]!r}: missing or not finite")
+    require_finite_cells(p, header, data)
     col = {c: data[:, header.index(c)] for c in header}
     t = np.ascontiguousarray(col["t"])
     if not (np.diff(t) > 0).all():

@@ -165,6 +165,15 @@ def read_table(path: str | Path) -> tuple[list[str], NDArray[np.float64]]:
         raise
 
 
+def require_finite_cells(source: str | Path, header: list[str], data: NDArray[np.float64]) -> None:
+    """A :class:`DataError` naming the first cell of a table (rows = samples) that is missing or
+    not finite (its file row, counting the header as row 1, and its column)."""
+    bad = ~np.isfinite(data)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise DataError(f"{source}: row {i + 2}, column {header[j]!r}: missing or not finite")
+
+
 def from_arrays(name: str, header: list[str], data: NDArray[np.float64], source: str = "") -> Run:
     """Validate a table (rows = samples) into a :class:`Run`; see the module for the rules."""
     where = source or name
