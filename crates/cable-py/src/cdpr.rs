@@ -9,7 +9,9 @@ use cable_core::cdpr::{
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 
-use crate::convert::{any_vector, matrix, out_vector, to_matrix, to_vector, vector, vector_into};
+use crate::convert::{
+    any_vector, matrix, opt_tuples, out_vector, to_matrix, to_vector, vector, vector_into,
+};
 use crate::errors::{guarded, lock};
 use crate::results::{Capacity, Kinematics, PathRun, Step, Tensions};
 
@@ -51,7 +53,7 @@ impl Robot {
         com: &Bound<'_, PyAny>,
         inertia: &Bound<'_, PyAny>,
         gravity: &Bound<'_, PyAny>,
-        pulleys: Option<Pulleys>,
+        pulleys: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let (a, _) = matrix(anchors, "anchors", Some(3))?;
         let (b, _) = matrix(attachments, "attachments", Some(3))?;
@@ -65,7 +67,8 @@ impl Robot {
         };
         let gravity = xyz(gravity, "gravity")?;
         let (a, b) = (a.as_slice()?, b.as_slice()?);
-        let pulleys = pulleys.unwrap_or_default();
+        let what = "a list of (cable, radius, axis (3,)) triples";
+        let pulleys: Pulleys = opt_tuples(pulleys, "pulleys", what)?.unwrap_or_default();
         let inner = guarded(|| {
             let columns = (bounds.0.as_slice(), bounds.1.as_slice(), ea.as_slice());
             let motion = Motion::from_name(motion)?;

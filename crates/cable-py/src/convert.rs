@@ -11,6 +11,8 @@ use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray2,
     PyUntypedArray, PyUntypedArrayMethods,
 };
+use pyo3::conversion::FromPyObjectOwned;
+use pyo3::exceptions::{PyOverflowError, PyValueError};
 use pyo3::prelude::*;
 
 use cable_core::dynamics::SpecValue;
@@ -220,4 +222,38 @@ pub fn spec_values(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<(String, 
         out.push((name, value));
     }
     Ok(out)
+}
+
+/// An argument PyO3 converts itself (a tuple, a list of tuples) with its errors typed: a wrong
+/// length is a `ShapeError`, an integer out of range a `ParameterError` and anything else a
+/// `DTypeError`, each naming the argument (PyO3's own conversion raises a bare `ValueError`
+/// for `bias=()` or a bound `(1.0,)`).
+pub fn tuples<'py, T: FromPyObjectOwned<'py>>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    what: &str,
+) -> PyResult<T> {
+    obj.extract::<T>().map_err(|e| {
+        let e: PyErr = e.into();
+        let py = obj.py();
+        let class = if e.is_instance_of::<PyOverflowError>(py) {
+            Class::Parameter
+        } else if e.is_instance_of::<PyValueError>(py) {
+            Class::Shape
+        } else {
+            Class::DType
+        };
+        arg_error(class, name, format!("{name} must be {what}: {e}"))
+    })
+}
+
+/// `tuples` for an optional argument (`None` is absent).
+pub fn opt_tuples<'py, T: FromPyObjectOwned<'py>>(
+    obj: Option<&Bound<'py, PyAny>>,
+    name: &str,
+    what: &str,
+) -> PyResult<Option<T>> {
+    obj.filter(|o| !o.is_none())
+        .map(|o| tuples(o, name, what))
+        .transpose()
 }

@@ -6,13 +6,15 @@ use std::sync::{Mutex, MutexGuard};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::convert::{matrix, rows, square, to_matrix, to_vector, vector};
+use crate::convert::{matrix, opt_tuples, rows, square, to_matrix, to_vector, vector};
 use crate::dynamics::Model;
 use crate::errors::{arg_error, guarded, lock, Class};
 use crate::results::{DualRun, FilterHealth, FilterRun};
 
 /// `(u, y, mask)` of one step; `(Y, U, mask)` of a log.
 type Measurement = (Vec<f64>, Vec<f64>, Option<Vec<bool>>);
+/// What `bounds` must be.
+const BOUNDS: &str = "a list of (lower, upper) pairs, one per parameter";
 /// `(gamma, (Wm0, Wmi), (Wc0, Wci))`.
 type WeightTuple = (f64, (f64, f64), (f64, f64));
 
@@ -143,13 +145,14 @@ impl SrUkf {
         substeps: usize,
         states: Option<Vec<usize>>,
         H: Option<&Bound<'_, PyAny>>,
-        bounds: Option<Vec<(f64, f64)>>,
+        bounds: Option<&Bound<'_, PyAny>>,
         alpha: f64,
         beta: f64,
         kappa: f64,
     ) -> PyResult<Self> {
         let model = model.get().inner.clone();
         let h = h_rows(H)?;
+        let bounds = opt_tuples(bounds, "bounds", BOUNDS)?;
         let measure = guarded(|| Measure::one_of(states, None, h))?;
         let kind = ProcessKind::Parameters {
             model,
@@ -398,12 +401,13 @@ impl DualSrUkf {
         dt: f64,
         substeps: usize,
         states: Vec<usize>,
-        bounds: Option<Vec<(f64, f64)>>,
+        bounds: Option<&Bound<'_, PyAny>>,
         alpha: f64,
         beta: f64,
         kappa: f64,
     ) -> PyResult<Self> {
         let init = moments(x0, P0, Q, R)?;
+        let bounds = opt_tuples(bounds, "bounds", BOUNDS)?;
         let theta = (square(P0_theta, "P0_theta")?, square(Q_theta, "Q_theta")?);
         let scaling = core::SigmaScaling { alpha, beta, kappa };
         let model = &model.get().inner;

@@ -9,8 +9,10 @@ use cable_core::forceps::{self as core, ClampLog, Geometry};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 
-use crate::convert::{matrix, to_matrix, vector, vector_into};
+use crate::convert::{matrix, opt_tuples, to_matrix, tuples, vector, vector_into};
 use crate::errors::{core_error, guarded, lock};
+
+const BIAS: &str = "a pair (A, B) of forces in N";
 
 /// Joint torque disturbance observer of a two-forceps end-effector (seed 000 eqs 8, 15–17):
 /// from the measured cable tensions `F_M` and the free-motion tensions `F̂_E` (N, columns
@@ -25,16 +27,24 @@ pub struct Jtdo {
 #[pymethods]
 impl Jtdo {
     #[new]
-    #[pyo3(signature = (*, r2, arm_a, arm_b, threshold = core::SEED_THRESHOLD, bias = (0.0, 0.0)))]
-    fn new(r2: f64, arm_a: f64, arm_b: f64, threshold: f64, bias: (f64, f64)) -> PyResult<Self> {
+    #[pyo3(signature = (*, r2, arm_a, arm_b, threshold = core::SEED_THRESHOLD, bias = None))]
+    fn new(
+        r2: f64,
+        arm_a: f64,
+        arm_b: f64,
+        threshold: f64,
+        bias: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
         let geometry = Geometry { r2, arm_a, arm_b };
-        let inner = guarded(|| core::Jtdo::new(geometry, threshold, [bias.0, bias.1]))?;
+        let bias: [f64; 2] = opt_tuples(bias, "bias", BIAS)?.unwrap_or_default();
+        let inner = guarded(|| core::Jtdo::new(geometry, threshold, bias))?;
         Ok(Self { inner })
     }
 
     /// The same observer with another `bias` `(A, B)` (N).
-    fn with_bias(&self, bias: (f64, f64)) -> PyResult<Self> {
-        let inner = guarded(|| self.inner.with_bias([bias.0, bias.1]))?;
+    fn with_bias(&self, bias: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let bias: [f64; 2] = tuples(bias, "bias", BIAS)?;
+        let inner = guarded(|| self.inner.with_bias(bias))?;
         Ok(Self { inner })
     }
 

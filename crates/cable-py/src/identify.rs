@@ -5,7 +5,7 @@ use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::convert::{any_vector, ndim_of, rows, to_matrix, to_vector};
+use crate::convert::{any_vector, ndim_of, rows, to_matrix, to_vector, tuples};
 use crate::dynamics::Model;
 use crate::errors::guarded;
 use crate::results::{FitReport, ParamSpec};
@@ -153,7 +153,7 @@ impl JointProblem {
     #[pyo3(signature = (model, channels, runs, effects, substeps = 1, servo = None, kink_refine = 8))]
     fn new(
         model: &Bound<'_, Model>,
-        channels: Vec<(usize, f64, bool)>,
+        channels: &Bound<'_, PyAny>,
         runs: Vec<PyRef<'_, JointRun>>,
         effects: Vec<String>,
         substeps: usize,
@@ -162,6 +162,8 @@ impl JointProblem {
     ) -> PyResult<Self> {
         let plant = guarded(|| core::Plant::of(&model.get().inner, servo))?;
         let runs = runs.iter().map(|r| r.inner.clone()).collect();
+        let what = "a list of (output, weight, sensor) triples";
+        let channels: Vec<(usize, f64, bool)> = tuples(channels, "channels", what)?;
         let channels = channels
             .into_iter()
             .map(|(output, weight, sensor)| core::Channel {

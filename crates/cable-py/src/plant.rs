@@ -7,7 +7,7 @@ use numpy::PyArray2;
 use pyo3::prelude::*;
 
 use crate::cdpr::Robot;
-use crate::convert::{any_vector, matrix, to_matrix, to_vector};
+use crate::convert::{any_vector, matrix, opt_tuples, to_matrix, to_vector};
 use crate::dynamics::{wrap, Model};
 use crate::errors::guarded;
 use crate::nn::Mlp;
@@ -105,7 +105,7 @@ impl CdprPlant {
         drum_side: Option<PyRef<'_, PulleyFriction>>,
         platform_side: Option<PyRef<'_, PulleyFriction>>,
         home_tensions: Option<&Bound<'_, PyAny>>,
-        creep: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>)>,
+        creep: Option<&Bound<'_, PyAny>>,
         drum_friction: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let r = &robot.inner;
@@ -119,6 +119,8 @@ impl CdprPlant {
             .unwrap_or_default();
         let d = core::PlantOptions::default();
         let m = r.n_cables();
+        let what = "a pair (ratio, time_constant) of (m,) or (1,) arrays";
+        let creep: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>)> = opt_tuples(creep, "creep", what)?;
         let creep = match creep {
             Some((ratio, tau)) => {
                 let (ratio, tau) = (any_vector(&ratio, "creep")?, any_vector(&tau, "creep")?);
