@@ -1,7 +1,9 @@
 """Coverage-guided fuzzing of cablekit's loaders with atheris (libFuzzer for Python and its
 native extensions): weight files (``Mlp.from_bytes``, the Rust safetensors parser), model files
 (``load_model_spec``, TOML), run files (``load_run``, CSV), CDPR trajectory CSVs
-(``read_trajectory``) and CASPR bodies files (``Robot.from_caspr``, XML).
+(``read_trajectory``), CASPR bodies files (``Robot.from_caspr``, XML), robot, twin and campaign
+manifest files (``Robot.load``, ``load_twin``, ``load_manifest``, TOML), da Vinci bench files
+(``read_bench_file``) and CDPR run CSVs (``load_cdpr_run``).
 
 Every input must load or raise a ``cablekit.CablekitError`` subclass; any other exception, a
 crash or a hang (``-timeout``) is a finding, written by libFuzzer as ``crash-*``/``timeout-*``
@@ -14,6 +16,11 @@ Bounded runs (``pip install '.[fuzz]'``), e.g. 20 000 inputs per target::
     python fuzz/fuzz_loaders.py run -runs=20000 -timeout=10
     python fuzz/fuzz_loaders.py trajectory -runs=20000 -timeout=10
     python fuzz/fuzz_loaders.py caspr -runs=20000 -timeout=10
+    python fuzz/fuzz_loaders.py robot -runs=20000 -timeout=10
+    python fuzz/fuzz_loaders.py twin -runs=20000 -timeout=10
+    python fuzz/fuzz_loaders.py manifest -runs=20000 -timeout=10
+    python fuzz/fuzz_loaders.py bench -runs=20000 -timeout=10
+    python fuzz/fuzz_loaders.py cdpr_run -runs=20000 -timeout=10
 
 or by time: ``-max_total_time=60``. Seeds are valid files built at start-up, so the fuzzer
 mutates real structure from the first input.
@@ -23,6 +30,7 @@ from __future__ import annotations
 
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import atheris
@@ -31,10 +39,14 @@ with atheris.instrument_imports():
     import numpy as np
 
     import cablekit as ck
-    from cablekit.cdpr import Robot
+    from cablekit.cdpr import Robot, shipped
     from cablekit.cdpr.cli import read_trajectory
+    from cablekit.cdpr.diagnose import load_cdpr_run
     from cablekit.diagnose.data import load_run
+    from cablekit.diagnose.many import load_manifest
     from cablekit.diagnose.spec import load_model_spec
+    from cablekit.forceps.davinci import read_bench_file
+    from cablekit.forceps.twin import SEED_FILE, load_twin
     from cablekit.nn import MapMinMax
     from cablekit.nn.export import write_weights
 
@@ -146,9 +158,59 @@ def _caspr(data: bytes) -> None:
         return
 
 
+PLANAR = shipped("seed003_planar")
+SEED_BENCH = "% header\n" + "".join(
+    f"{1e-3 * i},{3 * i},{100 + i},0.5,{2 * i},{50 - i},0,0,{70 * i}\n" for i in range(40)
+)
+SEED_MANIFEST = '[[group]]\nname = "a"\nmodel = "m.toml"\nfit = ["a.csv"]\nheld_out = ["b.csv"]\n'
+_CDPR_COLUMNS = [f"{k}{i}" for k in ("alpha", "current", "sensor") for i in range(4)]
+_CDPR_CELLS = ",".join(["0.0"] * 4 + ["0.1"] * 4 + ["10.0"] * 4)
+SEED_CDPR_RUN = (
+    ",".join(["t", *_CDPR_COLUMNS, "x", "y", "theta"])
+    + "\n"
+    + "".join(f"{0.01 * j},{_CDPR_CELLS},{0.6 + 1e-4 * j},0.5,0.0\n" for j in range(30))
+)
+
+
+def _file(name: str, load: Callable[[Path], object]) -> Callable[[bytes], None]:
+    """A target that writes the input to ``name`` and loads it (a loaded table must be finite)."""
+
+    def target(data: bytes) -> None:
+        path = TMP / name
+        path.write_bytes(data)
+        try:
+            loaded = load(path)
+        except ck.CablekitError:
+            return
+        for v in vars(loaded).values() if hasattr(loaded, "__dict__") else ():
+            if isinstance(v, np.ndarray) and v.dtype.kind == "f":
+                assert np.isfinite(v).all(), f"{name}: non-finite numbers loaded"
+
+    return target
+
+
+def _cdpr_run(path: Path) -> object:
+    return load_cdpr_run(path, PLANAR)
+
+
+def _manifest(path: Path) -> object:
+    for name in ("a.csv", "b.csv", "m.toml"):
+        (path.parent / name).write_text("x")
+    return load_manifest(path.parent)
+
+
 TARGETS = {"weights": (_weights, _seed_weights), "model": (_model, lambda: SEED_MODEL),
            "run": (_run, lambda: SEED_RUN.encode()), "trajectory": (_trajectory, SEED_TRAJECTORY.encode),
-           "caspr": (_caspr, SEED_BODIES.encode)}  # fmt: skip
+           "caspr": (_caspr, SEED_BODIES.encode),
+           "robot": (_file("robot.toml", Robot.load), lambda: shipped_text("seed003_planar")),
+           "twin": (_file("twin.toml", load_twin), SEED_FILE.read_bytes),
+           "manifest": (_file("manifest.toml", _manifest), SEED_MANIFEST.encode),
+           "bench": (_file("00.TXT", read_bench_file), SEED_BENCH.encode),
+           "cdpr_run": (_file("run.csv", _cdpr_run), SEED_CDPR_RUN.encode)}  # fmt: skip
+
+
+def shipped_text(name: str) -> bytes:
+    return (Path(ck.__file__).parent / "cdpr" / "robots" / f"{name}.toml").read_bytes()
 
 
 def main() -> None:

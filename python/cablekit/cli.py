@@ -184,11 +184,11 @@ def _diagnose(args: argparse.Namespace) -> int:
 
 def _is_robot_file(path: Path) -> bool:
     """A cable robot's file (``motion`` and ``[[cables]]``) rather than a joint model's."""
-    import tomllib
+    from cablekit._files import load_toml
 
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        doc = load_toml(path, "model file")
+    except DataError:
         return False  # the model loader reports it
     return "cables" in doc and "motion" in doc
 

@@ -23,7 +23,6 @@ Conventions: a pose is ``[x, y, θ]`` (planar) or ``[x, y, z, roll, pitch, yaw]`
 
 from __future__ import annotations
 
-import tomllib
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -47,6 +46,7 @@ from cablekit._cablekit import (
     WinchDrive,
 )
 from cablekit._cablekit import Robot as _Robot
+from cablekit._files import parse_toml, read_text
 from cablekit.cdpr.workspace import Requirement, Workspace, plot_workspace, workspace
 from cablekit.errors import DataError
 
@@ -147,21 +147,12 @@ class Robot(_Robot):
     @classmethod
     def load(cls, path: str | Path) -> Robot:
         """A robot from a TOML robot file (format: docs/cdpr.md)."""
-        p = Path(path)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as e:
-            raise DataError(f"{p}: cannot read the robot file ({e})") from e
-        return cls.from_toml(text, source=str(p))
+        return cls.from_toml(read_text(path, "robot file"), source=str(path))
 
     @classmethod
     def from_toml(cls, text: str, source: str = "<robot>") -> Robot:
         """A robot from the text of a TOML robot file."""
-        try:
-            doc = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as e:
-            raise DataError(f"{source}: not valid TOML ({e})") from e
-        return cls.from_dict(doc, source)
+        return cls.from_dict(parse_toml(text, source), source)
 
     @classmethod
     def from_dict(cls, doc: dict[str, Any], source: str = "<robot>") -> Robot:

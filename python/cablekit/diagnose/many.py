@@ -28,12 +28,12 @@ from __future__ import annotations
 import json
 import threading
 import time
-import tomllib
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from cablekit._files import load_toml
 from cablekit.diagnose.data import Run, load_run
 from cablekit.diagnose.engine import diagnose
 from cablekit.diagnose.fit import CandidateFit, fit_candidate
@@ -100,11 +100,7 @@ def load_manifest(directory: str | Path) -> list[Group]:
         raise DataError(
             f"{directory}: no manifest.toml (see `cablekit diagnose --help` and docs/diagnosis.md)"
         )
-    try:
-        doc = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise DataError(f"{path}: not valid TOML ({exc})") from exc
-    return manifest_from_dict(doc, directory, str(path))
+    return manifest_from_dict(load_toml(path, "manifest"), directory, str(path))
 
 
 def manifest_from_dict(doc: dict[str, Any], directory: str | Path, path: str = "manifest") -> list[Group]:

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -252,20 +251,9 @@ def _transmission(params: dict[str, Any], links: int) -> CableTransmission:
 
 def load_model_spec(path: str | Path) -> ModelSpec:
     """Parse and validate a model file; errors are :class:`DataError` naming the key."""
-    path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8-sig"))
-    except FileNotFoundError:
-        raise DataError(f"{path}: no such model file") from None
-    except IsADirectoryError:
-        raise DataError(f"{path}: is a folder, not a model file") from None
-    except UnicodeDecodeError as exc:
-        raise DataError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except (tomllib.TOMLDecodeError, RecursionError) as exc:
-        raise DataError(f"{path}: not valid TOML: {type(exc).__name__}: {exc}") from None
-    except OSError as exc:
-        raise DataError(f"{path}: unreadable ({exc})") from None
-    return model_spec_from_dict(doc, source=str(path))
+    from cablekit._files import load_toml
+
+    return model_spec_from_dict(load_toml(path, "model file"), source=str(path))
 
 
 def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelSpec:

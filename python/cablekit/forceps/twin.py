@@ -11,13 +11,13 @@ key left out takes the seed bench's value, an unknown key or a value that is not
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from cablekit._cablekit import Twin
+from cablekit._files import parse_toml, read_text
 from cablekit.errors import DataError
 
 SEED_FILE = Path(__file__).with_name("instruments") / "seed000.toml"
@@ -38,10 +38,7 @@ def _number(where: str, key: str, value: object, integer: bool = False) -> float
 
 def twin_from_toml(text: str, source: str = "<twin>") -> Twin:
     """A twin from TOML text (see the module docs)."""
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise DataError(f"{source}: not valid TOML: {e}") from e
+    doc = parse_toml(text, source)
     unknown = sorted(set(doc) - {"a", "b", "bench"})
     if unknown:
         raise DataError(f"{source}: unknown section(s) {unknown}; known: a, b, bench")
@@ -76,11 +73,7 @@ def twin_from_toml(text: str, source: str = "<twin>") -> Twin:
 def load_twin(path: str | Path | None = None) -> Twin:
     """The twin of a TOML file; the seed 000 bench without one."""
     p = Path(path) if path is not None else SEED_FILE
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as e:
-        raise DataError(f"cannot read twin file {p}: {e}") from e
-    return twin_from_toml(text, source=str(p))
+    return twin_from_toml(read_text(p, "twin file"), source=str(p))
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,40 @@
+"""Reading the text and TOML files cablekit loads, every failure a :class:`DataError` naming the
+file: missing, a folder, unreadable, not UTF-8, not TOML, or nested too deeply for the parser."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from cablekit.errors import DataError
+
+
+def read_text(path: str | Path, what: str) -> str:
+    """The UTF-8 text of ``path`` (a byte-order mark dropped); ``what`` names the file kind."""
+    p = Path(path)
+    try:
+        return p.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise DataError(f"{p}: no such {what}") from None
+    except IsADirectoryError:
+        raise DataError(f"{p}: is a folder, not a {what}") from None
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{p}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        raise DataError(f"{p}: cannot read the {what} ({exc})") from None
+
+
+def parse_toml(text: str, source: str) -> dict[str, Any]:
+    """The document of TOML ``text``; ``source`` names it in the error."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise DataError(f"{source}: not valid TOML ({exc})") from None
+    except RecursionError:
+        raise DataError(f"{source}: not valid TOML (nested too deeply)") from None
+
+
+def load_toml(path: str | Path, what: str) -> dict[str, Any]:
+    """The document of the TOML file ``path``."""
+    return parse_toml(read_text(path, what), str(path))
