@@ -203,6 +203,9 @@ def _run_diagnosis(
         f"cablekit: diagnosing {len(fit)} fit run(s) against {len(hold)} held-out run(s), model {what} ...",
         flush=True,
     )
+    for r in (*fit, *hold):
+        for n in r.notes:
+            print(f"  note: run {r.name}: {n}")
     t0 = time.perf_counter()
     res = diagnose(
         spec,

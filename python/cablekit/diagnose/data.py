@@ -11,8 +11,11 @@ Handling, all of it explicit (never a silent drop):
 * time not strictly increasing → ``DataError`` with the row; exactly duplicated rows (same time,
   same values, as logging software sometimes writes) are removed **and counted** in
   ``Run.notes``; a repeated time with different values is an error;
-* non-uniform sampling (jitter above 1 % of the median interval) → ``DataError`` (resample
-  first: the simulator needs one sample interval);
+* non-uniform sampling (sample times that vary by more than 1 % of the median interval, as a
+  logger without a real-time clock writes them) → resampled onto a uniform grid at the median
+  interval by linear interpolation, and a gap of up to ``MAX_FILLED`` dropped samples filled the
+  same way, both **noted** with their size in ``Run.notes`` (printed by the CLI, shown in the
+  report); a longer gap → ``DataError`` naming its row (split the run there into two files);
 * units that are detectably wrong: time in milliseconds (median interval ≥ 0.5 with integer
   steps), angles in degrees (a ``rad`` column beyond ±4π), displacements in millimetres (an ``m``
   column beyond ±0.5 m) → ``DataError`` saying which unit it looks like.
@@ -217,15 +220,41 @@ def from_arrays(name: str, header: list[str], data: NDArray[np.float64], source:
         raise DataError(
             f"{where}: t looks like milliseconds or samples (median step {med}); t must be in seconds"
         )
-    jitter = float(np.max(np.abs(dt - med)))
-    if jitter > 0.01 * med:
-        raise DataError(
-            f"{where}: non-uniform sampling (interval {med:g} s varies by up to {jitter:g} s); "
-            f"resample to a uniform "
-            "time base first"
-        )
+    if float(np.max(np.abs(dt - med))) > 0.01 * med:
+        t, data = _resampled(where, t, data, ti, med, notes)
     cols = {h: np.ascontiguousarray(data[:, j]) for j, h in enumerate(header) if h != "t"}
     return Run(name, t - t[0], cols, notes)
+
+
+#: dropped samples in a row that resampling fills by interpolation; a longer gap is an error
+MAX_FILLED = 5
+
+
+def _resampled(
+    where: str, t: NDArray[np.float64], data: NDArray[np.float64], ti: int, dt: float, notes: list[str]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``data`` on the uniform grid ``t[0] + k·dt`` by linear interpolation (see the module)."""
+    steps = np.diff(t)
+    missing = np.rint(steps / dt).astype(np.int64) - 1
+    k = int(np.argmax(missing))
+    if missing[k] > MAX_FILLED:
+        raise DataError(
+            f"{where}: {missing[k]} samples missing between t = {t[k]:g} and {t[k + 1]:g} s (data rows "
+            f"{k + 1} and {k + 2}; the interval is {dt:g} s); more than {MAX_FILLED} in a row are not "
+            "filled: split the run there into two run files"
+        )
+    grid = t[0] + dt * np.arange(math.floor((t[-1] - t[0]) / dt + 1e-6) + 1)
+    if len(grid) < 10:
+        raise DataError(f"{where}: needs at least 10 samples, got {len(grid)} on a uniform {dt:g} s grid")
+    out = np.column_stack([np.interp(grid, t, data[:, j]) for j in range(data.shape[1])])
+    out[:, ti] = grid
+    filled = len(grid) - len(t)
+    gaps = f"; about {filled} dropped samples filled" if filled > 0 else ""
+    notes.append(
+        f"resampled onto a uniform {dt:g} s grid by linear interpolation (intervals from {steps.min():g} "
+        f"to {steps.max():g} s{gaps}): {len(t)} samples -> {len(grid)}"
+    )
+    return grid, out
 
 
 _UNIT_LIMITS = {
