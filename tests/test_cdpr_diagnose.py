@@ -4,6 +4,7 @@ the run loader against any bytes and any cell."""
 from __future__ import annotations
 
 import csv
+import re
 
 import numpy as np
 import pytest
@@ -50,6 +51,19 @@ def test_a_creeping_cable_in_a_run_file_is_found_by_the_cli(tmp_path, capsys):
     assert "length: cable_creep at cable 3" in text, text
     assert "## force channel" in text and "## length channel" in text
     assert (tmp_path / "out" / "diagnose.png").stat().st_size > 10_000  # the plot of both channels
+    # the same rows stamped by a host on arrival (±0.3 ms at 1 kHz): put back on the clock's grid
+    # (resampling them at the stamps would turn the drum accelerations into noise: 0.14 N → 30 N)
+    rows = (tmp_path / "run.csv").read_text(encoding="utf-8").splitlines()
+    stamps = np.random.default_rng(3).uniform(-3e-4, 3e-4, len(rows) - 1)
+    cells = [r.split(",", 1) for r in rows[1:]]
+    body = [f"{float(t) + s:.7f},{rest}" for (t, rest), s in zip(cells, stamps, strict=True)]
+    (tmp_path / "stamped.csv").write_text("\n".join([rows[0], *body]) + "\n", encoding="utf-8")
+    assert main([*args[:3], str(tmp_path / "stamped.csv"), *args[4:]]) == 0
+    stamped = (tmp_path / "out" / "diagnose.md").read_text(encoding="utf-8")
+    assert "Note: stamped.csv: time stamps jitter" in stamped
+    assert "length: cable_creep at cable 3" in stamped and "force: nothing found" in stamped, stamped
+    noise = [float(re.search(r"force channel.*?noise \(([0-9.]+) N\)", x, re.S)[1]) for x in (text, stamped)]
+    assert noise[1] == pytest.approx(noise[0], rel=0.05), noise
     # without poses only the force channel runs
     _write(tmp_path / "nopose.csv", run, poses=False)
     args[3] = str(tmp_path / "nopose.csv")

@@ -64,7 +64,7 @@ not tuned on its result.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -311,6 +311,8 @@ class CdprDiagnosis:
 
     force: Channel
     length: Channel | None
+    #: what the run loader did to the files (``"run.csv: resampled ..."``)
+    notes: tuple[str, ...] = ()
 
     @property
     def channels(self) -> list[Channel]:
@@ -580,6 +582,8 @@ class RunFile:
     current: np.ndarray
     sensor: np.ndarray
     poses: np.ndarray | None
+    #: what the loader did to the table (a resampling onto a uniform time grid)
+    notes: tuple[str, ...] = ()
 
 
 def load_cdpr_run(path: str | Path, robot: Robot) -> RunFile:
@@ -587,9 +591,11 @@ def load_cdpr_run(path: str | Path, robot: Robot) -> RunFile:
     ``alpha_j``, ``current_j`` and ``sensor_j``; and, for the length channel, all the pose columns
     (planar ``x, y, theta``; spatial ``x, y, z, roll, pitch, yaw``) or none. Missing, unknown or
     duplicate columns, non-finite cells, a time that does not increase and fewer than 100 rows
-    are :class:`~cablekit.errors.DataError` errors naming them."""
+    are :class:`~cablekit.errors.DataError` errors naming them. Jittered sample times are
+    resampled onto a uniform grid as run files for a joint model are
+    (:func:`cablekit.diagnose.data.uniform_time`), with a note."""
     from cablekit.cdpr.cli import POSE_COLUMNS
-    from cablekit.diagnose.data import read_table, require_finite_cells
+    from cablekit.diagnose.data import read_table, require_finite_cells, uniform_time
 
     p = Path(path)
     header, data = read_table(p)
@@ -610,17 +616,22 @@ def load_cdpr_run(path: str | Path, robot: Robot) -> RunFile:
     if data.shape[0] < 100:
         raise DataError(f"{p}: needs at least 100 rows, got {data.shape[0]}")
     require_finite_cells(p, header, data)
-    col = {c: data[:, header.index(c)] for c in header}
-    t = np.ascontiguousarray(col["t"])
-    if not (np.diff(t) > 0).all():
-        k = int(np.argmax(np.diff(t) <= 0))
+    ti = header.index("t")
+    if not (np.diff(data[:, ti]) > 0).all():
+        k = int(np.argmax(np.diff(data[:, ti]) <= 0))
         raise DataError(f"{p}: t must increase (row {k + 3} is not after row {k + 2})")
+    notes: list[str] = []
+    t, data = uniform_time(str(p), data, ti, notes)
+    if len(t) < 100:
+        raise DataError(f"{p}: needs at least 100 samples on a uniform grid, got {len(t)}")
+    t = np.ascontiguousarray(t)
+    col = {c: data[:, header.index(c)] for c in header}
 
     def block(kind: str) -> np.ndarray:
         return np.ascontiguousarray(np.column_stack([col[f"{kind}_{j + 1}"] for j in range(m)]))
 
     poses = np.ascontiguousarray(np.column_stack([col[c] for c in pose])) if given else None
-    return RunFile(t, block("alpha"), block("current"), block("sensor"), poses)
+    return RunFile(t, block("alpha"), block("current"), block("sensor"), poses, tuple(notes))
 
 
 def rest_from_first_sample(robot: Robot, winch: Winch, run: RunFile) -> np.ndarray:
@@ -652,7 +663,8 @@ def diagnose_file(
     if run.poses is not None:
         rest = rest_from_first_sample(robot, winch, run) if rest_length is None else rest_length
         lengths = Lengths(robot, np.asarray(rest, float), run.poses, platform_side, rest_length is None)
-    return diagnose(winch, run.t, run.alpha, run.current, run.sensor, lengths=lengths)
+    d = diagnose(winch, run.t, run.alpha, run.current, run.sensor, lengths=lengths)
+    return replace(d, notes=tuple(f"{Path(path).name}: {n}" for n in run.notes))
 
 
 def diagnose_runs(
@@ -671,20 +683,21 @@ def diagnose_runs(
     if not fit or not holdout:
         raise ParameterError("give at least one fit run and one held-out run")
     winch = winch or Winch.seed003()
-    segments = []
+    segments, notes = [], []
     for path in [*fit, *holdout]:
         run = load_cdpr_run(path, robot)
+        notes += [f"{Path(path).name}: {n}" for n in run.notes]
         lengths = None
         if run.poses is not None:
             rest = rest_from_first_sample(robot, winch, run)
             lengths = Lengths(robot, rest, run.poses, platform_side, estimated_rest=True)
         segments.append(_Segment(run.t, run.alpha, run.current, run.sensor, lengths))
-    return _checked(winch, segments, len(fit), effects, 0.01)
+    return replace(_checked(winch, segments, len(fit), effects, 0.01), notes=tuple(notes))
 
 
 def report(d: CdprDiagnosis, *, top: int = 5) -> str:
-    """Markdown: each channel's verdict and its best candidates."""
-    lines = []
+    """Markdown: the loader's notes, each channel's verdict and its best candidates."""
+    lines = [f"Note: {n}" for n in d.notes] + ([""] if d.notes else [])
     for ch in d.channels:
         unit, scale = ("N", 1.0) if ch.name == "force" else ("µm", 1e6)
         lines += [

@@ -11,11 +11,14 @@ Handling, all of it explicit (never a silent drop):
 * time not strictly increasing → ``DataError`` with the row; exactly duplicated rows (same time,
   same values, as logging software sometimes writes) are removed **and counted** in
   ``Run.notes``; a repeated time with different values is an error;
-* non-uniform sampling (sample times that vary by more than 1 % of the median interval, as a
-  logger without a real-time clock writes them) → resampled onto a uniform grid at the median
-  interval by linear interpolation, and a gap of up to ``MAX_FILLED`` dropped samples filled the
-  same way, both **noted** with their size in ``Run.notes`` (printed by the CLI, shown in the
-  report); a longer gap → ``DataError`` naming its row (split the run there into two files);
+* non-uniform sampling (intervals that vary by more than 1 % of the median ``dt``) → a uniform
+  grid at ``dt``, **noted** in ``Run.notes`` (printed by the CLI, in the report's metadata). Which
+  of two loggers wrote the run is read off the signals (:func:`_only_stamps_jitter`): a loop
+  without a real-time clock takes its rows at the stamped times (the rows are resampled by
+  linear interpolation), a host stamping a DAQ's uniformly clocked rows on arrival only moves
+  the stamps (the rows are kept and ``t`` replaced by the grid). Either way a gap of up to
+  ``MAX_FILLED`` dropped samples is filled by linear interpolation; a longer gap → ``DataError``
+  naming its rows (split the run there into two files);
 * units that are detectably wrong: time in milliseconds (median interval ≥ 0.5 with integer
   steps), angles in degrees (a ``rad`` column beyond ±4π), displacements in millimetres (an ``m``
   column beyond ±0.5 m) → ``DataError`` saying which unit it looks like.
@@ -34,7 +37,7 @@ from numpy.typing import NDArray
 
 from cablekit.errors import DataError
 
-__all__ = ["Run", "check_units", "load_run"]
+__all__ = ["Run", "check_units", "load_run", "uniform_time"]
 
 
 @dataclass
@@ -220,8 +223,7 @@ def from_arrays(name: str, header: list[str], data: NDArray[np.float64], source:
         raise DataError(
             f"{where}: t looks like milliseconds or samples (median step {med}); t must be in seconds"
         )
-    if float(np.max(np.abs(dt - med))) > 0.01 * med:
-        t, data = _resampled(where, t, data, ti, med, notes)
+    t, data = uniform_time(where, data, ti, notes)
     cols = {h: np.ascontiguousarray(data[:, j]) for j, h in enumerate(header) if h != "t"}
     return Run(name, t - t[0], cols, notes)
 
@@ -230,31 +232,102 @@ def from_arrays(name: str, header: list[str], data: NDArray[np.float64], source:
 MAX_FILLED = 5
 
 
-def _resampled(
-    where: str, t: NDArray[np.float64], data: NDArray[np.float64], ti: int, dt: float, notes: list[str]
+def uniform_time(
+    where: str, data: NDArray[np.float64], ti: int, notes: list[str]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``data`` on the uniform grid ``t[0] + k·dt`` by linear interpolation (see the module)."""
+    """The times and rows of a table whose column ``ti`` (time, strictly increasing) is sampled
+    uniformly: as given if every interval is within 1 % of the median ``dt``, else resampled onto
+    ``t[0] + k·dt`` by linear interpolation with a note appended to ``notes`` (see the module;
+    more than :data:`MAX_FILLED` samples missing in a row is a ``DataError``)."""
+    t = data[:, ti]
     steps = np.diff(t)
-    missing = np.rint(steps / dt).astype(np.int64) - 1
-    k = int(np.argmax(missing))
-    if missing[k] > MAX_FILLED:
+    dt = float(np.median(steps))
+    if float(np.max(np.abs(steps - dt))) <= 0.01 * dt:
+        return t, data
+    with np.errstate(over="ignore"):
+        ratio = steps / dt
+    k = int(np.argmax(ratio))
+    if not ratio[k] < MAX_FILLED + 1.5:
         raise DataError(
-            f"{where}: {missing[k]} samples missing between t = {t[k]:g} and {t[k + 1]:g} s (data rows "
+            f"{where}: {ratio[k] - 1:.0f} samples missing between t = {t[k]:g} and {t[k + 1]:g} s (data rows "
             f"{k + 1} and {k + 2}; the interval is {dt:g} s); more than {MAX_FILLED} in a row are not "
             "filled: split the run there into two run files"
         )
+    ticks = _clock_ticks(t, dt)
+    stamped = False
+    if ticks is not None:
+        period, start = _line(ticks, t)
+        stamped = _only_stamps_jitter(data, ti, steps, np.diff(ticks) * period)
+    if stamped:  # the rows sit on a uniform clock, whose period and start the stamps fit best
+        dt, t = period, start + period * ticks
     grid = t[0] + dt * np.arange(math.floor((t[-1] - t[0]) / dt + 1e-6) + 1)
     if len(grid) < 10:
         raise DataError(f"{where}: needs at least 10 samples, got {len(grid)} on a uniform {dt:g} s grid")
     out = np.column_stack([np.interp(grid, t, data[:, j]) for j in range(data.shape[1])])
     out[:, ti] = grid
     filled = len(grid) - len(t)
-    gaps = f"; about {filled} dropped samples filled" if filled > 0 else ""
+    gaps = f"; about {filled} dropped samples filled by linear interpolation" if filled > 0 else ""
+    span = f"intervals from {steps.min():g} to {steps.max():g} s"
     notes.append(
-        f"resampled onto a uniform {dt:g} s grid by linear interpolation (intervals from {steps.min():g} "
-        f"to {steps.max():g} s{gaps}): {len(t)} samples -> {len(grid)}"
+        f"time stamps jitter ({span}) on rows taken on a uniform clock (the signals are smoother "
+        f"row by row than in the stamped time): t replaced by a uniform {dt:g} s grid{gaps}"
+        if stamped
+        else f"resampled onto a uniform {dt:g} s grid by linear interpolation ({span}"
+        f"{gaps.replace(' by linear interpolation', '')}): {len(t)} samples -> {len(grid)}"
     )
     return grid, out
+
+
+def _line(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float]:
+    """Slope and intercept of the least-squares line through ``(x, y)`` (``x`` not constant)."""
+    xm, ym = float(np.mean(x)), float(np.mean(y))
+    slope = float(np.dot(x - xm, y - ym) / np.dot(x - xm, x - xm))
+    return slope, ym - slope * xm
+
+
+def _clock_ticks(t: NDArray[np.float64], dt: float) -> NDArray[np.float64] | None:
+    """Each stamp's tick of a uniform clock, were the rows taken on one: the ticks are read off
+    a line fitted to the stamps, over blocks that double (a period from the first rows alone
+    drifts by whole ticks over a long run), refitted until they settle. ``None`` if two stamps
+    fall on one tick (no uniform clock explains them)."""
+    k = np.rint((t - t[0]) / dt)
+    m = min(len(t), 64)
+    while True:
+        for _ in range(8):
+            if not np.ptp(k[:m]) > 0:
+                return None
+            period, start = _line(k[:m], t[:m])
+            new = np.rint((t[:m] - start) / period)
+            if np.array_equal(new, k[:m]):
+                break
+            k[:m] = new
+        if m == len(t):
+            break
+        m2 = min(len(t), 2 * m)
+        k[m:m2] = np.rint((t[m:m2] - start) / period)
+        m = m2
+    k -= k[0]
+    return k if bool(np.all(np.diff(k) >= 1)) else None
+
+
+def _only_stamps_jitter(
+    data: NDArray[np.float64], ti: int, steps: NDArray[np.float64], clock: NDArray[np.float64]
+) -> bool:
+    """Whether the rows were taken on a uniform clock and only their time stamps jitter (a host
+    stamping a DAQ's samples on arrival), rather than taken at the stamped times (a loop without a
+    real-time clock). The signals tell: the rates between rows, each column's differences over
+    the ``clock`` intervals or over the stamped ``steps``, are smooth only under the right one.
+    Each column weighs the same (its roughness relative to its own rates); white noise adds about
+    the same to both, so the smooth columns (commands, encoders) decide."""
+    rough = np.zeros(2)
+    for j in range(data.shape[1]):
+        d = np.diff(data[:, j])
+        if j == ti or not np.any(d):
+            continue
+        for k, intervals in enumerate((clock, steps)):
+            rate = d / intervals
+            rough[k] += np.sum(np.diff(rate) ** 2) / np.sum(rate**2)
+    return bool(rough[0] < rough[1])
 
 
 _UNIT_LIMITS = {
