@@ -216,6 +216,86 @@ def test_a_jittered_run_gets_the_same_diagnosis_as_the_uniform_one(tmp_path, cap
     assert chosen["jit_"] == chosen[""] and chosen[""]
 
 
+def test_columns_in_other_units_are_declared_and_diagnosed_as_in_si(tmp_path, capsys):
+    """The embedded example recorded as a bench would log it: the angle in degrees, the motor
+    displacement in mm, the tensions in kgf. Without ``[units]`` the unit check refuses the
+    millimetres; with it the runs are converted on load (a note says so) and the same effects are
+    selected with the same fitted values."""
+    from cablekit.cli import _write_example, main
+
+    fit, hold, model = _write_example(tmp_path / "example")
+    scale = {"theta": 180 / math.pi, "x_m": 1e3, "T_drive": 1 / 9.80665, "T_return": 1 / 9.80665}
+    for p in (fit, hold):
+        header, *body = p.read_text().splitlines()
+        names = header.split(",")
+        factors = [scale.get(n, 1.0) for n in names]
+        rows = [[float(v) * f for v, f in zip(line.split(","), factors, strict=True)] for line in body]
+        p.with_name(f"raw_{p.name}").write_text(
+            header + "\n" + "\n".join(",".join(repr(v) for v in r) for r in rows) + "\n"
+        )
+    units = '\n[units]\ntheta = "deg"\nx_m = "mm"\nT_drive = "kgf"\nT_return = {scale = 9.80665}\n'
+    declared = model.with_name("raw_model.toml")
+    declared.write_text(model.read_text() + units)
+    raw = [str(fit.with_name("raw_" + fit.name)), "--holdout", str(hold.with_name("raw_" + hold.name))]
+    assert main(["diagnose", *raw, "--model", str(model), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "looks like millimetres" in capsys.readouterr().err
+    docs = []
+    for runs, m in (([str(fit), "--holdout", str(hold)], model), (raw, declared)):
+        out = tmp_path / f"out_{m.stem}"
+        assert main(["diagnose", *runs, "--model", str(m), "--out", str(out), "--quiet", "--no-html"]) == 0
+        docs.append(json.loads((out / "diagnosis.json").read_text()))
+    assert docs[1]["selected"]["effects"] == docs[0]["selected"]["effects"]
+    for a, b in zip(docs[0]["selected"]["parameters"], docs[1]["selected"]["parameters"], strict=True):
+        assert b["value"] == pytest.approx(a["value"], rel=1e-3, abs=1e-9)
+    assert "converted to SI units: theta from deg" in str(docs[1]["meta"]["fit_runs"][0]["notes"])
+
+
+@pytest.mark.parametrize(
+    ("units", "match"),
+    [
+        ({"theta": "furlong"}, "is not a unit"),
+        ({"T_drive": "deg"}, "is in rad, but T_drive needs N"),
+        ({"x_c": "mm"}, "x_c needs a scale table"),
+        ({"nope": "mm"}, "not a column the model reads"),
+        ({"theta": "counts/0"}, "counts per turn must be > 0"),
+        ({"theta": "counts/x"}, "counts per turn"),
+        ({"theta": {"scale": 0.0}}, "scale must not be 0"),
+        ({"theta": {"scale": 1.0, "gain": 2.0}}, "unknown keys"),
+        ({"theta": {"scale": "1"}}, "scale"),
+        ({"theta": 3}, "is not a unit"),
+        (3, "units must be a table"),
+    ],
+)
+def test_bad_unit_declarations_are_data_errors_naming_them(units, match):
+    doc = {
+        "model": "antagonistic_joint",
+        "parameters": {"radius": 0.0025, "stiffness": 31800.0, "inertia": 2e-6, "pretension": 10.0},
+        "inputs": {"x_m": "x_m", "coupled": "x_c"},
+        "outputs": {"tension_motor_drive": "T_drive", "theta": "theta"},
+        "units": units,
+    }
+    with pytest.raises(ck.DataError, match=match):
+        model_spec_from_dict(doc)
+
+
+def test_encoder_counts_and_scale_tables_convert_exactly():
+    doc = {
+        "model": "antagonistic_joint",
+        "parameters": {"radius": 0.0025, "stiffness": 31800.0, "inertia": 2e-6, "pretension": 10.0},
+        "inputs": {"x_m": "x_m"},
+        "outputs": {"tension_motor_drive": "T", "theta": "enc"},
+        "units": {"enc": "counts/4096", "T": {"scale": 0.5, "offset": -1.0}},
+    }
+    spec = model_spec_from_dict(doc)
+    t = np.arange(20) * 1e-3
+    run = Run("r", t, {"x_m": np.zeros(20), "T": np.arange(20.0), "enc": np.full(20, 1024.0)})
+    si = spec.in_si(run)
+    np.testing.assert_allclose(si.column("enc"), np.pi / 2)
+    np.testing.assert_allclose(si.column("T"), 0.5 * np.arange(20.0) - 1.0)
+    assert si.column("x_m") is run.column("x_m") and "enc from counts/4096" in si.notes[-1]
+    assert model_spec_from_dict(spec.to_dict()).column_units == spec.column_units
+
+
 def test_missing_time_column_and_milliseconds(tmp_path):
     with pytest.raises(ck.DataError, match="no time column 't'"):
         load_run(_csv(tmp_path, ["time", "x_m"], [[k, 0.0] for k in range(20)]))

@@ -73,6 +73,7 @@ def diagnose(
     """Run the whole diagnosis (docs/diagnosis.md); :meth:`Diagnosis.to_json` is the document."""
     opts = opts or Options()
     rng = np.random.default_rng(opts.seed)
+    fit_runs, hold_runs = [spec.in_si(r) for r in fit_runs], [spec.in_si(r) for r in hold_runs]
     prep = prepare(spec, fit_runs, hold_runs)
     base = baseline(prep)
     dt = prep.fit_runs[0].dt

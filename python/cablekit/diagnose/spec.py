@@ -22,6 +22,11 @@
     tension_motor_return = "T_return"   # N
     theta = "theta"                     # optional, rad
 
+    [units]                             # optional: columns not recorded in SI units
+    theta = "deg"                       # converted on load; see UNITS
+    x_m = "mm"
+    tau_load = {scale = 0.0214, offset = 0.0}   # any column: SI = scale·value + offset
+
     [diagnosis]                         # optional
     warmup = 0.2                        # s excluded at the start of every run
     substeps = 0                        # RK4 substeps per sample; 0 = from the stiffest mode
@@ -43,6 +48,7 @@ from pathlib import Path
 from typing import Any
 
 from cablekit._cablekit import AntagonisticJoint, CableTransmission, Model, effect_catalogue
+from cablekit.diagnose.data import Run
 from cablekit.errors import CablekitError, DataError
 
 __all__ = ["OUTPUTS", "ModelSpec", "load_model_spec", "model_spec_from_dict", "output_info"]
@@ -86,6 +92,20 @@ def output_info(kind: str, name: str, links: int = 1) -> tuple[int, str, bool]:
     return 5 * (int(idx) - 1) + off, unit, sensor
 
 
+#: units a run column may be recorded in: name → (SI unit, factor to it); an encoder's counts
+#: are ``"counts/N"`` (N counts per turn → rad)
+UNITS: dict[str, tuple[str, float]] = {
+    "rad": ("rad", 1.0), "mrad": ("rad", 1e-3), "deg": ("rad", math.pi / 180), "rev": ("rad", 2 * math.pi),
+    "m": ("m", 1.0), "cm": ("m", 1e-2), "mm": ("m", 1e-3), "um": ("m", 1e-6), "µm": ("m", 1e-6),
+    "in": ("m", 0.0254),
+    "N": ("N", 1.0), "mN": ("N", 1e-3), "kN": ("N", 1e3), "kgf": ("N", 9.80665),
+    "lbf": ("N", 4.4482216152605),
+    "N·m": ("N·m", 1.0), "Nm": ("N·m", 1.0), "N*m": ("N·m", 1.0), "mN·m": ("N·m", 1e-3), "mNm": ("N·m", 1e-3),
+    "mN*m": ("N·m", 1e-3), "N·mm": ("N·m", 1e-3), "Nmm": ("N·m", 1e-3), "N*mm": ("N·m", 1e-3),
+    "lbf·in": ("N·m", 0.1129848290276167), "ozf·in": ("N·m", 0.00706155181422604),
+}  # fmt: skip
+
+
 @dataclass
 class ModelSpec:
     """A parsed model file."""
@@ -101,6 +121,8 @@ class ModelSpec:
     effects: list[str] | None = None
     source: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    #: ``[units]``: run column → ``(scale, offset, as declared)``, SI = scale·value + offset
+    column_units: dict[str, tuple[float, float, Any]] = field(default_factory=dict)
 
     @property
     def x_m(self) -> str:
@@ -132,6 +154,38 @@ class ModelSpec:
                 continue  # revolute (rad) or prismatic (m): not checkable by name
             u[col] = unit
         return u
+
+    def in_si(self, run: Run) -> Run:
+        """``run`` with the ``[units]`` columns converted to SI units (a note says which)."""
+        if not self.column_units:
+            return run
+        cols = dict(run.columns)
+        done = []
+        for col, (scale, offset, declared) in self.column_units.items():
+            cols[col] = scale * run.column(col) + offset
+            how = f"from {declared}" if isinstance(declared, str) else f"×{scale:g} + {offset:g}"
+            done.append(f"{col} {how}")
+        return Run(run.name, run.t, cols, [*run.notes, "converted to SI units: " + ", ".join(done)])
+
+    def columns(self) -> dict[str, str | None]:
+        """Every run column the model reads → the SI unit it must be in (``None``: any, or an
+        angle that is a length on a prismatic link: ``"rad|m"``)."""
+        cols: dict[str, str | None] = {c: None for c in [*self.inputs, *self.external]}
+        if self.kind == "antagonistic_joint":
+            cols[self.x_m] = "m"
+            if self.coupled:
+                cols[self.coupled] = None
+        else:
+            for c in self.inputs:
+                cols[c] = "rad|m" if self.servo() else "N·m"
+            for c in self.extra.get("dq_m_ref") or []:
+                cols[c] = None
+        for c in self.external:
+            cols[c] = "N·m"
+        for out, col in self.outputs:
+            unit = self.output(out)[1]
+            cols[col] = "rad|m" if self.kind == "cable_transmission" and unit == "rad" else unit
+        return cols
 
     def channels(self) -> list[tuple[int, bool]]:
         """``(output index, is force sensor)`` per measured column, in file order."""
@@ -174,12 +228,12 @@ class ModelSpec:
             "outputs": dict(self.outputs),
             "diagnosis": {"warmup": self.warmup, "substeps": self.substeps}
             | ({"effects": self.effects} if self.effects else {}),
-        }
+        } | ({"units": {c: d for c, (_, _, d) in self.column_units.items()}} if self.column_units else {})
 
 
 #: the tables and keys a model file may hold (anything else is a DataError: a misspelt key
 #: must not be silently ignored)
-TOP_LEVEL = {"model", "parameters", "inputs", "outputs", "diagnosis", "servo"}
+TOP_LEVEL = {"model", "parameters", "inputs", "outputs", "diagnosis", "servo", "units"}
 DIAGNOSIS_KEYS = {"warmup", "substeps", "effects"}
 SERVO_KEYS = {"preset", "kp", "kd", "torque_limit"}
 #: the most RK4 substeps per sample the core accepts (cable_core::integrate::MAX_SUBSTEPS)
@@ -352,6 +406,7 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
     )
     if spec.warmup < 0 or spec.substeps < 0:
         raise DataError(f"{source}: [diagnosis] warmup and substeps must be >= 0")
+    spec.column_units = _column_units(doc.get("units", {}), spec.columns(), source)
     for key, value in spec.parameters.items():
         _parameter(value, f"[parameters] {key}", source)
     try:
@@ -361,6 +416,52 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
     except (TypeError, ValueError, OverflowError) as exc:  # a value of the wrong kind
         raise DataError(f"{source}: [parameters]: {exc}") from None
     return spec
+
+
+def _column_units(
+    table: Any, columns: dict[str, str | None], source: str
+) -> dict[str, tuple[float, float, Any]]:
+    """The ``[units]`` table checked against the columns the model reads and their SI units."""
+    if not isinstance(table, dict):
+        raise DataError(f"{source}: units must be a table [units]")
+    out = {}
+    for col, declared in table.items():
+        if col not in columns:
+            raise DataError(f"{source}: [units] {col!r} is not a column the model reads ({sorted(columns)})")
+        want = columns[col]
+        if isinstance(declared, dict):
+            _unknown(declared, {"scale", "offset"}, f"[units] {col}", source)
+            scale = _number(declared.get("scale", 1.0), f"[units] {col} scale", source)
+            offset = _number(declared.get("offset", 0.0), f"[units] {col} offset", source)
+            if scale == 0.0:
+                raise DataError(f"{source}: [units] {col} scale must not be 0")
+            out[col] = (scale, offset, dict(declared))
+            continue
+        name, _, per = declared.partition("/") if isinstance(declared, str) else ("", "", "")
+        if name == "counts" and per:
+            counts = _number(_float_or_none(per), f"[units] {col} counts per turn", source)
+            if counts <= 0:
+                raise DataError(f"{source}: [units] {col}: counts per turn must be > 0, got {per}")
+            si, factor = "rad", 2 * math.pi / counts
+        elif isinstance(declared, str) and declared in UNITS:
+            si, factor = UNITS[declared]
+        else:
+            raise DataError(
+                f"{source}: [units] {col} = {declared!r} is not a unit; use one of {sorted(UNITS)}, "
+                '"counts/N" (encoder counts per turn) or {scale = k, offset = c}'
+            )
+        if want is None or si not in want.split("|"):
+            need = "a scale table" if want is None else want.replace("|", " or ")
+            raise DataError(f"{source}: [units] {col} = {declared!r} is in {si}, but {col} needs {need}")
+        out[col] = (factor, 0.0, declared)
+    return out
+
+
+def _float_or_none(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
 
 
 def _substeps(value: Any, source: str) -> int:
