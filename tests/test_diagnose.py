@@ -296,6 +296,28 @@ def test_encoder_counts_and_scale_tables_convert_exactly():
     assert model_spec_from_dict(spec.to_dict()).column_units == spec.column_units
 
 
+@pytest.mark.parametrize(
+    ("name", "sep", "decimal"),
+    [
+        ("semicolon.csv", ";", ","),
+        ("tabs.tsv", "\t", "."),
+        ("matlab.txt", "   ", "."),
+        ("tabs_comma.txt", "\t", ","),
+    ],
+)
+def test_other_separators_and_decimal_commas_read_as_the_comma_file(tmp_path, name, sep, decimal):
+    """A spreadsheet's export (``;`` between columns, ``,`` as the decimal mark), a tab-separated
+    file and MATLAB's ``save -ascii`` (spaces) read as the comma-separated run."""
+    rows = _rows()
+    text = sep.join(["t", "x_m", "T"]) + "\n"
+    text += "".join(sep.join(repr(v).replace(".", decimal) for v in r) + "\n" for r in rows)
+    (tmp_path / name).write_text(text)
+    run, ref = load_run(tmp_path / name), load_run(_csv(tmp_path, ["t", "x_m", "T"], rows))
+    assert sorted(run.columns) == sorted(ref.columns) and run.dt == ref.dt
+    for c in ref.columns:
+        np.testing.assert_array_equal(run.column(c), ref.column(c))
+
+
 def test_missing_time_column_and_milliseconds(tmp_path):
     with pytest.raises(ck.DataError, match="no time column 't'"):
         load_run(_csv(tmp_path, ["time", "x_m"], [[k, 0.0] for k in range(20)]))

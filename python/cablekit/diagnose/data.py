@@ -1,8 +1,10 @@
 """Recorded runs: loading, validation and the unit checks the diagnosis relies on.
 
-A run is a table with a header row: a time column ``t`` in seconds and signal columns in SI units
-(m, rad, N, N·m). Which columns feed the model and which are measurements is said by the model
-file (see :mod:`cablekit.diagnose.spec`), not by the run.
+A run is a table with a header row (columns separated by commas, tabs, semicolons or spaces, as
+the header shows; a decimal comma where they are not commas): a time column ``t`` in seconds
+and signal columns in SI units (m, rad, N, N·m; others declared in the model file's ``[units]``).
+Which columns feed the model and which are measurements is said by the model file (see
+:mod:`cablekit.diagnose.spec`), not by the run.
 
 Handling, all of it explicit (never a silent drop):
 
@@ -107,18 +109,16 @@ def _read_table(path: Path) -> tuple[list[str], NDArray[np.float64]]:
         opener = gzip.open  # type: ignore[assignment]
     # utf-8-sig: a byte-order mark (as spreadsheet programs write) is not part of the first name
     with opener(path, "rt", newline="", encoding="utf-8-sig") as fh:  # type: ignore[operator]
-        reader = csv.reader(fh)
-        header = None
-        rows: list[list[str]] = []
-        for line in reader:
-            if not line or (line[0].startswith("#") and header is None):
-                continue
-            if header is None:
-                header = [h.strip() for h in line]
-                continue
-            rows.append(line)
-    if header is None:
+        lines = [ln for ln in fh.read().splitlines() if ln.strip()]
+    while lines and lines[0].lstrip().startswith("#"):
+        lines.pop(0)
+    if not lines:
         raise DataError(f"{path}: no header row")
+    sep = _separator(lines[0])
+    split = (lambda ln: ln.split()) if sep is None else None
+    table = [split(ln) for ln in lines] if split else list(csv.reader(lines, delimiter=sep or ","))
+    header, rows = [h.strip() for h in table[0]], table[1:]
+    decimal_comma = sep != ","
     if len(set(header)) != len(header):
         dup = sorted({h for h in header if header.count(h) > 1})
         raise DataError(f"{path}: duplicated column names {dup}")
@@ -129,12 +129,19 @@ def _read_table(path: Path) -> tuple[list[str], NDArray[np.float64]]:
         for j, cell in enumerate(row):
             cell = cell.strip()
             try:
-                data[i, j] = float(cell) if cell else math.nan
+                data[i, j] = float(cell.replace(",", ".") if decimal_comma else cell) if cell else math.nan
             except ValueError:
                 raise DataError(
                     f"{path}: row {i + 2}, column {header[j]!r}: {cell!r} is not a number"
                 ) from None
     return header, data
+
+
+def _separator(header: str) -> str | None:
+    """The column separator a header line shows: a comma, else a tab, else a semicolon (a
+    spreadsheet's export where the comma is the decimal mark), else whitespace (``None``: MATLAB's
+    ``save -ascii``, a bench's text log)."""
+    return next((c for c in (",", "\t", ";") if c in header), None)
 
 
 def load_run(path: str | Path, name: str | None = None) -> Run:
