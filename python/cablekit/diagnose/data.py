@@ -115,8 +115,7 @@ def _read_table(path: Path) -> tuple[list[str], NDArray[np.float64]]:
     if not lines:
         raise DataError(f"{path}: no header row")
     sep = _separator(lines[0])
-    split = (lambda ln: ln.split()) if sep is None else None
-    table = [split(ln) for ln in lines] if split else list(csv.reader(lines, delimiter=sep or ","))
+    table = [ln.split() for ln in lines] if sep is None else list(csv.reader(lines, delimiter=sep))
     header, rows = [h.strip() for h in table[0]], table[1:]
     decimal_comma = sep != ","
     if len(set(header)) != len(header):
@@ -243,9 +242,10 @@ def uniform_time(
     where: str, data: NDArray[np.float64], ti: int, notes: list[str]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The times and rows of a table whose column ``ti`` (time, strictly increasing) is sampled
-    uniformly: as given if every interval is within 1 % of the median ``dt``, else resampled onto
-    ``t[0] + k·dt`` by linear interpolation with a note appended to ``notes`` (see the module;
-    more than :data:`MAX_FILLED` samples missing in a row is a ``DataError``)."""
+    uniformly: as given if every interval is within 1 % of the median ``dt``, else on a uniform
+    grid — the rows kept on their clock's fitted grid when only their stamps jitter, else
+    resampled at their stamps by linear interpolation — with a note appended to ``notes`` (see
+    the module; more than :data:`MAX_FILLED` samples missing in a row is a ``DataError``)."""
     t = data[:, ti]
     steps = np.diff(t)
     dt = float(np.median(steps))
@@ -270,8 +270,16 @@ def uniform_time(
     grid = t[0] + dt * np.arange(math.floor((t[-1] - t[0]) / dt + 1e-6) + 1)
     if len(grid) < 10:
         raise DataError(f"{where}: needs at least 10 samples, got {len(grid)} on a uniform {dt:g} s grid")
-    out = np.column_stack([np.interp(grid, t, data[:, j]) for j in range(data.shape[1])])
+    # linear interpolation as a weighted mean of the two neighbours (np.interp's slopes overflow
+    # for values near ±1e308 that a weighted mean keeps)
+    i = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 2)
+    w = np.clip((grid - t[i]) / (t[i + 1] - t[i]), 0.0, 1.0)[:, None]
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = (1.0 - w) * data[i] + w * data[i + 1]
     out[:, ti] = grid
+    if not np.isfinite(out).all():
+        j = int(np.argmax(~np.isfinite(out).all(axis=0)))
+        raise DataError(f"{where}: column {j + 1} overflows when resampled onto a uniform grid")
     filled = len(grid) - len(t)
     gaps = f"; about {filled} dropped samples filled by linear interpolation" if filled > 0 else ""
     span = f"intervals from {steps.min():g} to {steps.max():g} s"
@@ -328,12 +336,14 @@ def _only_stamps_jitter(
     the same to both, so the smooth columns (commands, encoders) decide."""
     rough = np.zeros(2)
     for j in range(data.shape[1]):
-        d = np.diff(data[:, j])
-        if j == ti or not np.any(d):
-            continue
-        for k, intervals in enumerate((clock, steps)):
-            rate = d / intervals
-            rough[k] += np.sum(np.diff(rate) ** 2) / np.sum(rate**2)
+        with np.errstate(all="ignore"):  # a column near ±1e308 overflows: it does not vote
+            d = np.diff(data[:, j])
+            if j == ti or not np.any(d):
+                continue
+            rates = [d / intervals for intervals in (clock, steps)]
+            r = np.array([np.sum(np.diff(v) ** 2) / np.sum(v * v) for v in rates])
+        if np.isfinite(r).all():
+            rough += r
     return bool(rough[0] < rough[1])
 
 
