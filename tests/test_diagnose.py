@@ -295,6 +295,9 @@ def test_encoder_counts_and_scale_tables_convert_exactly():
     np.testing.assert_allclose(si.column("T"), 0.5 * np.arange(20.0) - 1.0)
     assert si.column("x_m") is run.column("x_m") and "enc from counts/4096" in si.notes[-1]
     assert model_spec_from_dict(spec.to_dict()).column_units == spec.column_units
+    huge = model_spec_from_dict({**doc, "units": {"enc": "counts/1e-306"}})
+    with pytest.raises(ck.DataError, match="'enc' overflows when converted from counts/1e-306"):
+        huge.in_si(run)
 
 
 @pytest.mark.parametrize(

@@ -47,6 +47,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from cablekit._cablekit import AntagonisticJoint, CableTransmission, Model, effect_catalogue
 from cablekit.diagnose.data import Run
 from cablekit.errors import CablekitError, DataError
@@ -162,7 +164,10 @@ class ModelSpec:
         cols = dict(run.columns)
         done = []
         for col, (scale, offset, declared) in self.column_units.items():
-            cols[col] = scale * run.column(col) + offset
+            with np.errstate(over="ignore", invalid="ignore"):
+                cols[col] = scale * run.column(col) + offset
+            if not np.isfinite(cols[col]).all():
+                raise DataError(f"run {run.name!r}: column {col!r} overflows when converted from {declared}")
             how = f"from {declared}" if isinstance(declared, str) else f"×{scale:g} + {offset:g}"
             done.append(f"{col} {how}")
         return Run(run.name, run.t, cols, [*run.notes, "converted to SI units: " + ", ".join(done)])
