@@ -19,8 +19,10 @@ Handling, all of it explicit (never a silent drop):
   without a real-time clock takes its rows at the stamped times (the rows are resampled by
   linear interpolation), a host stamping a DAQ's uniformly clocked rows on arrival only moves
   the stamps (the rows are kept and ``t`` replaced by the grid). Either way a gap of up to
-  ``MAX_FILLED`` dropped samples is filled by linear interpolation; a longer gap → ``DataError``
-  naming its rows (split the run there into two files);
+  ``MAX_FILLED`` dropped samples is filled by linear interpolation; a longer gap in a clocked
+  log → ``DataError`` naming its rows (split the run there into two files). Times on no clock at
+  all (a variable-step solver's output: steps that shrink and grow with the dynamics) are
+  resampled at their stamps, as many samples as rows at their mean step;
 * units that are detectably wrong: time in milliseconds (median interval ≥ 0.5 with integer
   steps), angles in degrees (a ``rad`` column beyond ±4π), displacements in millimetres (an ``m``
   column beyond ±0.5 m) → ``DataError`` saying which unit it looks like.
@@ -236,6 +238,8 @@ def from_arrays(name: str, header: list[str], data: NDArray[np.float64], source:
 
 #: dropped samples in a row that resampling fills by interpolation; a longer gap is an error
 MAX_FILLED = 5
+#: the most samples a run resampled on its clock may have
+MAX_GRID = 20_000_000
 
 
 def uniform_time(
@@ -253,21 +257,29 @@ def uniform_time(
         return t, data
     with np.errstate(over="ignore"):
         ratio = steps / dt
+        span = (t[-1] - t[0]) / dt
+    if not np.isfinite(span) or not np.isfinite(t[-1] - t[0]):
+        raise DataError(f"{where}: the time column spans {t[0]:g} to {t[-1]:g} s, beyond float range")
+    # a clock of more ticks than MAX_GRID is not looked for (the run is resampled at its rows)
+    ticks = _clock_ticks(t, dt) if span < MAX_GRID else None
     k = int(np.argmax(ratio))
-    if not ratio[k] < MAX_FILLED + 1.5:
+    if ticks is not None and not ratio[k] < MAX_FILLED + 1.5:  # a clocked logger lost samples
         raise DataError(
             f"{where}: {ratio[k] - 1:.0f} samples missing between t = {t[k]:g} and {t[k + 1]:g} s (data rows "
             f"{k + 1} and {k + 2}; the interval is {dt:g} s); more than {MAX_FILLED} in a row are not "
             "filled: split the run there into two run files"
         )
-    ticks = _clock_ticks(t, dt)
     stamped = False
     if ticks is not None:
         period, start = _line(ticks, t)
         stamped = _only_stamps_jitter(data, ti, steps, np.diff(ticks) * period)
+    else:  # no uniform clock (a variable-step solver): as many samples as rows, at their mean step
+        dt = float(t[-1] - t[0]) / (len(t) - 1)
     if stamped:  # the rows sit on a uniform clock, whose period and start the stamps fit best
         dt, t = period, start + period * ticks
     grid = t[0] + dt * np.arange(math.floor((t[-1] - t[0]) / dt + 1e-6) + 1)
+    if len(grid) > MAX_GRID:  # a clock fitted to a few rows of a long run
+        raise DataError(f"{where}: {len(grid):,} samples on a uniform {dt:g} s grid; at most {MAX_GRID:,}")
     if len(grid) < 10:
         raise DataError(f"{where}: needs at least 10 samples, got {len(grid)} on a uniform {dt:g} s grid")
     # linear interpolation as a weighted mean of the two neighbours (np.interp's slopes overflow
@@ -282,14 +294,23 @@ def uniform_time(
         raise DataError(f"{where}: column {j + 1} overflows when resampled onto a uniform grid")
     filled = len(grid) - len(t)
     gaps = f"; about {filled} dropped samples filled by linear interpolation" if filled > 0 else ""
-    span = f"intervals from {steps.min():g} to {steps.max():g} s"
-    notes.append(
-        f"time stamps jitter ({span}) on rows taken on a uniform clock (the signals are smoother "
-        f"row by row than in the stamped time): t replaced by a uniform {dt:g} s grid{gaps}"
-        if stamped
-        else f"resampled onto a uniform {dt:g} s grid by linear interpolation ({span}"
-        f"{gaps.replace(' by linear interpolation', '')}): {len(t)} samples -> {len(grid)}"
-    )
+    steps_seen = f"intervals from {steps.min():g} to {steps.max():g} s"
+    if stamped:
+        notes.append(
+            f"time stamps jitter ({steps_seen}) on rows taken on a uniform clock (the signals are "
+            f"smoother row by row than in the stamped time): t replaced by a uniform {dt:g} s grid{gaps}"
+        )
+    elif ticks is None:
+        notes.append(
+            f"times on no uniform clock ({steps_seen}: a variable-step solver's output?): resampled "
+            f"at their mean interval, {dt:g} s, by linear interpolation between rows; for another "
+            f"rate resample the run yourself: {len(t)} samples -> {len(grid)}"
+        )
+    else:
+        notes.append(
+            f"resampled onto a uniform {dt:g} s grid by linear interpolation ({steps_seen}"
+            f"{gaps.replace(' by linear interpolation', '')}): {len(t)} samples -> {len(grid)}"
+        )
     return grid, out
 
 
