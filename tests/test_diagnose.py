@@ -271,6 +271,7 @@ def test_columns_in_other_units_are_declared_and_diagnosed_as_in_si(tmp_path, ca
     for a, b in zip(docs[0]["selected"]["parameters"], docs[1]["selected"]["parameters"], strict=True):
         assert b["value"] == pytest.approx(a["value"], rel=1e-3, abs=1e-9)
     assert "converted to SI units: theta from deg" in str(docs[1]["meta"]["fit_runs"][0]["notes"])
+    assert "note: column theta converted to SI from deg (x0.0174533 + 0)" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize(

@@ -206,6 +206,8 @@ def _run_diagnosis(
     for r in (*fit, *hold):
         for n in r.notes:
             print(f"  note: run {r.name}: {n}")
+    for col, (scale, offset, declared) in spec.column_units.items():
+        print(f"  note: column {col} converted to SI from {declared} (x{scale:g} + {offset:g})")
     t0 = time.perf_counter()
     res = diagnose(
         spec,
