@@ -345,6 +345,30 @@ def test_other_separators_and_decimal_commas_read_as_the_comma_file(tmp_path, na
         np.testing.assert_array_equal(run.column(c), ref.column(c))
 
 
+def test_runs_at_different_rates_are_diagnosed_at_the_coarsest(tmp_path):
+    """The example's held-out run logged at 500 Hz, its fit run at 1 kHz: the fit run is
+    resampled onto 2 ms (noted), never the held-out run onto 1 ms, and the same effects are
+    selected with the same backlash (to 0.1 %)."""
+    from cablekit.cli import _write_example, main
+
+    fit, hold, model = _write_example(tmp_path / "example")
+    rows = hold.read_text().splitlines()
+    slow = hold.with_name("hold_500hz.csv")
+    slow.write_text("\n".join([rows[0], *rows[1::2]]) + "\n")
+    docs = []
+    for h in (hold, slow):
+        out = tmp_path / h.stem
+        options = ["--model", str(model), "--out", str(out), "--quiet", "--no-html"]
+        assert main(["diagnose", str(fit), "--holdout", str(h), *options]) == 0
+        docs.append(json.loads((out / "diagnosis.json").read_text()))
+    assert docs[1]["selected"]["effects"] == docs[0]["selected"]["effects"]
+    backlash = [d["selected"]["parameters"][0]["value"] for d in docs]
+    assert backlash[1] == pytest.approx(backlash[0], rel=1e-3)
+    meta = docs[1]["meta"]
+    assert meta["fit_runs"][0]["dt"] == pytest.approx(2e-3) and meta["held_out_runs"][0]["notes"] == []
+    assert "resampled from 0.001 s to 0.002 s" in meta["fit_runs"][0]["notes"][0]
+
+
 def test_missing_time_column_and_milliseconds(tmp_path):
     with pytest.raises(ck.DataError, match="no time column 't'"):
         load_run(_csv(tmp_path, ["time", "x_m"], [[k, 0.0] for k in range(20)]))

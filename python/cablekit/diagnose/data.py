@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 
 from cablekit.errors import DataError
 
-__all__ = ["Run", "check_units", "load_run", "uniform_time"]
+__all__ = ["Run", "check_units", "common_interval", "load_run", "uniform_time"]
 
 
 @dataclass
@@ -71,6 +71,16 @@ class Run:
             raise DataError(
                 f"run {self.name!r} has no column {name!r}; it has {sorted(self.columns)}"
             ) from None
+
+    def at_interval(self, dt: float) -> Run:
+        """This run resampled onto a uniform ``dt`` grid (a coarser one, to match other runs) by
+        linear interpolation, with a note."""
+        grid = dt * np.arange(math.floor(float(self.t[-1] - self.t[0]) / dt + 1e-6) + 1)
+        names = list(self.columns)
+        values = _interpolate(self.t - self.t[0], np.column_stack([self.columns[n] for n in names]), grid)
+        note = f"resampled from {self.dt:g} s to {dt:g} s by linear interpolation, the other runs' interval"
+        cols = {n: np.ascontiguousarray(values[:, j]) for j, n in enumerate(names)}
+        return Run(self.name, grid, cols, [*self.notes, note])
 
     def segment(self, start: float, stop: float, name: str | None = None) -> Run:
         """The samples with ``start <= t < stop`` (s), as a new run."""
@@ -282,12 +292,7 @@ def uniform_time(
         raise DataError(f"{where}: {len(grid):,} samples on a uniform {dt:g} s grid; at most {MAX_GRID:,}")
     if len(grid) < 10:
         raise DataError(f"{where}: needs at least 10 samples, got {len(grid)} on a uniform {dt:g} s grid")
-    # linear interpolation as a weighted mean of the two neighbours (np.interp's slopes overflow
-    # for values near ±1e308 that a weighted mean keeps)
-    i = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 2)
-    w = np.clip((grid - t[i]) / (t[i + 1] - t[i]), 0.0, 1.0)[:, None]
-    with np.errstate(over="ignore", invalid="ignore"):
-        out = (1.0 - w) * data[i] + w * data[i + 1]
+    out = _interpolate(t, data, grid)
     out[:, ti] = grid
     if not np.isfinite(out).all():
         j = int(np.argmax(~np.isfinite(out).all(axis=0)))
@@ -312,6 +317,24 @@ def uniform_time(
             f"{gaps.replace(' by linear interpolation', '')}): {len(t)} samples -> {len(grid)}"
         )
     return grid, out
+
+
+def _interpolate(
+    t: NDArray[np.float64], data: NDArray[np.float64], grid: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The rows of ``data`` (sampled at ``t``) linearly interpolated at ``grid``: a weighted mean
+    of the two neighbours (np.interp's slopes overflow for values near ±1e308 that it keeps)."""
+    i = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 2)
+    w = np.clip((grid - t[i]) / (t[i + 1] - t[i]), 0.0, 1.0)[:, None]
+    with np.errstate(over="ignore", invalid="ignore"):
+        return (1.0 - w) * data[i] + w * data[i + 1]
+
+
+def common_interval(runs: list[Run]) -> list[Run]:
+    """``runs`` at one sample interval: runs sampled finer than the coarsest are resampled onto it
+    (never the other way: interpolated samples would count as measurements they are not)."""
+    coarse = max(r.dt for r in runs)
+    return [r.at_interval(coarse) if r.dt < 0.99 * coarse else r for r in runs]
 
 
 def _line(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float]:

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cablekit.diagnose import localise
-from cablekit.diagnose.data import Run
+from cablekit.diagnose.data import Run, common_interval
 from cablekit.diagnose.fit import CandidateFit, baseline, parameters_out
 from cablekit.diagnose.identifiability import identifiability
 from cablekit.diagnose.intervals import refit_intervals
@@ -73,7 +73,8 @@ def diagnose(
     """Run the whole diagnosis (docs/diagnosis.md); :meth:`Diagnosis.to_json` is the document."""
     opts = opts or Options()
     rng = np.random.default_rng(opts.seed)
-    fit_runs, hold_runs = [spec.in_si(r) for r in fit_runs], [spec.in_si(r) for r in hold_runs]
+    runs = common_interval([spec.in_si(r) for r in [*fit_runs, *hold_runs]])
+    fit_runs, hold_runs = runs[: len(fit_runs)], runs[len(fit_runs) :]
     prep = prepare(spec, fit_runs, hold_runs)
     base = baseline(prep)
     dt = prep.fit_runs[0].dt
