@@ -591,9 +591,9 @@ def load_cdpr_run(path: str | Path, robot: Robot) -> RunFile:
     ``alpha_j``, ``current_j`` and ``sensor_j``; and, for the length channel, all the pose columns
     (planar ``x, y, theta``; spatial ``x, y, z, roll, pitch, yaw``) or none. Missing, unknown or
     duplicate columns, non-finite cells, a time that does not increase and fewer than 100 rows
-    are :class:`~cablekit.errors.DataError` errors naming them. Jittered sample times are
-    resampled onto a uniform grid as run files for a joint model are
-    (:func:`cablekit.diagnose.data.uniform_time`), with a note."""
+    are :class:`~cablekit.errors.DataError` errors naming them. Jittered time stamps are put on
+    a uniform grid as a joint model's run files are (:func:`cablekit.diagnose.data.uniform_time`:
+    kept on their clock when only the stamps jitter, else resampled), with a note."""
     from cablekit.cdpr.cli import POSE_COLUMNS
     from cablekit.diagnose.data import read_table, require_finite_cells, uniform_time
 
