@@ -283,10 +283,10 @@ def uniform_time(
     if ticks is not None:
         period, start = _line(ticks, t)
         stamped = _only_stamps_jitter(data, ti, steps, np.diff(ticks) * period)
+        if stamped:  # the rows sit on a uniform clock, whose period and start the stamps fit best
+            dt, t = period, start + period * ticks
     else:  # no uniform clock (a variable-step solver): as many samples as rows, at their mean step
         dt = float(t[-1] - t[0]) / (len(t) - 1)
-    if stamped:  # the rows sit on a uniform clock, whose period and start the stamps fit best
-        dt, t = period, start + period * ticks
     grid = t[0] + dt * np.arange(math.floor((t[-1] - t[0]) / dt + 1e-6) + 1)
     if len(grid) > MAX_GRID:  # a clock fitted to a few rows of a long run
         raise DataError(f"{where}: {len(grid):,} samples on a uniform {dt:g} s grid; at most {MAX_GRID:,}")
@@ -298,12 +298,13 @@ def uniform_time(
         j = int(np.argmax(~np.isfinite(out).all(axis=0)))
         raise DataError(f"{where}: column {j + 1} overflows when resampled onto a uniform grid")
     filled = len(grid) - len(t)
-    gaps = f"; about {filled} dropped samples filled by linear interpolation" if filled > 0 else ""
+    gaps = f"; about {filled} dropped samples filled" if filled > 0 else ""
     steps_seen = f"intervals from {steps.min():g} to {steps.max():g} s"
     if stamped:
+        how = f"{gaps} by linear interpolation" if gaps else ""
         notes.append(
             f"time stamps jitter ({steps_seen}) on rows taken on a uniform clock (the signals are "
-            f"smoother row by row than in the stamped time): t replaced by a uniform {dt:g} s grid{gaps}"
+            f"smoother row by row than in the stamped time): t replaced by a uniform {dt:g} s grid{how}"
         )
     elif ticks is None:
         notes.append(
@@ -313,8 +314,8 @@ def uniform_time(
         )
     else:
         notes.append(
-            f"resampled onto a uniform {dt:g} s grid by linear interpolation ({steps_seen}"
-            f"{gaps.replace(' by linear interpolation', '')}): {len(t)} samples -> {len(grid)}"
+            f"resampled onto a uniform {dt:g} s grid by linear interpolation ({steps_seen}{gaps}): "
+            f"{len(t)} samples -> {len(grid)}"
         )
     return grid, out
 

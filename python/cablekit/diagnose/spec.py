@@ -175,7 +175,7 @@ class ModelSpec:
     def columns(self) -> dict[str, str | None]:
         """Every run column the model reads → the SI unit it must be in (``None``: any, or an
         angle that is a length on a prismatic link: ``"rad|m"``)."""
-        cols: dict[str, str | None] = {c: None for c in [*self.inputs, *self.external]}
+        cols: dict[str, str | None] = {}
         if self.kind == "antagonistic_joint":
             cols[self.x_m] = "m"
             if self.coupled:
