@@ -111,6 +111,29 @@ def _diagnose(args: argparse.Namespace) -> int:
             only=CI_SUBSET if args.independent == "ci" else None,
         )
         return _write_self_test(out, "independent", format_independent(res), res)
+    if args.benchmark:
+        from cablekit.diagnose import Options
+        from cablekit.diagnose.benchmark import format_benchmark, run_benchmark
+
+        print(f"cablekit: scoring the diagnosis on the blind cases in {args.benchmark} ...", flush=True)
+        bench = run_benchmark(
+            args.benchmark,
+            args.cases,
+            out=out / "cases",
+            options=Options(progress=False, seed=args.seed, workers=args.workers),
+            progress=not args.quiet,
+        )
+        table = format_benchmark(bench)
+        print(table)
+        (out / "benchmark.txt").write_text(table + "\n")
+        (out / "benchmark.json").write_text(json.dumps(bench.to_json(), indent=2, default=float))
+        print(f"  wrote {out / 'benchmark.txt'} and {out / 'benchmark.json'}")
+        # a case whose diagnosis errs is a failure (failed candidate fits are listed, not silent);
+        # --strict: so is any miss
+        missed = [c.case for c in bench.cases if not c.correct or c.both_found is False]
+        if args.strict and missed:
+            print(f"  --strict: missed {', '.join(missed)}")
+        return 1 if any(c.error for c in bench.cases) or (args.strict and missed) else 0
     if args.many:
         from cablekit.diagnose.many import run_many, summary_table
 
@@ -285,6 +308,21 @@ def build_parser() -> argparse.ArgumentParser:
         "--independent",
         choices=["all", "ci"],
         help="score the diagnoser on runs from the independent simulator (every case, or the CI subset)",
+    )
+    d.add_argument(
+        "--benchmark",
+        metavar="DIR",
+        help="score the diagnoser on a folder of blind cases (caseNN/ with fit, holdout, model.toml and "
+        "truth.json, e.g. ../shared/benchmarks/blind_joint_a) and print the table",
+    )
+    d.add_argument(
+        "--cases", nargs="+", metavar="CASE", help="with --benchmark: only these cases (folder names)"
+    )
+    d.add_argument(
+        "--strict",
+        action="store_true",
+        help="with --benchmark: exit 1 unless every case counts (each top-1 right, both effects of every "
+        "pair found, every control clean, nothing outside the library claimed explained)",
     )
     m = d.add_argument_group(
         "campaigns (--many)",

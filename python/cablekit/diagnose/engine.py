@@ -29,8 +29,9 @@ from numpy.typing import NDArray
 
 from cablekit.diagnose import localise
 from cablekit.diagnose.data import Run, common_interval
+from cablekit.diagnose.discover import describe_remaining, discover, signature_missing
 from cablekit.diagnose.fit import CandidateFit, baseline, parameters_out
-from cablekit.diagnose.identifiability import identifiability
+from cablekit.diagnose.identifiability import identifiability, separating_experiment
 from cablekit.diagnose.intervals import refit_intervals
 from cablekit.diagnose.prepare import NOISE_LEVEL, Options, Prepared, prepare
 from cablekit.diagnose.result import SCHEMA, Diagnosis, jsonable
@@ -45,6 +46,7 @@ from cablekit.diagnose.select import (
     gap,
     integrated_time,
     parsimony,
+    refine_forms,
     segments,
 )
 from cablekit.diagnose.spec import ModelSpec
@@ -85,6 +87,8 @@ def diagnose(
     idx = rng.integers(0, len(sb), size=(opts.bootstrap, len(sb)))
     g_lo = float(np.quantile(sb[idx].sum(axis=1) / cnt[idx].sum(axis=1), 0.025))
     gap_significant = g_hold > NOISE_LEVEL and g_lo > 1.0
+    # which kinds of term the gap follows, before any candidate is named
+    nominal_terms = discover(prep, base.fit_resid, base.hold_resid) if gap_significant else []
     # every applicable candidate alone: a short fit of each screens, the shortlist is fitted in
     # full from where its screen ended
     screening = screen(prep, opts)
@@ -134,12 +138,44 @@ def diagnose(
         return bool(compare(fits[b].hold_resid, fits[a].hold_resid, dt, opts, rng)["significant"])
 
     ranked = parsimony(good, fits, scores, better) + [k for k in ranked if k not in good]
+    # a flexible candidate (creep imitates anything slow) is not selected when the gap follows a
+    # kind of term it cannot produce and none it can, while another effect explains the gap
+    # comparably (at least half as well)
+    vetoed = []
+    for k in ranked:
+        name = prep.info[k]["effect"]
+        if not (scores[k]["significant"] and signature_missing(name, nominal_terms)):
+            continue
+        rivals = [
+            j
+            for j in ranked
+            if prep.info[j]["effect"] != name
+            and scores[j]["significant"]
+            and scores[j]["closed_fraction"] >= 0.5 * scores[k]["closed_fraction"]
+        ]
+        if rivals:
+            scores[k]["significant"] = False
+            vetoed.append(
+                {
+                    "id": k,
+                    "reason": f"closes {scores[k]['closed_fraction']:.0%} of the held-out gap, but the gap "
+                    "follows "
+                    + ", ".join(sorted({t.kind for t in nominal_terms if t.held_out_share >= 0.3}))
+                    + " (discrepancy discovery), which creep cannot produce, and no memory, drift, "
+                    f"offset or level; {rivals[0]} explains it comparably",
+                }
+            )
+    if vetoed:
+        out_ = {v["id"] for v in vetoed}
+        ranked = [k for k in ranked if k not in out_] + [k for k in ranked if k in out_]
     # forward selection
     sel = (
         forward_select(prep, base, fits, ranked, scores, screening, opts, rng)
         if gap_significant
         else Forward([], [], base)
     )
+    if gap_significant:
+        sel = refine_forms(prep, sel, fits, scores, opts, rng)
     chosen, steps, current = sel.chosen, sel.steps, sel.current
     total = compare(base.hold_resid, current.hold_resid, dt, opts, rng)
     total_fit = {
@@ -154,6 +190,15 @@ def diagnose(
         else None
     )
     worse = [c for c in channels if c["worsened"]] if chosen else []
+    # what the selected effects leave: described by kind, never absorbed silently
+    g_after = gap(current.hold_resid)
+    remaining_terms = (
+        discover(prep, current.fit_resid, current.hold_resid)
+        if gap_significant and g_after > NOISE_LEVEL
+        else []
+    )
+    unexplained = describe_remaining(remaining_terms) if total["closed_fraction"] < 0.9 or not chosen else []
+    ambiguity = _ambiguity(chosen, ranked, fits, scores, notes, prep, better) if chosen else None
     flags = [
         f"the selected effects make channel {c['channel']} worse on held-out data "
         f"(gap {c['gap_before']:.3g} -> {c['gap_after']:.3g}, {c['change']:+.0%})"
@@ -161,8 +206,13 @@ def diagnose(
     ]
     if not gap_significant:
         verdict = "no_significant_gap"
-    elif chosen and not worse and (gap(current.hold_resid) < NOISE_LEVEL or total["closed_fraction"] >= 0.8):
-        verdict = "explained"
+    elif (
+        chosen
+        and not worse
+        and not unexplained
+        and (g_after < NOISE_LEVEL or total["closed_fraction"] >= 0.8)
+    ):
+        verdict = "ambiguous" if ambiguity else "explained"
     else:
         verdict = "partially_explained"
     effects_out = []
@@ -251,6 +301,13 @@ def diagnose(
             "significant": gap_significant,
         },
         "skipped": prep.skipped,
+        "discovery": {
+            "nominal": [t.to_dict() for t in nominal_terms],
+            "remaining": [t.to_dict() for t in remaining_terms],
+        },
+        "unexplained": unexplained,
+        "ambiguity": ambiguity,
+        "vetoed": vetoed,
         "meta": {
             "model": spec.to_dict(),
             "fit_runs": [{"name": r.name, "samples": len(r), "dt": r.dt, "notes": r.notes} for r in fit_runs],
@@ -278,6 +335,37 @@ def diagnose(
         "hold_masks": where["_hold_masks"],
     }
     return Diagnosis.from_json(jsonable(result), internal)
+
+
+def _ambiguity(
+    chosen: list[str],
+    ranked: list[str],
+    fits: dict[str, CandidateFit],
+    scores: dict[str, dict[str, Any]],
+    notes: dict[str, list[dict[str, Any]]],
+    prep: Prepared,
+    better: Any,
+) -> dict[str, Any] | None:
+    """The first selected candidate and another effect the runs cannot tell apart: collinear
+    residual signatures (an identifiability note, |cos| > 0.9), held-out closures within 5 points,
+    and neither significantly better than the other on the held-out runs (paired bootstrap)."""
+    a = chosen[0]
+    ea = prep.info[a]["effect"]
+    ca = scores[a]["closed_fraction"]
+    for note in notes.get(a, []):
+        b = note["with"]
+        if b not in fits or prep.info[b]["effect"] == ea or not scores[b]["significant"]:
+            continue
+        cb = scores[b]["closed_fraction"]
+        if abs(ca - cb) > 0.05 or better(a, b) or better(b, a):
+            continue
+        return {
+            "between": [a, b],
+            "closed_fractions": [ca, cb],
+            "signature_cosine": note["signature_cosine"],
+            "experiment": separating_experiment(a, b),
+        }
+    return None
 
 
 def _status(c: CandidateFit, screened: str | None) -> str:

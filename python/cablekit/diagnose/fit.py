@@ -16,7 +16,7 @@ from cablekit._cablekit import ParamSpec
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.prepare import MAX_SUBSTEPS, Options, Prepared
 from cablekit.diagnose.progress import Progress
-from cablekit.errors import CablekitError
+from cablekit.errors import CablekitError, SimulationDivergedError
 
 __all__ = ["CandidateFit", "baseline", "fit_candidate", "fit_many", "parameters_out", "warm_start"]
 
@@ -54,8 +54,8 @@ def _split(prep: Prepared, runs: list[Run], r: _F) -> list[_F]:
     return out
 
 
-#: a fit whose cost fell by less than this share from its start made no progress
-STUCK = 1.0 - 1e-6
+#: full fits (not screens) with at least this many iterations go on once when they run out
+RETRY_ITER = 20
 
 
 def fit_candidate(
@@ -73,11 +73,13 @@ def fit_candidate(
             MAX_SUBSTEPS, max(prep.substeps, base.advised_substeps(start), base.advised_substeps(corner))
         )
         problem = base.with_effects(effects, sub)
-        res = problem.fit(start, max_iter=max_iter)
-        if theta0 is None and res.cost >= STUCK * res.initial_cost and any(s.starts for s in specs):
-            # the cost is flat at the default start (a pretension loss before any cable
-            # slackens): search the parameters' start grid, refine the best start
-            res = problem.fit(None, max_iter=max_iter)
+        # without a start: the core's global stage over every parameter (its starts, or a
+        # spread of its own), then the local search from the best points; a warm start (a
+        # screen's end, a combination's previous fits) goes straight to the local search
+        res = problem.fit(None if theta0 is None else start, max_iter=max_iter)
+        if not res.converged and max_iter >= RETRY_ITER:
+            # a full fit that ran out of iterations goes on once from where it stopped
+            res = problem.fit(res.params, max_iter=max_iter)
         theta = res.params
         need = min(MAX_SUBSTEPS, problem.advised_substeps(theta))
         if need > sub:  # the fitted model is stiffer than the start: refit with enough substeps
@@ -86,8 +88,7 @@ def fit_candidate(
             res = problem.fit(theta, max_iter=max_iter)
             theta = res.params
 
-        hold = prep.hold0.with_effects(effects, sub)
-        r_hold = hold.residuals(theta)
+        r_hold = _held_out_residuals(prep, effects, theta, sub)
     except CablekitError as exc:
         return CandidateFit(
             effects,
@@ -127,6 +128,20 @@ def fit_candidate(
     )
 
 
+def _held_out_residuals(prep: Prepared, effects: list[str], theta: _F, sub: int) -> _F:
+    """Residuals of the held-out runs at the fitted ``theta``. The held-out runs may drive the
+    fitted model harder than the fit runs did (a stiffening law at a larger stretch): when the
+    replay diverges at the fit's substeps it is retried with twice as many, up to
+    ``MAX_SUBSTEPS``, before the candidate is reported as failed."""
+    while True:
+        try:
+            return prep.hold0.with_effects(effects, sub).residuals(theta)
+        except SimulationDivergedError:
+            if sub >= MAX_SUBSTEPS:
+                raise
+            sub = min(MAX_SUBSTEPS, 2 * sub)
+
+
 def _bound_away(params: _F, at_bound: NDArray[np.bool_], specs: list[ParamSpec]) -> list[str]:
     """Parameters that ended on a bound of their range other than the effect's "off" value (a
     Coulomb level at 0 is the nested model without the effect and is not listed; a creep time
@@ -143,18 +158,25 @@ def _sandwich(prep: Prepared, jac: _F, r: _F, seconds: float = 1.0) -> _F:
     cluster (segment) sandwich ``B·(Σ_s g_s g_sᵀ)·B`` with ``B = (JᵀJ)⁺`` and the score
     ``g_s = J_sᵀ r_s`` of each ~1 s segment of the fit runs (Huber–White with segments as
     clusters). With the model right and white residuals it reduces to ``σ²(JᵀJ)⁻¹``."""
-    bread = np.linalg.pinv(jac.T @ jac)
-    meat = np.zeros_like(bread)
-    off = 0
-    for run in prep.fit_runs:
-        rows = (len(run) - round(prep.spec.warmup / run.dt)) * prep.q
-        seg = max(prep.q, round(seconds / run.dt) * prep.q)
-        for a in range(off, off + rows, seg):
-            b = min(a + seg, off + rows)
-            g = jac[a:b].T @ r[a:b]
-            meat += np.outer(g, g)
-        off += rows
-    return bread @ meat @ bread
+    # in column-scaled coordinates (a finite difference across a switch can leave a column of
+    # 1e150 beside one of 1e-3), unscaled at the end; a non-finite covariance is NaN, not a warning
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        norms = np.linalg.norm(jac, axis=0)
+        d = np.where(np.isfinite(norms) & (norms > 0), norms, 1.0)
+        js = np.where(np.isfinite(jac), jac, 0.0) / d
+        bread = np.linalg.pinv(js.T @ js)
+        meat = np.zeros_like(bread)
+        off = 0
+        for run in prep.fit_runs:
+            rows = (len(run) - round(prep.spec.warmup / run.dt)) * prep.q
+            seg = max(prep.q, round(seconds / run.dt) * prep.q)
+            for a in range(off, off + rows, seg):
+                b = min(a + seg, off + rows)
+                g = js[a:b].T @ r[a:b]
+                meat += np.outer(g, g)
+            off += rows
+        cov = (bread @ meat @ bread) / np.outer(d, d)
+    return np.where(np.isfinite(cov), cov, np.nan)
 
 
 def baseline(prep: Prepared) -> CandidateFit:

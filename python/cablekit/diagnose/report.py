@@ -1,4 +1,4 @@
-"""Diagnosis outputs: the JSON file (schema ``cablekit.diagnosis/2``, see docs/diagnosis.md) and a
+"""Diagnosis outputs: the JSON file (schema ``cablekit.diagnosis/3``, see docs/diagnosis.md) and a
 self-contained HTML report with plots (matplotlib, from the ``report`` extra)."""
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ def write_json(result: Diagnosis, path: str | Path) -> Path:
     return path
 
 
-VERDICTS = ("no_significant_gap", "explained", "partially_explained")
+VERDICTS = ("no_significant_gap", "explained", "ambiguous", "partially_explained")
 
 
 def validate(doc: dict[str, Any]) -> None:
@@ -257,6 +257,14 @@ def write_html(result: Diagnosis, path: str | Path) -> Path:
     )
     for f in doc["flags"]:
         parts.append(f"<p class='flag'>⚠ {html.escape(f)}</p>")
+    amb = doc.get("ambiguity")
+    if amb:
+        parts.append(
+            f"<p class='flag'>Ambiguous between <b>{html.escape(amb['between'][0])}</b> and "
+            f"<b>{html.escape(amb['between'][1])}</b>: {html.escape(amb['experiment'])}</p>"
+        )
+    for u in doc.get("unexplained", []):
+        parts.append(f"<p class='flag'>Unexplained: {html.escape(u)}</p>")
     if sel["effects"]:
         rows = [
             [

@@ -1,6 +1,6 @@
 """The typed result of a diagnosis (:class:`Diagnosis`) and its JSON form.
 
-Every class mirrors one object of ``diagnosis.json`` (schema ``cablekit.diagnosis/2``,
+Every class mirrors one object of ``diagnosis.json`` (schema ``cablekit.diagnosis/3``,
 docs/diagnosis.md): field names are the JSON keys (``with_`` is ``with``), so
 :meth:`Diagnosis.to_json` is the document and :meth:`Diagnosis.from_json` reads one back. The
 objects a fresh result keeps for plots (the prepared problems, the fitted candidates) live in
@@ -19,11 +19,14 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "Ambiguity",
     "ChannelChange",
     "ChannelError",
     "ConditionChange",
     "ConditionShare",
     "Diagnosis",
+    "Discovery",
+    "DiscoveryTerm",
     "EffectFit",
     "EffectResult",
     "FitScore",
@@ -37,12 +40,13 @@ __all__ = [
     "RunInfo",
     "Selection",
     "Step",
+    "Veto",
     "Where",
     "jsonable",
 ]
 
 #: the schema of diagnosis.json (docs/diagnosis.md)
-SCHEMA = "cablekit.diagnosis/2"
+SCHEMA = "cablekit.diagnosis/3"
 
 
 @dataclass(frozen=True)
@@ -125,6 +129,8 @@ class Step:
     added: list[str]
     held_out: HeldOutScore
     worsened_channels: list[str]
+    #: schema 3: a revisited form or site (``refine_forms``): the candidate the added one replaces
+    replaces: str | None = None
 
 
 @dataclass(frozen=True)
@@ -267,6 +273,44 @@ class Meta:
 
 
 @dataclass(frozen=True)
+class DiscoveryTerm:
+    """A kind of term a channel's gap follows (discrepancy discovery, ``discover.py``)."""
+
+    channel: str
+    kind: str
+    held_out_share: float
+    description: str
+
+
+@dataclass(frozen=True)
+class Discovery:
+    """What the gap follows before any candidate (``nominal``) and after the selected effects
+    (``remaining``), each kind with the held-out share of its channel's excess it removes."""
+
+    nominal: list[DiscoveryTerm]
+    remaining: list[DiscoveryTerm]
+
+
+@dataclass(frozen=True)
+class Ambiguity:
+    """Two candidates of different effects that the runs cannot tell apart, and the experiment
+    that would."""
+
+    between: list[str]
+    closed_fractions: list[float | None]
+    signature_cosine: float
+    experiment: str
+
+
+@dataclass(frozen=True)
+class Veto:
+    """A candidate kept from selection because the gap lacks its physical signature."""
+
+    id: str
+    reason: str
+
+
+@dataclass(frozen=True)
 class Diagnosis:
     """The result of :func:`cablekit.diagnose.diagnose`."""
 
@@ -279,6 +323,14 @@ class Diagnosis:
     gap: GapSummary
     skipped: dict[str, str]
     meta: Meta
+    #: schema 3: what the gap follows by physical kind, before and after the selected effects
+    discovery: Discovery = field(default_factory=lambda: Discovery([], []))
+    #: schema 3: the structure the selected effects leave unexplained, in words
+    unexplained: list[str] = field(default_factory=list)
+    #: schema 3: set when the first selected effect cannot be told from another effect
+    ambiguity: Ambiguity | None = None
+    #: schema 3: candidates not selected because the gap lacks their signature
+    vetoed: list[Veto] = field(default_factory=list)
     #: objects of a fresh result for the HTML plots (prepared problems, fits); not in the JSON
     internal: dict[str, Any] | None = field(default=None, repr=False, compare=False)
 

@@ -50,8 +50,9 @@ class Screening:
 
 def screen(prep: Prepared, opts: Options) -> Screening:
     """With more candidates than ``opts.shortlist``, fit each for ``opts.screen_fit_iter``
-    iterations, keep the :func:`shortlist` and fit it in full from where its screen ended;
-    otherwise fit every candidate in full."""
+    iterations (after the core's global stage over every parameter), keep the :func:`shortlist`
+    and fit it in full from where its screen ended; a candidate whose screen fit failed is
+    fitted in full too. Otherwise fit every candidate in full."""
     screened_out: dict[str, str] = {}
     second_chance: set[str] = set()
     if opts.shortlist and len(prep.candidates) > opts.shortlist:
@@ -63,15 +64,18 @@ def screen(prep: Prepared, opts: Options) -> Screening:
         cut = keep[min(opts.shortlist, len(keep)) - 1].cost if keep else math.nan
         for c in quick:
             if c.error:
-                screened_out[c.effects[0]] = f"screen fit failed: {c.error}"
-            elif not any(c is k for k in keep):
+                continue  # a failed fit is no reason to screen a candidate out: fitted in full below
+            if not any(c is k for k in keep):
                 screened_out[c.effects[0]] = (
                     f"screened out: after a {opts.screen_fit_iter}-iteration fit its fit-run cost was "
                     f"{c.cost:.4g} (shortlist of {opts.shortlist} ends at {cut:.4g}, "
                     f"best {best_cost:.4g}) and it was not among the best {opts.shortlist_per_channel} "
                     "on any channel"
                 )
-        singles = fit_many(prep, [(c.effects, c.params) for c in keep], opts, "candidates")
+        # the shortlist goes on from where its screen ended; a candidate whose screen failed is
+        # fitted in full from its own global stage (and reported as failed if that fails too)
+        jobs = [(c.effects, c.params) for c in keep] + [(c.effects, None) for c in quick if c.error]
+        singles = fit_many(prep, jobs, opts, "candidates")
         singles += [c for c in quick if c.effects[0] in screened_out]
     else:
         singles = fit_many(prep, [([e], None) for e in prep.candidates], opts, "candidates")

@@ -168,6 +168,109 @@ def parsimony(
     return order
 
 
+def _simplest_equivalent(
+    prep: Prepared,
+    current: CandidateFit,
+    best: CandidateFit,
+    best_cmp: dict[str, Any],
+    trials: list[CandidateFit],
+    dt: float,
+    opts: Options,
+    rng: np.random.Generator,
+) -> tuple[CandidateFit, dict[str, Any]]:
+    """Parsimony in the later rounds, as in the first: among the acceptable trials whose
+    remaining held-out gap is equivalent to the best's (within 25 % plus 0.05 noise units), the
+    one with the fewest parameters — unless the best is significantly better than it on the
+    held-out runs (paired segment bootstrap). A richer nested law (Stribeck over Coulomb) must
+    earn its parameters on held-out data."""
+    ref = max(gap(best.hold_resid) - 1.0, 0.0)
+    pick, pick_cmp = best, best_cmp
+    for t in sorted(trials, key=lambda t: (len(t.params), gap(t.hold_resid))):
+        if t is best or t.error or len(t.params) >= len(pick.params):
+            continue
+        if max(gap(t.hold_resid) - 1.0, 0.0) > 1.25 * ref + 0.05:
+            continue
+        cmp_ = compare(current.hold_resid, t.hold_resid, dt, opts, rng)
+        ch = channel_changes(prep, current.hold_resid, t.hold_resid, dt, opts, rng)
+        if cmp_["p_no_improvement"] >= 0.025 or any(c["worsened"] for c in ch):
+            continue
+        if compare(t.hold_resid, best.hold_resid, dt, opts, rng)["significant"]:
+            continue  # the richer one earns its parameters
+        pick, pick_cmp = t, cmp_
+    return pick, pick_cmp
+
+
+#: effects whose law contains another's as a special case (the simpler one is an alternative
+#: when the richer is selected): Stribeck with F_s = F_c is Coulomb friction
+NESTED = {"stribeck_friction": ("coulomb_friction",)}
+
+
+def refine_forms(
+    prep: Prepared,
+    sel: Forward,
+    fits: dict[str, CandidateFit],
+    scores: dict[str, dict[str, Any]],
+    opts: Options,
+    rng: np.random.Generator,
+    per_effect: int = 4,
+) -> Forward:
+    """Revisit each selected candidate's site and form once the others are in: forward selection
+    fixes the first effect's form before the second is found (a two-pole lag chosen alone by
+    1.5 points can be wrong once a friction takes its share), so each selected candidate is
+    swapped for the best few alternatives of the same effect (other sites and forms) and for the
+    simpler laws nested in it, all refitted together from a warm start. A swap is kept when the
+    held-out gap falls significantly (paired segment bootstrap), or when the alternative has no
+    more parameters and is not significantly worse — and never when it makes a channel worse."""
+    if len(sel.chosen) < 2 or gap(sel.current.hold_resid) < NOISE_LEVEL:
+        return sel  # one effect, or a held-out gap already at the noise level: nothing to revisit
+    dt = prep.fit_runs[0].dt
+    chosen, current = list(sel.chosen), sel.current
+    for k in list(chosen):
+        eff = prep.info[k]["effect"]
+        family = {eff, *NESTED.get(eff, ())}
+        alts = [a for a in fits if a not in chosen and prep.info[a]["effect"] in family and not fits[a].error]
+        alts = sorted(alts, key=lambda a: -(scores[a]["closed_fraction"]))[:per_effect]
+        if not alts:
+            continue
+        jobs = []
+        for a in alts:
+            effects = [a if e == k else e for e in chosen]
+            jobs.append((effects, warm_start(prep, current, effects, fits[a])))
+        # a short fit of each alternative, the most promising (by fit cost) refined in full
+        quick = [t for t in fit_many(prep, jobs, opts, "  forms", opts.screen_iter) if not t.error]
+        quick = shortlist(quick, 1, 0)
+        trials = fit_many(prep, [(t.effects, t.params) for t in quick], opts, "  refine", opts.max_iter)
+        best, best_key = None, None
+        for t in trials:
+            if t.error:
+                continue
+            ch = channel_changes(prep, current.hold_resid, t.hold_resid, dt, opts, rng)
+            if any(c["worsened"] for c in ch):
+                continue
+            cmp_ = compare(current.hold_resid, t.hold_resid, dt, opts, rng)
+            simpler = len(t.params) <= len(current.params)
+            back = compare(t.hold_resid, current.hold_resid, dt, opts, rng)
+            if cmp_["significant"] or (
+                simpler and not back["significant"] and gap(t.hold_resid) <= gap(current.hold_resid) * 1.05
+            ):
+                key = gap(t.hold_resid)
+                if best_key is None or key < best_key:
+                    best, best_key = t, key
+        if best is not None:
+            new = next(e for e in best.effects if e not in chosen)
+            chosen = [new if e == k else e for e in chosen]
+            sel.steps.append(
+                {
+                    "added": [new],
+                    "held_out": compare(current.hold_resid, best.hold_resid, dt, opts, rng),
+                    "worsened_channels": [],
+                    "replaces": k,
+                }
+            )
+            current = best
+    return Forward(chosen, sel.steps, current)
+
+
 @dataclass
 class Forward:
     """The outcome of forward selection: the chosen candidate ids, the steps, the final fit."""
@@ -245,6 +348,8 @@ def forward_select(
                 best, best_cmp, best_key = t, cmp_, key
         if best is None or best_cmp is None or best_key is None:
             break
+        if round_ > 0 and best_key[0]:
+            best, best_cmp = _simplest_equivalent(prep, current, best, best_cmp, trials, dt, opts, rng)
         if not best_key[0] and not (round_ == 0 and best_cmp["significant"]):
             break  # round 1 may take a significant effect that worsens a channel (flagged)
         added = [e for e in best.effects if e not in chosen]

@@ -6,24 +6,28 @@ use crate::dynamics::{AntagonisticJoint, CableTransmission};
 use crate::error::Result;
 
 use super::effects::Effect;
-use super::plant::{exponential, CreepLaw, Hysteresis, JointPlant};
+use super::plant::{exponential, CreepLaw, Hysteresis, JointPlant, JointPlay};
 use super::signal;
 use super::site::{Candidate, Form, Site};
 
-/// The operators of one channel's sensor path, applied in the order lag → delay →
-/// sample-and-hold → gain and bias.
+/// The operators of one channel's sensor path, applied in the order lag (one pole, two equal
+/// poles or a resonance) → delay → sample-and-hold (instantaneous or averaged) → gain and bias.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SensorChain {
     /// Lag time constant (s); 0 = none.
     pub lag: f64,
     /// Two equal poles (critically damped) instead of one.
     pub second_order: bool,
+    /// Damping ratio of a resonant second-order sensor (`lag` is then `1/ω_n`); 0 = none.
+    pub zeta: f64,
     /// Transport delay (s).
     pub delay: f64,
     /// Sample-and-hold period (s); 0 = continuous.
     pub period: f64,
     /// Sample-and-hold phase (s).
     pub phase: f64,
+    /// The converter reports the mean over its window (true) or the instantaneous value.
+    pub averaging: bool,
     /// Gain error (–): the sensor reads `(1 + g)·y + b`.
     pub gain: f64,
     /// Bias (channel units).
@@ -32,17 +36,30 @@ pub struct SensorChain {
 
 impl SensorChain {
     /// Set the operator of candidate `c` from its parameters `p`; `j` is this channel's rank
-    /// among the force channels when `c` sits at every force sensor (per-channel gain and bias).
+    /// among the force channels when `c` sits at every force sensor (per-channel gain and bias,
+    /// per-channel converter clocks).
     pub fn apply(&mut self, c: Candidate, p: &[f64], j: usize) {
         match c.effect {
             Effect::SensorLag => {
                 self.lag = p[0].max(0.0);
                 self.second_order = c.form == Form::SecondOrder;
+                self.zeta = if c.form == Form::Resonant {
+                    p[1].max(0.0)
+                } else {
+                    0.0
+                };
             }
             Effect::TimeDelay => self.delay = p[0].max(0.0),
             Effect::SensorSampling => {
-                self.period = p[0].max(0.0);
-                self.phase = p[1].max(0.0);
+                // at every force sensor, each channel has its own period and phase
+                let k = if matches!(c.site, Site::ForceSensors) {
+                    2 * j
+                } else {
+                    0
+                };
+                self.period = p[k].max(0.0);
+                self.phase = p[k + 1].max(0.0);
+                self.averaging = c.form == Form::Averaging;
             }
             Effect::SensorGainBias => {
                 let k = if matches!(c.site, Site::ForceSensors) {
@@ -59,7 +76,10 @@ impl SensorChain {
 
     /// Run the path on `col` in place (`tmp` is scratch of the same length).
     pub fn run(&self, col: &mut Vec<f64>, tmp: &mut Vec<f64>, dt: f64) {
-        if self.lag > 0.0 {
+        if self.lag > 0.0 && self.zeta > 0.0 {
+            signal::second_order_sensor(col, self.lag, self.zeta, dt, tmp);
+            std::mem::swap(col, tmp);
+        } else if self.lag > 0.0 {
             for _ in 0..if self.second_order { 2 } else { 1 } {
                 signal::first_order_lag(col, self.lag, dt, tmp);
                 std::mem::swap(col, tmp);
@@ -70,7 +90,11 @@ impl SensorChain {
             std::mem::swap(col, tmp);
         }
         if self.period > 0.0 {
-            signal::sample_hold(col, self.period, self.phase, dt, tmp);
+            if self.averaging {
+                signal::sample_hold_mean(col, self.period, self.phase, dt, tmp);
+            } else {
+                signal::sample_hold(col, self.period, self.phase, dt, tmp);
+            }
             std::mem::swap(col, tmp);
         }
         if self.gain != 0.0 || self.bias != 0.0 {
@@ -186,6 +210,13 @@ pub fn augment_joint(nom: &AntagonisticJoint, effects: &[(Candidate, &[f64])]) -
                 }
             }
             Effect::InertiaError => m.inertia *= 1.0 + p[0],
+            Effect::Backlash if c.site == Site::Joint && p[0] > 0.0 => {
+                m.play = Some(JointPlay {
+                    half_gap: p[0],
+                    link_share: p[1].clamp(0.01, 0.99),
+                    stiffness_ratio: p[2].max(1e-3),
+                })
+            }
             // operators, handled by the caller
             _ => {}
         }

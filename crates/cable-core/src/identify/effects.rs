@@ -107,6 +107,33 @@ pub const SWEEP: usize = 4;
 type SpecFn<'a> = dyn Fn(&str, &'static str, f64, f64, f64, f64, f64) -> ParamSpec + 'a;
 
 impl ParamSpec {
+    /// Starting values of a parameter given none: `initial + 3·scale`, `initial + 30·scale` and,
+    /// when the range goes below, `initial − 3·scale`, each kept 5 % of the range inside the
+    /// bounds (a start on a bound has no room for a forward difference): from a small effect to
+    /// a large one, in the parameter's own scale.
+    pub fn spread(&self) -> Vec<f64> {
+        if self.grid || self.lower.partial_cmp(&self.upper) != Some(std::cmp::Ordering::Less) {
+            return vec![];
+        }
+        let margin = if (self.upper - self.lower).is_finite() {
+            0.05 * (self.upper - self.lower)
+        } else {
+            0.0
+        };
+        let (lo, hi) = (self.lower + margin, self.upper - margin);
+        let mut v = vec![
+            self.initial + 3.0 * self.scale,
+            self.initial + 30.0 * self.scale,
+        ];
+        if self.lower < self.initial - self.scale {
+            v.push(self.initial - 3.0 * self.scale);
+        }
+        v.into_iter()
+            .map(|x| x.max(lo).min(hi))
+            .filter(|x| x.is_finite() && (x - self.initial).abs() > 0.5 * self.scale)
+            .collect()
+    }
+
     /// The same spec with further starting values (kept inside the bounds).
     fn starts(mut self, v: &[f64]) -> Self {
         // max/min, not clamp: bounds from degenerate data scales must not panic
@@ -600,7 +627,45 @@ impl Candidate {
             (Effect::NonlinearStiffness, _, Form::Scale) => {
                 vec![p("eps_k", "1", 0.0, 0.0, -0.95, 20.0, 0.2).starts(&[-0.6, -0.3, 0.5, 2.0])]
             }
+            (Effect::SensorLag, _, Form::Resonant) => {
+                // τ = 1/ω_n (swept like the lag constant) and the damping ratio ζ: from a ringing
+                // cell (0.05) to an overdamped amplifier (3); ζ = 1 is the two-pole lag
+                let mut v = base;
+                v.push(p("zeta", "1", 1.0, 0.5, 0.05, 3.0, 0.3).starts(&[0.15, 0.3, 1.0]));
+                v
+            }
+            (Effect::Backlash, Site::Joint, _) => {
+                // the clearance (rad of joint angle), the link's share of the inertia, and the
+                // contact's stiffness as a multiple of the cables' torsional stiffness
+                // a cable stretch in joint angle (the radius is motor speed over joint speed)
+                let radius = s.motor_speed / s.speed.max(1e-12);
+                let th = (s.stretch / radius.max(1e-9)).clamp(1e-6, 0.02);
+                // a clearance of 0 is the nominal rigid hub (the reference), but a vanishing one
+                // still leaves the two-mass contact: the fit stays above it, so no finite
+                // difference straddles the switch
+                vec![
+                    p("delta_j", "rad", 0.0, th, 1e-3 * th, 0.2, th).starts(&[
+                        0.1 * th,
+                        0.3 * th,
+                        3.0 * th,
+                        10.0 * th,
+                    ]),
+                    p("link_share", "1", 0.7, 0.7, 0.05, 0.95, 0.2).starts(&[0.3]),
+                    p("k_ratio", "1", 10.0, 10.0, 0.5, 1e3, 10.0).starts(&[2.0, 100.0]),
+                ]
+            }
             (Effect::SensorGainBias, Site::Sensor(_), _) => base.into_iter().take(2).collect(),
+            // every force channel with its own converter: each its own clock (period and
+            // phase), as one HX711 per load cell has
+            (Effect::SensorSampling, Site::ForceSensors, _) => (0..s.sensors.max(1))
+                .flat_map(|i| {
+                    base.iter().map(move |q| {
+                        let mut q = q.clone();
+                        q.name = format!("{}[{i}]", q.name);
+                        q
+                    })
+                })
+                .collect(),
             (
                 Effect::SensorGainBias
                 | Effect::SensorLag

@@ -8,7 +8,7 @@ use crate::integrate::propose_step;
 
 use super::effects::{Effect, SWEEP};
 use super::lm::{least_squares, LmOptions, LmReport};
-use super::problem::{JointProblem, Replay};
+use super::problem::{Augmented, JointProblem, Replay};
 use super::signal;
 use super::site::{Candidate, Site};
 
@@ -51,10 +51,11 @@ impl JointProblem {
 
     fn fit_from(&self, mut x0: Vec<f64>, opts: &LmOptions) -> Result<LmReport> {
         if let Some(c) = self.sampling_candidate() {
-            let (period, phase) = self.grid_sample_hold(&x0)?;
             let k = self.offset_of(&c);
-            x0[k] = period;
-            x0[k + 1] = phase;
+            for (m, (period, phase)) in self.grid_sample_hold(&x0)?.into_iter().enumerate() {
+                x0[k + 2 * m] = period;
+                x0[k + 2 * m + 1] = phase;
+            }
         }
         let (mut lower, mut upper): (Vec<f64>, Vec<f64>) =
             self.specs.iter().map(|s| (s.lower, s.upper)).unzip();
@@ -86,8 +87,13 @@ impl JointProblem {
         )
     }
 
-    /// The `keep` lowest-cost combinations of the specs' starting values (`initial` and
-    /// `starts`, at most 27 combinations); combinations whose simulation fails are skipped.
+    /// The global stage before the local search: the `keep` best starting points over every
+    /// parameter. Each parameter's options are its `initial` and `starts` — or, for a parameter
+    /// given none, a spread of its own ([`ParamSpec::spread`]): in a resonant plant every
+    /// parameter is non-convex (an inertia error moves the resonance), so none is left to the
+    /// local search alone. Parameters with [`SWEEP`] or more options are swept alone first;
+    /// the others are combined exhaustively when there are at most 27 combinations, and swept
+    /// coordinate by coordinate (twice) otherwise. Points whose simulation fails are skipped.
     fn best_starts(&self, mut x0: Vec<f64>, keep: usize) -> Vec<Vec<f64>> {
         let mut r = vec![0.0; self.n_residuals()];
         // sensor-site candidates replay the nominal plant whatever their parameters
@@ -101,51 +107,82 @@ impl JointProblem {
                 Some(p) => self.residuals_on(x, p, &mut r),
                 None => self.residuals(x, &mut r),
             };
-            ok.ok().map(|_| r.iter().map(|v| v * v).sum())
+            ok.ok()
+                .map(|_| r.iter().map(|v| v * v).sum::<f64>())
+                .filter(|c| c.is_finite())
         };
-        // 1-D sweeps of the non-convex parameters with many starting values, one at a time
-        for (j, s) in self.specs.iter().enumerate() {
-            if s.starts.len() < SWEEP {
-                continue;
-            }
-            let mut best = (cost(&x0).unwrap_or(f64::INFINITY), x0[j]);
-            let mut x = x0.clone();
-            for &v in &s.starts {
-                x[j] = v;
-                if let Some(c) = cost(&x) {
-                    if c < best.0 {
-                        best = (c, v);
-                    }
-                }
-            }
-            x0[j] = best.1;
-        }
         let options: Vec<Vec<f64>> = self
             .specs
             .iter()
             .zip(&x0)
             .map(|(s, &x)| {
-                if s.starts.len() >= SWEEP {
-                    vec![x]
-                } else {
-                    std::iter::once(x).chain(s.starts.iter().copied()).collect()
+                if s.grid {
+                    return vec![x];
                 }
+                let extra = if s.starts.is_empty() {
+                    s.spread()
+                } else {
+                    s.starts.clone()
+                };
+                let mut o = vec![x];
+                for v in extra {
+                    if o.iter().all(|&u| (u - v).abs() > 1e-9 * s.scale) {
+                        o.push(v);
+                    }
+                }
+                o
             })
             .collect();
-        let total: usize = options.iter().map(Vec::len).product();
-        if total <= 1 || total > 27 {
+        let mut base = cost(&x0).unwrap_or(f64::INFINITY);
+        // 1-D sweeps of the parameters with many options, one at a time
+        let sweep = |j: usize,
+                     x0: &mut Vec<f64>,
+                     base: &mut f64,
+                     cost: &mut dyn FnMut(&[f64]) -> Option<f64>| {
+            let mut x = x0.clone();
+            for &v in &options[j][1..] {
+                x[j] = v;
+                if let Some(c) = cost(&x) {
+                    if c < *base {
+                        *base = c;
+                        x0[j] = v;
+                    }
+                }
+            }
+        };
+        for j in 0..options.len() {
+            if options[j].len() > SWEEP {
+                sweep(j, &mut x0, &mut base, &mut cost);
+            }
+        }
+        let few: Vec<usize> = (0..options.len())
+            .filter(|&j| options[j].len() > 1 && options[j].len() <= SWEEP)
+            .collect();
+        let total: usize = few.iter().map(|&j| options[j].len()).product();
+        if few.is_empty() {
+            return vec![x0];
+        }
+        if total > 27 {
+            for _ in 0..2 {
+                for &j in &few {
+                    sweep(j, &mut x0, &mut base, &mut cost);
+                }
+            }
             return vec![x0];
         }
         let mut scored: Vec<(f64, Vec<f64>)> = Vec::new();
         for mut code in 0..total {
-            let x: Vec<f64> = options
-                .iter()
-                .map(|o| {
-                    let v = o[code % o.len()];
-                    code /= o.len();
-                    v
-                })
-                .collect();
+            let mut x = x0.clone();
+            for &j in &few {
+                let o = &options[j];
+                // option 0 is the current value (the 1-D sweeps' best for swept parameters)
+                x[j] = if code % o.len() == 0 {
+                    x0[j]
+                } else {
+                    o[code % o.len()]
+                };
+                code /= o.len();
+            }
             if let Some(c) = cost(&x) {
                 scored.push((c, x));
             }
@@ -183,15 +220,21 @@ impl JointProblem {
     }
 
     /// Grid search of the sample-and-hold period and phase with the other parameters at
-    /// `theta`: periods log-spaced from 2·dt to a quarter of the shortest run, 12 phases each.
+    /// `theta`: periods log-spaced from 2·dt to a quarter of the shortest run, 12 phases each,
+    /// then the update instants read off the channel's jumps, then a fine grid. One
+    /// `(period, phase)` per parameter pair of the candidate: a single channel's, or each force
+    /// channel's own (searched channel by channel: a channel's hold changes only its residuals).
     /// The plant is simulated once per run.
-    pub fn grid_sample_hold(&self, theta: &[f64]) -> Result<(f64, f64)> {
+    pub fn grid_sample_hold(&self, theta: &[f64]) -> Result<Vec<(f64, f64)>> {
         let Some(cand) = self.sampling_candidate() else {
-            return Ok((0.0, 0.0));
+            return Ok(vec![]);
         };
         let k = self.offset_of(&cand);
         let mut th = theta.to_vec();
-        th[k] = 0.0;
+        let pairs = cand.params(&self.scales).len() / 2;
+        for m in 0..pairs {
+            th[k + 2 * m] = 0.0;
+        }
         let a0 = self.augment(&th)?;
         let held: Vec<usize> = (0..self.channels.len())
             .filter(|&c| match cand.site {
@@ -202,11 +245,24 @@ impl JointProblem {
         let plants: Vec<Vec<f64>> = (0..self.runs.len())
             .map(|i| self.plant_outputs(&a0, i))
             .collect::<Result<_>>()?;
+        if pairs == 1 {
+            return Ok(vec![self.search_hold(&a0, &plants, &held)]);
+        }
+        Ok(held
+            .iter()
+            .take(pairs)
+            .map(|&c| self.search_hold(&a0, &plants, &[c]))
+            .collect())
+    }
+
+    /// The sample-and-hold `(period, phase)` of the channels `held` (one clock) that best fits
+    /// the runs, the other channels as in `a0`.
+    fn search_hold(&self, a0: &Augmented, plants: &[Vec<f64>], held: &[usize]) -> (f64, f64) {
         let dt = self.scales.dt;
         let mut r = vec![0.0; self.n_residuals()];
         let mut cost = |period: f64, phase: f64| -> f64 {
             let mut a = a0.clone();
-            for &c in &held {
+            for &c in held {
                 a.sensors[c].period = period;
                 a.sensors[c].phase = phase;
             }
@@ -250,7 +306,7 @@ impl JointProblem {
         // around it, so a spurious long period costs ~2k evaluations, not period/dt × 25)
         let (_, p0, _) = best;
         if p0 <= 0.0 {
-            return Ok((0.0, 0.0));
+            return (0.0, 0.0);
         }
         const FINE_PHASES: usize = 64;
         for ip in 0..=24 {
@@ -274,13 +330,14 @@ impl JointProblem {
                 consider(cost(period, phase), period, phase, &mut best);
             }
         }
-        Ok((best.1, best.2))
+        (best.1, best.2)
     }
 
     /// Sample-and-hold period and phase of the first measured force channel of the first run:
-    /// from its exactly repeated values when it has them, else from its jumps
-    /// ([`signal::hold_period`]: robust to noise after the hold, sub-sample period
-    /// resolution); `None` when neither finds a hold.
+    /// from its exactly repeated values when it has them, else from its isolated single-sample
+    /// jumps ([`signal::hold_from_jumps`]: noise after the hold, updates at rest unseen, the
+    /// period fitted over the whole run), else from the jumps' periodogram
+    /// ([`signal::hold_period`]); `None` when none finds a hold.
     pub fn hold_from_updates(&self) -> Option<(f64, f64)> {
         let c = self.channels.iter().position(|c| c.sensor)?;
         self.hold_from_updates_of(c)
@@ -292,6 +349,7 @@ impl JointProblem {
         let q = self.channels.len();
         let y: Vec<f64> = (0..run.len()).map(|k| run.measured[k * q + c]).collect();
         Self::hold_from_repeats(&y, run.dt)
+            .or_else(|| signal::hold_from_jumps(&y, run.dt))
             .or_else(|| signal::hold_period(&y, run.dt, 0.25 * self.scales.duration))
     }
 

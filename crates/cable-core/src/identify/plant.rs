@@ -142,6 +142,22 @@ impl MotorFriction {
     }
 }
 
+/// Play between the joint pulley, which the cables turn, and the link it drives (a keyed or
+/// pinned hub with clearance, a worn clevis): the pulley carries `1 − f` of the inertia, the
+/// link `f`; across the gap `±δ` nothing is transmitted, beyond it a contact of stiffness
+/// `k_c = ratio·r²·(k₁ + k₂)` (a multiple of the cables' torsional stiffness) and damping at
+/// 0.2 of its critical value. The joint encoder, the object contact and the external torque are
+/// on the link.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointPlay {
+    /// Half-width `δ` of the clearance (rad), > 0.
+    pub half_gap: f64,
+    /// Share `f` of the joint inertia on the link side, in (0, 1).
+    pub link_share: f64,
+    /// Contact stiffness as a multiple of the cables' torsional stiffness at rest, > 0.
+    pub stiffness_ratio: f64,
+}
+
 /// One cable of the diagnosis joint.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CablePart {
@@ -196,7 +212,10 @@ pub struct JointPlant {
     pub motor: MotorFriction,
     /// Optional contact with an object.
     pub contact: Option<Contact>,
+    /// Optional play between the joint pulley and the link.
+    pub play: Option<JointPlay>,
     dahl_at: Option<usize>,
+    play_at: Option<usize>,
     creep_at: [Option<usize>; 2],
     n_states: usize,
 }
@@ -230,7 +249,9 @@ impl From<&AntagonisticJoint> for JointPlant {
             }),
             motor: MotorFriction::default(),
             contact: j.contact,
+            play: None,
             dahl_at: None,
+            play_at: None,
             creep_at: [None, None],
             n_states: 2,
         };
@@ -241,7 +262,8 @@ impl From<&AntagonisticJoint> for JointPlant {
 
 impl JointPlant {
     /// Recompute the state layout after effects were switched on or off:
-    /// `[θ, θ̇, (z_a, θ_a), (w₁), (w₂)]`.
+    /// `[θ, θ̇, (z_a, θ_a), (w₁), (w₂), (θ_l, θ̇_l)]` (`θ` is the pulley's angle when there is
+    /// play, `θ_l` the link's).
     pub fn layout(&mut self) {
         let mut n = 2;
         self.dahl_at = self.dahl.map(|_| {
@@ -254,7 +276,56 @@ impl JointPlant {
                 n - 1
             });
         }
+        self.play_at = self.play.map(|_| {
+            n += 2;
+            n - 2
+        });
         self.n_states = n;
+    }
+
+    /// Inertias of the pulley and of the link (the link's is 0 without play).
+    #[inline]
+    fn inertias(&self) -> (f64, f64) {
+        match self.play {
+            Some(p) => (
+                self.inertia * (1.0 - p.link_share),
+                self.inertia * p.link_share,
+            ),
+            None => (self.inertia, 0.0),
+        }
+    }
+
+    /// Torque the pulley passes to the link across the play at state `x` (0 without play), and
+    /// whether the contact is engaged (−1, 0, +1).
+    #[inline]
+    fn play_torque(&self, x: &[f64]) -> (f64, i8) {
+        let (Some(p), Some(i)) = (self.play, self.play_at) else {
+            return (0.0, 0);
+        };
+        let e = x[0] - x[i];
+        let (jp, jl) = self.inertias();
+        let kc = p.stiffness_ratio
+            * self.radius
+            * self.radius
+            * (self.cables[0].run.law.stiffness() + self.cables[1].run.law.stiffness());
+        let cc = 0.4 * (kc * jp * jl / (jp + jl)).sqrt();
+        let de = x[1] - x[i + 1];
+        if e > p.half_gap {
+            (kc * (e - p.half_gap) + cc * de, 1)
+        } else if e < -p.half_gap {
+            (kc * (e + p.half_gap) + cc * de, -1)
+        } else {
+            (0.0, 0)
+        }
+    }
+
+    /// The measured joint angle and rate: the link's when there is play.
+    #[inline]
+    fn link(&self, x: &[f64]) -> (f64, f64) {
+        match self.play_at {
+            Some(i) => (x[i], x[i + 1]),
+            None => (x[0], x[1]),
+        }
     }
 
     /// Initial state at rest at joint angle `theta0` (hysteresis and creep states at zero).
@@ -263,6 +334,9 @@ impl JointPlant {
         x[0] = theta0;
         if let Some(k) = self.dahl_at {
             x[k + 1] = theta0;
+        }
+        if let Some(k) = self.play_at {
+            x[k] = theta0;
         }
         x
     }
@@ -329,7 +403,7 @@ impl JointPlant {
         let h = 0.05 * self.friction.smoothing;
         let slope =
             (self.friction_torque(v + h, load) - self.friction_torque(v - h, load)) / (2.0 * h);
-        let rate = slope.max(0.0) / self.inertia;
+        let rate = slope.max(0.0) / self.inertias().0;
         let n = (dt * rate / (RK4_REAL_LIMIT * FRICTION_SAFETY)).ceil();
         if n.is_finite() && n >= 1.0 {
             (n as usize).min(MAX_FRICTION_SUBSTEPS)
@@ -347,13 +421,17 @@ impl JointPlant {
     /// Non-smooth regime of a state: slack of each cable, contact, direction of the joint.
     fn regime(&self, x: &[f64], u: &[f64]) -> u8 {
         let t = self.raw_tensions(x, u);
+        let theta = self.link(x).0;
         let contact = self
             .contact
-            .is_some_and(|c| c.lever_arm * (x[0] - c.angle) > 0.0);
+            .is_some_and(|c| c.lever_arm * (theta - c.angle) > 0.0);
+        let engaged = self.play_torque(x).1;
         u8::from(t[0] <= 0.0)
             | u8::from(t[1] <= 0.0) << 1
             | u8::from(contact) << 2
             | u8::from(x[1] > 0.0) << 3
+            | u8::from(engaged > 0) << 4
+            | u8::from(engaged < 0) << 5
     }
 
     /// Simulate the plant on inputs `(T, 3)` row-major `[x, ẋ, τ_ext]` (first-order hold) from
@@ -508,6 +586,14 @@ impl JointPlant {
         if let Some(c) = self.contact {
             kt += c.stiffness * c.lever_arm * c.lever_arm;
         }
+        if let Some(p) = self.play {
+            // the contact across the play acts on the lighter of the two inertias: as a
+            // stiffness on the whole joint, scaled up by J / min(J_p, J_l)
+            let kc = p.stiffness_ratio
+                * r2
+                * (self.cables[0].run.law.stiffness() + self.cables[1].run.law.stiffness());
+            kt += kc / p.link_share.min(1.0 - p.link_share).max(1e-3);
+        }
         let mut rate: f64 = 0.0;
         for c in &self.cables {
             if let Some(cr) = c.creep {
@@ -534,8 +620,19 @@ impl Model for JointPlant {
         let (t1, t2) = (raw[0].max(0.0), raw[1].max(0.0));
         let transmitted = self.radius * (t1 - t2);
         let lever = self.contact.map_or(0.0, |c| c.lever_arm);
-        let contact = self.contact.map_or(0.0, |c| c.force(x[0], x[1]));
-        let mut torque = transmitted - self.friction.force(x[1]) - lever * contact + u[2];
+        let (th_l, w_l) = self.link(x);
+        let contact = self.contact.map_or(0.0, |c| c.force(th_l, w_l));
+        // the object contact and the external torque act on the link: on the pulley itself
+        // without play, across the play otherwise
+        let (on_link, passed) = (u[2] - lever * contact, self.play_torque(x).0);
+        let mut torque = transmitted - self.friction.force(x[1]);
+        if let Some(i) = self.play_at {
+            torque -= passed;
+            dx[i] = x[i + 1];
+            dx[i + 1] = (passed + on_link) / self.inertias().1;
+        } else {
+            torque += on_link;
+        }
         if self.load_friction != 0.0 {
             torque -=
                 self.load_friction * transmitted.abs() * smooth_sign(x[1], self.friction.smoothing);
@@ -556,7 +653,7 @@ impl Model for JointPlant {
             }
         }
         dx[0] = x[1];
-        dx[1] = torque / self.inertia;
+        dx[1] = torque / self.inertias().0;
     }
 
     fn output(&self, x: &[f64], u: &[f64], y: &mut [f64]) {
@@ -567,8 +664,9 @@ impl Model for JointPlant {
         y[1] = t2 * (-self.capstan[1] * sg).exp();
         y[2] = t1;
         y[3] = t2;
-        y[4] = x[0];
-        y[5] = self.contact.map_or(0.0, |c| c.force(x[0], x[1]));
+        let (th_l, w_l) = self.link(x);
+        y[4] = th_l;
+        y[5] = self.contact.map_or(0.0, |c| c.force(th_l, w_l));
         y[6] = y[0] - y[1];
     }
 
@@ -581,6 +679,9 @@ impl Model for JointPlant {
             if self.cables[k].creep.is_some() {
                 v.push((*name).into());
             }
+        }
+        if self.play.is_some() {
+            v.extend(["link_angle".into(), "link_rate".into()]);
         }
         v
     }
@@ -622,6 +723,46 @@ mod tests {
         let mut v = vec![0.0; t_len];
         crate::identify::signal::velocity(&x, dt, &mut v);
         (0..t_len).flat_map(|k| [x[k], v[k], 0.0]).collect()
+    }
+
+    #[test]
+    fn joint_play_offsets_the_link_by_the_clearance_under_a_load() {
+        // a constant external torque on the link presses it against one side of the clearance:
+        // at rest the link sits δ + τ/k_c beyond the pulley, the cables carry the same torque
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        let nominal = JointPlant::from(&j);
+        let mut p = nominal.clone();
+        let (delta, ratio) = (4e-3, 20.0);
+        p.play = Some(JointPlay {
+            half_gap: delta,
+            link_share: 0.6,
+            stiffness_ratio: ratio,
+        });
+        p.layout();
+        assert_eq!(p.n_states(), 4);
+        let (dt, t_len, tau) = (1e-3, 3000, 2e-3);
+        let u: Vec<f64> = (0..t_len).flat_map(|_| [0.0, 0.0, tau]).collect();
+        let settle = |plant: &JointPlant| {
+            let y = plant.simulate(&u, &plant.rest(0.0), dt, 8).unwrap();
+            let last = &y[(t_len - 1) * JOINT_OUTPUTS..];
+            (last[4], last[2] - last[3])
+        };
+        let (theta_nom, net_nom) = settle(&nominal);
+        let (theta_play, net_play) = settle(&p);
+        let r2 = p.radius * p.radius;
+        let kc = ratio * r2 * (p.cables[0].run.law.stiffness() + p.cables[1].run.law.stiffness());
+        let want = delta + tau / kc;
+        assert!(
+            ((theta_play - theta_nom) - want).abs() < 0.02 * want,
+            "link offset {} vs {want}",
+            theta_play - theta_nom
+        );
+        assert_relative_eq!(net_play, net_nom, max_relative = 2e-2); // still ringing a little
+                                                                     // without a load, rest is an equilibrium of the pulley, the cables and the link
+        let still: Vec<f64> = (0..500).flat_map(|_| [0.0, 0.0, 0.0]).collect();
+        let y = p.simulate(&still, &p.rest(0.0), dt, 4).unwrap();
+        assert!(y[499 * JOINT_OUTPUTS + 4].abs() < 1e-15);
     }
 
     #[test]

@@ -88,6 +88,183 @@ pub fn sample_hold(x: &[f64], period: f64, phase: f64, dt: f64, y: &mut [f64]) {
     }
 }
 
+/// An integrating (averaging) converter held between conversions, as an HX711 or a
+/// sigma-delta ADC with a sinc filter: at each instant `phase + j·period` it reports the **mean
+/// of the input over the conversion window just ended** (one period) and holds it. Samples
+/// before the first instant show `x_0`. Against [`sample_hold`] of the instantaneous value the
+/// report lags by about half a period and smooths everything faster than the window.
+pub fn sample_hold_mean(x: &[f64], period: f64, phase: f64, dt: f64, y: &mut [f64]) {
+    if x.is_empty() {
+        return;
+    }
+    // prefix sums: the mean of x[a..=b] in O(1)
+    let mut pre = Vec::with_capacity(x.len() + 1);
+    pre.push(0.0);
+    for &v in x {
+        pre.push(pre.last().copied().unwrap_or(0.0) + v);
+    }
+    let width = ((period / dt).round() as usize).max(1);
+    let mut held = x[0];
+    let mut j = 0.0;
+    for k in 0..y.len() {
+        let t = k as f64 * dt;
+        while phase + j * period <= t + 1e-9 * dt {
+            let i = (((phase + j * period) / dt).round() as usize).min(x.len() - 1);
+            let a = (i + 1).saturating_sub(width);
+            held = (pre[i + 1] - pre[a]) / (i + 1 - a) as f64;
+            j += 1.0;
+        }
+        y[k] = held;
+    }
+}
+
+/// Second-order sensor with its own natural frequency `ω_n = 1/τ` and damping ratio `ζ`
+/// (a load cell's mechanical resonance, an amplifier's two-pole filter):
+/// `ÿ + 2ζω_n·ẏ + ω_n²·y = ω_n²·x`, from rest at `y_0 = x_0`, the input linear between samples,
+/// integrated by RK4 with at least 8 substeps per `τ` (at most 256 per sample: every loop is
+/// bounded). `ζ < 1` rings (underdamped), `ζ = 1` is the critically damped two-pole lag. A
+/// sensor whose fastest pole needs more than 256 substeps is far above the sample rate: it is
+/// replaced by its low-frequency equivalent, a one-pole lag of `2ζτ`.
+pub fn second_order_sensor(x: &[f64], tau: f64, zeta: f64, dt: f64, y: &mut [f64]) {
+    if x.is_empty() {
+        return;
+    }
+    if tau <= 0.0 {
+        y.copy_from_slice(x);
+        return;
+    }
+    let wn = 1.0 / tau;
+    let fastest = (wn * (zeta.abs() + (zeta * zeta + 1.0).sqrt())).max(wn);
+    let need = (dt * fastest * 8.0).ceil();
+    if need.is_nan() || need > 256.0 {
+        first_order_lag(x, 2.0 * zeta * tau, dt, y);
+        return;
+    }
+    let sub = (need as usize).max(1);
+    let h = dt / sub as f64;
+    let f = |u: f64, p: f64, v: f64| -> (f64, f64) { (v, wn * wn * (u - p) - 2.0 * zeta * wn * v) };
+    let (mut p, mut v) = (x[0], 0.0);
+    y[0] = x[0];
+    for k in 1..x.len() {
+        let (x0, x1) = (x[k - 1], x[k]);
+        for i in 0..sub {
+            let u = |s: f64| x0 + (x1 - x0) * ((i as f64 + s) / sub as f64);
+            let (k1p, k1v) = f(u(0.0), p, v);
+            let (k2p, k2v) = f(u(0.5), p + 0.5 * h * k1p, v + 0.5 * h * k1v);
+            let (k3p, k3v) = f(u(0.5), p + 0.5 * h * k2p, v + 0.5 * h * k2v);
+            let (k4p, k4v) = f(u(1.0), p + h * k3p, v + h * k3v);
+            p += h / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p);
+            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+        }
+        y[k] = p;
+    }
+}
+
+/// Period and phase `(period, phase)` (s) of a held channel from its **update instants read off
+/// single-sample jumps**, with noise after the hold (so no value repeats exactly) and with
+/// updates that change nothing (the input at rest). A hold changes by a period's worth of
+/// motion at each update and by noise in between: a difference `Δ_k = x_k − x_{k−1}` more than
+/// 5 robust standard deviations (the differences' MAD, dominated by the noise) from zero and
+/// more than 3× both neighbours is an update. The intervals between updates are whole
+/// multiples of the period (updates at rest are not seen): with the median interval as a first
+/// period, each instant gets its update count, and `t_j = phase + n_j·period` is fitted by least
+/// squares, twice (the second time without instants more than a sample off the line). `None`
+/// when fewer than 8 updates are found, when they are not isolated single samples (a continuous
+/// signal moving fast), when fewer than 80 % of the intervals are whole multiples of the period,
+/// or when the period is below 2 samples.
+pub fn hold_from_jumps(x: &[f64], dt: f64) -> Option<(f64, f64)> {
+    let n = x.len();
+    if n < 32 || dt.is_nan() || dt <= 0.0 {
+        return None;
+    }
+    let d: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
+    let mut abs: Vec<f64> = d.iter().map(|v| v.abs()).collect();
+    abs.sort_by(f64::total_cmp);
+    let s = 1.4826 * abs[abs.len() / 2];
+    if !(s > 0.0 && s.is_finite()) {
+        return None;
+    }
+    let m = d.len();
+    let events: Vec<f64> = (0..m)
+        .filter(|&k| {
+            let a = d[k].abs();
+            let left = if k > 0 { d[k - 1].abs() } else { 0.0 };
+            let right = if k + 1 < m { d[k + 1].abs() } else { 0.0 };
+            a > 5.0 * s && a > 3.0 * left && a > 3.0 * right
+        })
+        .map(|k| (k + 1) as f64) // the jump into sample k + 1
+        .collect();
+    if events.len() < 8 {
+        return None;
+    }
+    let mut gaps: Vec<f64> = events.windows(2).map(|w| w[1] - w[0]).collect();
+    gaps.sort_by(f64::total_cmp);
+    let p0 = gaps[gaps.len() / 2];
+    if p0 < 2.0 {
+        return None;
+    }
+    let whole = events
+        .windows(2)
+        .filter(|w| {
+            let g = w[1] - w[0];
+            (g - (g / p0).round().max(1.0) * p0).abs() <= 1.0_f64.max(0.02 * g)
+        })
+        .count();
+    if (whole as f64) < 0.8 * (events.len() - 1) as f64 {
+        return None;
+    }
+    // update counts from the local intervals, then a line through (n_j, t_j); the counts are
+    // taken again with the fitted period (a median interval of 14 samples for a 13.5-sample
+    // hold counts a 175-sample interval as 13 updates instead of 13), twice
+    let counts_for = |p: f64| -> Vec<f64> {
+        let mut counts = vec![0.0; events.len()];
+        for j in 1..events.len() {
+            counts[j] = counts[j - 1] + ((events[j] - events[j - 1]) / p).round().max(1.0);
+        }
+        counts
+    };
+    let line = |counts: &[f64], keep: &dyn Fn(usize) -> bool| -> Option<(f64, f64)> {
+        let idx: Vec<usize> = (0..events.len()).filter(|&j| keep(j)).collect();
+        let k = idx.len() as f64;
+        let (sn, st) = idx
+            .iter()
+            .fold((0.0, 0.0), |(a, b), &j| (a + counts[j], b + events[j]));
+        let (snn, snt) = idx.iter().fold((0.0, 0.0), |(a, b), &j| {
+            (a + counts[j] * counts[j], b + counts[j] * events[j])
+        });
+        let den = k * snn - sn * sn;
+        (den > 0.0).then(|| {
+            let period = (k * snt - sn * st) / den;
+            (period, (st - period * sn) / k)
+        })
+    };
+    // a first period from the short intervals alone (at most 4 updates: a median of 14 samples
+    // for a 13.5-sample hold counts a 1,134-sample interval as 81 updates instead of 84)
+    let (sum_g, sum_n) = events.windows(2).fold((0.0, 0.0), |(g, n), w| {
+        let gap = w[1] - w[0];
+        let k = (gap / p0).round().max(1.0);
+        if k <= 4.0 {
+            (g + gap, n + k)
+        } else {
+            (g, n)
+        }
+    });
+    let mut period = if sum_n > 0.0 { sum_g / sum_n } else { p0 };
+    let mut first = events[0];
+    for _ in 0..3 {
+        let counts = counts_for(period);
+        let (p1, f1) = line(&counts, &|_| true)?;
+        let (p2, f2) = line(&counts, &|j| (events[j] - f1 - p1 * counts[j]).abs() <= 1.0)?;
+        if !p2.is_finite() || p2 < 2.0 {
+            return None;
+        }
+        (period, first) = (p2, f2);
+    }
+    // samples → seconds; the update seen at sample k was taken in (t_{k−1}, t_k]
+    let (period, first) = (period * dt, first * dt);
+    Some((period, (first - 0.5 * dt).rem_euclid(period)))
+}
+
 /// Period and phase `(period, phase)` (s) of a sample-and-hold in a measured channel, read
 /// off the **energy of its sample-to-sample jumps**, so that noise added after the hold (the
 /// amplifier, the ADC) does not hide it: `None` when no periodic jump pattern stands out.
@@ -405,6 +582,119 @@ mod tests {
         }
         let (p, _) = hold_period(&y, dt, 1.0).expect("hold found");
         assert!((p - 0.1003).abs() < 0.05 * dt, "period {p}");
+    }
+
+    /// A smooth signal with dwells, held every `period` s from `phase`, noise after the hold.
+    fn held_with_noise_after(period: f64, phase: f64, averaging: bool) -> (Vec<f64>, f64) {
+        let dt = 1e-3;
+        let n = 20_000;
+        let x: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 * dt;
+                // point-to-point sweeps with dwells: the held value often does not change
+                20.0 + 8.0 * (0.4 * t).sin().powi(3) + 1.5 * (2.3 * t).sin()
+            })
+            .collect();
+        let mut y = vec![0.0; n];
+        if averaging {
+            sample_hold_mean(&x, period, phase, dt, &mut y);
+        } else {
+            sample_hold(&x, period, phase, dt, &mut y);
+        }
+        let mut seed = 12345u64;
+        for v in y.iter_mut() {
+            // a small LCG-driven sum of uniforms: roughly Gaussian noise of sd 0.02
+            let mut u = 0.0;
+            for _ in 0..4 {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                u += (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            }
+            *v += 0.02 * u * 3.0_f64.sqrt();
+        }
+        (y, dt)
+    }
+
+    #[test]
+    fn hold_from_jumps_finds_long_holds_under_noise_after_the_hold() {
+        for (period, phase, averaging) in [
+            (0.1, 0.0, false),
+            (0.0823, 0.031, false),
+            (0.25, 0.1, true),
+            (0.03, 0.011, true),
+        ] {
+            let (y, dt) = held_with_noise_after(period, phase, averaging);
+            let (p, ph) = hold_from_jumps(&y, dt).unwrap_or_else(|| panic!("{period}: no hold"));
+            // over 20 s the period must be known to a small fraction of a sample's drift
+            assert!(
+                (p - period).abs() * 20.0 / period < 0.5 * dt,
+                "{period}: {p}"
+            );
+            let err = (ph - phase + 0.5 * period).rem_euclid(period) - 0.5 * period;
+            assert!(
+                err.abs() <= 0.5 * dt + 1e-9,
+                "{period}: phase {ph} vs {phase}"
+            );
+        }
+        // a continuous signal moving smoothly has no isolated jumps: not a hold
+        let dt = 1e-3;
+        let smooth: Vec<f64> = (0..20_000)
+            .map(|k| 20.0 + 8.0 * (0.4 * k as f64 * dt).sin().powi(3))
+            .collect();
+        assert_eq!(hold_from_jumps(&smooth, dt), None);
+    }
+
+    #[test]
+    fn averaging_hold_reports_the_window_mean() {
+        let dt = 1e-3;
+        let x: Vec<f64> = (0..1000).map(|k| k as f64 * dt).collect(); // a ramp
+        let mut y = vec![0.0; x.len()];
+        sample_hold_mean(&x, 0.1, 0.05, dt, &mut y);
+        // the update at t = 0.15 s reports the mean of the ramp over (0.05, 0.15]: 0.1005
+        assert!((y[160] - 0.1005).abs() < 1e-12, "{}", y[160]);
+        assert_eq!(y[10], x[0]);
+        // an instantaneous hold reports 0.15 there: the mean lags by half a period
+        let mut z = vec![0.0; x.len()];
+        sample_hold(&x, 0.1, 0.05, dt, &mut z);
+        assert!((z[160] - y[160] - 0.0495).abs() < 1e-12);
+    }
+
+    #[test]
+    fn second_order_sensor_rings_at_its_frequency_and_settles_on_a_step() {
+        let dt = 1e-3;
+        let x: Vec<f64> = (0..2000).map(|k| if k < 10 { 0.0 } else { 1.0 }).collect();
+        let mut y = vec![0.0; x.len()];
+        let (fnat, zeta) = (25.0, 0.2);
+        second_order_sensor(&x, 1.0 / (std::f64::consts::TAU * fnat), zeta, dt, &mut y);
+        // overshoot exp(−ζπ/√(1−ζ²)) of the step
+        let peak = y.iter().copied().fold(f64::MIN, f64::max);
+        let want = (-zeta * std::f64::consts::PI / (1.0 - zeta * zeta).sqrt()).exp();
+        assert!(
+            (peak - 1.0 - want).abs() < 0.01,
+            "overshoot {} vs {want}",
+            peak - 1.0
+        );
+        // the first peak at half the damped period after the step
+        let k_peak = y.iter().position(|&v| v == peak).unwrap();
+        let td = 1.0 / (fnat * (1.0 - zeta * zeta).sqrt());
+        assert!(
+            ((k_peak - 10) as f64 * dt - 0.5 * td).abs() < 2.0 * dt,
+            "{k_peak}"
+        );
+        assert!((y[1999] - 1.0).abs() < 1e-6);
+        // ζ = 1 with τ equals two cascaded first-order lags of τ
+        let ramp: Vec<f64> = (0..500).map(|k| (k as f64 * 0.01).sin()).collect();
+        let (mut a, mut b, mut c) = (vec![0.0; 500], vec![0.0; 500], vec![0.0; 500]);
+        second_order_sensor(&ramp, 0.02, 1.0, dt, &mut a);
+        first_order_lag(&ramp, 0.02, dt, &mut b);
+        first_order_lag(&b, 0.02, dt, &mut c);
+        let err = a
+            .iter()
+            .zip(&c)
+            .map(|(p, q)| (p - q).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-4, "{err}"); // the cascade is exact only for piecewise-linear input
     }
 
     #[test]

@@ -168,11 +168,17 @@ pub enum Form {
     SecondOrder,
     /// The cable law's stiffness off by a factor `1 + ε_k` (standard: exponential hardening).
     Scale,
+    /// A second-order sensor with its own natural frequency and damping ratio (a load cell's
+    /// mechanical resonance): it may ring (standard: one pole).
+    Resonant,
+    /// An integrating converter (HX711, sigma-delta): each report is the mean over its
+    /// conversion window (standard: the instantaneous value is held).
+    Averaging,
 }
 
 impl Form {
     /// `"standard"`, `"load_dependent"`, `"generalised"`, `"whole"`, `"cubic"`, `"second_order"`,
-    /// `"scale"`.
+    /// `"scale"`, `"resonant"`, `"averaging"`.
     pub fn name(self) -> &'static str {
         match self {
             Form::Standard => "standard",
@@ -182,6 +188,8 @@ impl Form {
             Form::Cubic => "cubic",
             Form::SecondOrder => "second_order",
             Form::Scale => "scale",
+            Form::Resonant => "resonant",
+            Form::Averaging => "averaging",
         }
     }
 
@@ -195,13 +203,16 @@ impl Form {
             Form::Cubic,
             Form::SecondOrder,
             Form::Scale,
+            Form::Resonant,
+            Form::Averaging,
         ]
         .into_iter()
         .find(|f| f.name() == name)
         .ok_or_else(|| CableError::InvalidOption {
             name: "form".into(),
             value: name.into(),
-            allowed: "standard, load_dependent, generalised, whole, cubic, second_order, scale"
+            allowed: "standard, load_dependent, generalised, whole, cubic, second_order, scale, \
+                      resonant, averaging"
                 .into(),
         })
     }
@@ -323,8 +334,9 @@ impl Candidate {
                     v.extend(sensors(&[Form::Standard]));
                     v
                 }
-                SensorLag => sensors(&[Form::Standard, Form::SecondOrder]),
-                SensorSampling | SensorGainBias => sensors(&[Form::Standard]),
+                SensorLag => sensors(&[Form::Standard, Form::SecondOrder, Form::Resonant]),
+                SensorSampling => sensors(&[Form::Standard, Form::Averaging]),
+                SensorGainBias => sensors(&[Form::Standard]),
                 _ => vec![],
             };
         }
@@ -367,7 +379,9 @@ impl Candidate {
                 );
                 v
             }
-            Backlash => vec![c(Site::Input)],
+            // in the input path (a coupling, a drum with loose turns) or between the joint
+            // pulley and the link (a hub's clearance)
+            Backlash => vec![c(Site::Input), c(Site::Joint)],
             Coupling if ctx.coupled => vec![c(Site::Input)],
             TimeDelay => {
                 let mut v = vec![c(Site::Input)];
@@ -380,8 +394,9 @@ impl Candidate {
                 );
                 v
             }
-            SensorLag => sensors(&[Form::Standard, Form::SecondOrder]),
-            SensorSampling | SensorGainBias => sensors(&[Form::Standard]),
+            SensorLag => sensors(&[Form::Standard, Form::SecondOrder, Form::Resonant]),
+            SensorSampling => sensors(&[Form::Standard, Form::Averaging]),
+            SensorGainBias => sensors(&[Form::Standard]),
             _ => vec![],
         }
     }
@@ -445,6 +460,16 @@ impl Candidate {
                 "a stiffness other than the nominal (a compliant stage in series)"
             }
             (Effect::SensorLag, Form::SecondOrder) => "second-order (critically damped) lag",
+            (Effect::Backlash, _) if self.site == Site::Joint => {
+                "play between the joint pulley and the link (the link's share of the inertia \
+                 beyond a clearance)"
+            }
+            (Effect::SensorLag, Form::Resonant) => {
+                "a second-order sensor with its own resonance (natural frequency and damping)"
+            }
+            (Effect::SensorSampling, Form::Averaging) => {
+                "an integrating converter that reports the mean over each conversion window and holds it"
+            }
             (e, _) => e.description(),
         };
         format!("{what} {}", self.site.phrase(channel_name))

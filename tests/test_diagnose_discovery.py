@@ -1,0 +1,248 @@
+"""Issue #36: the blind-benchmark scorer, discrepancy discovery, the schema-3 verdict fields and
+the new sensor forms, each against what a wrong implementation would get wrong."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cablekit._cablekit import effect_catalogue
+from cablekit.diagnose import Options, diagnose
+from cablekit.diagnose.benchmark import _score, _truth, format_benchmark, run_benchmark
+from cablekit.diagnose.data import write_csv
+from cablekit.diagnose.discover import KINDS, describe_remaining, discover, signature_missing
+from cablekit.diagnose.fit import baseline
+from cablekit.diagnose.localise import smooth_velocity
+from cablekit.diagnose.prepare import prepare
+from cablekit.diagnose.report import to_json, validate
+from cablekit.diagnose.selftest import make_case
+from cablekit.diagnose.spec import write_model_toml
+from cablekit.errors import DataError
+
+# ---- the benchmark scorer ------------------------------------------------------------------------
+
+
+def _doc(top: tuple[str, str], verdict: str, selected: list[tuple[str, str]], closed: float = 0.9) -> dict:
+    """A minimal diagnosis document: the first-ranked (name, site) and the selected ones."""
+    effects = [{"name": top[0], "site": top[1], "id": f"{top[0]}@{top[1]}", "status": "converged"}]
+    for name, site in selected:
+        if f"{name}@{site}" != effects[0]["id"]:
+            effects.append({"name": name, "site": site, "id": f"{name}@{site}", "status": "converged"})
+    return {
+        "effects": effects,
+        "selected": {"effects": [f"{n}@{s}" for n, s in selected], "held_out": {"closed_fraction": closed}},
+        "verdict": verdict,
+        "gap": {"held_out": 50.0, "significant": verdict != "no_significant_gap"},
+    }
+
+
+def test_scoring_rules_follow_the_benchmark_readme():
+    one = ["time_delay"]
+    site = {"time_delay": "sensors.force"}
+    ok = _score("c", one, site, True, _doc(("time_delay", "sensors.force"), "explained", []), 1.0)
+    assert ok.correct and ok.site_correct and ok.kind == "single"
+    # right effect, wrong site: the effect counts, the site does not
+    wrong_site = _score("c", one, site, True, _doc(("time_delay", "input"), "explained", []), 1.0)
+    assert wrong_site.correct and wrong_site.site_correct is False
+    # the right name with no significant gap does not count
+    assert not _score(
+        "c", one, site, True, _doc(("time_delay", "input"), "no_significant_gap", []), 1
+    ).correct
+    # a pair: top-1 one of the two; both found only when each is selected
+    pair = ["coulomb_friction", "sensor_lag"]
+    half = _doc(("sensor_lag", "sensors.force"), "explained", [("sensor_lag", "sensors.force")])
+    both = _doc(
+        ("sensor_lag", "sensors.force"),
+        "explained",
+        [("sensor_lag", "sensors.force"), ("coulomb_friction", "joint")],
+    )
+    assert (
+        _score("p", pair, {}, True, half, 1).correct and not _score("p", pair, {}, True, half, 1).both_found
+    )
+    assert _score("p", pair, {}, True, both, 1).both_found
+    # a control is clean only with no gap and nothing selected
+    assert _score("k", [], {}, True, _doc(("creep", "cable.both"), "no_significant_gap", []), 1).correct
+    assert not _score(
+        "k", [], {}, True, _doc(("creep", "cable.both"), "explained", [("creep", "cable.both")]), 1
+    ).correct
+    # outside the library: honest unless claimed explained
+    out = _doc(("creep", "cable.both"), "partially_explained", [("creep", "cable.both")])
+    assert _score("o", [], {}, False, out, 1).correct
+    out["verdict"] = "explained"
+    assert not _score("o", [], {}, False, out, 1).correct
+
+
+def test_truth_files_are_read_with_their_sites_and_refused_when_broken(tmp_path: Path):
+    d = tmp_path / "case01"
+    d.mkdir()
+    (d / "truth.json").write_text(json.dumps({"effects": {"a": {}, "b": {}}, "site": ["joint", "input"]}))
+    names, sites, in_lib = _truth(d)
+    assert names == ["a", "b"] and sites == {"a": "joint", "b": "input"} and in_lib
+    (d / "truth.json").write_text(json.dumps({"effects": {"none_of_library": {}}, "in_library": False}))
+    assert _truth(d) == ([], {}, False)
+    for bad in ["{", json.dumps({"effects": [1, 2]}), json.dumps({"nothing": 1})]:
+        (d / "truth.json").write_text(bad)
+        with pytest.raises(DataError, match="truth"):
+            _truth(d)
+    with pytest.raises(DataError, match="not a benchmark folder"):
+        run_benchmark(tmp_path / "missing")
+    with pytest.raises(DataError, match="no case"):
+        run_benchmark(tmp_path, ["case99"])
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    st.one_of(
+        st.binary(max_size=200),
+        st.recursive(
+            st.none() | st.booleans() | st.floats() | st.text(max_size=8),
+            lambda c: st.lists(c, max_size=3) | st.dictionaries(st.text(max_size=8), c, max_size=3),
+            max_leaves=10,
+        ).map(lambda v: json.dumps({"effects": v}).encode()),
+    )
+)
+def test_any_truth_file_is_read_or_refused_with_a_data_error(tmp_path_factory, content: bytes):
+    d = tmp_path_factory.mktemp("b") / "case00"
+    d.mkdir()
+    (d / "truth.json").write_bytes(content)
+    try:
+        names, sites, in_lib = _truth(d)
+    except DataError:
+        return
+    assert all(isinstance(n, str) for n in names) and isinstance(in_lib, bool) and isinstance(sites, dict)
+
+
+@pytest.fixture(scope="module")
+def tiny_benchmark(tmp_path_factory) -> Path:
+    """Two cases in the benchmark layout: a withheld gain error and a control."""
+    root = tmp_path_factory.mktemp("bench")
+    for name, effects, seed in (("case00", ("sensor_gain_bias",), 3), ("case01", (), 11)):
+        case = make_case(effects, seed=seed, duration=4.0)
+        d = root / name
+        d.mkdir()
+        write_csv(case.fit[0], d / "fit.csv")
+        write_csv(case.hold[0], d / "holdout.csv")
+        write_model_toml(case.spec, d / "model.toml")
+        (d / "truth.json").write_text(json.dumps({"effects": {e: {} for e in effects}}))
+    return root
+
+
+def test_a_benchmark_folder_is_diagnosed_and_scored(tiny_benchmark: Path, tmp_path: Path):
+    res = run_benchmark(
+        tiny_benchmark, out=tmp_path, options=Options(progress=False, bootstrap=300), progress=False
+    )
+    by = {c.case: c for c in res.cases}
+    assert by["case00"].top1_effect == "sensor_gain_bias" and by["case00"].correct
+    assert by["case01"].verdict == "no_significant_gap" and by["case01"].correct
+    assert res.top1 == (1, 1) and res.controls_clean == (1, 1)
+    table = format_benchmark(res)
+    assert "top-1 1/1" in table and "controls clean 1/1" in table
+    doc = res.to_json()
+    assert doc["scores"]["top1"] == [1, 1] and len(doc["cases"]) == 2
+    assert (tmp_path / "case00.json").exists()
+    validate(json.loads((tmp_path / "case00.json").read_text()))
+
+
+# ---- discrepancy discovery -------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def control_prep():
+    case = make_case((), seed=11, duration=5.0)
+    prep = prepare(case.spec, case.fit, case.hold)
+    return prep, baseline(prep)
+
+
+def _inject(prep, base, make) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The control's residuals plus ``make(run, start)`` (noise units) on every channel."""
+
+    def add(runs, resid):
+        out = []
+        for run, r in zip(runs, resid, strict=True):
+            start = len(run) - r.shape[0]
+            out.append(r + make(run, start)[:, None])
+        return out
+
+    return add(prep.fit_runs, base.fit_resid), add(prep.hold_runs, base.hold_resid)
+
+
+def test_discovery_finds_the_kind_it_was_given_and_nothing_in_noise(control_prep):
+    prep, base = control_prep
+    assert discover(prep, base.fit_resid, base.hold_resid) == []  # a control: noise only
+    col = prep.spec.inputs[0]
+
+    def acceleration(run):
+        # the acceleration as the library builds it (smoothed velocity, differentiated)
+        return np.gradient(smooth_velocity(run.column(col), run.dt), run.dt)
+
+    gain = 20.0 / float(np.std(acceleration(prep.fit_runs[0])))  # one physical coefficient
+
+    def accel(run, start):
+        return gain * acceleration(run)[start:]
+
+    def drift(run, start):
+        t = run.t - run.t[0]
+        return 8.0 * (t / t[-1])[start:]
+
+    for make, kind in ((accel, "acceleration"), (drift, "drift")):
+        fit, hold = _inject(prep, base, make)
+        terms = discover(prep, fit, hold)
+        assert terms, kind
+        first = {t.channel: t.kind for t in reversed(terms)}
+        assert set(first.values()) == {kind}, terms
+        assert all(t.held_out_share > 0.5 for t in terms if t.kind == kind)
+    # creep's signature is a memory or a drift; a gap that follows acceleration lacks it
+    fit, hold = _inject(prep, base, accel)
+    assert signature_missing("creep", discover(prep, fit, hold))
+    fit, hold = _inject(prep, base, drift)
+    assert not signature_missing("creep", discover(prep, fit, hold))
+    assert not signature_missing("coulomb_friction", [])  # only flexible effects need one
+
+
+@given(st.lists(st.tuples(st.sampled_from(sorted(KINDS)), st.floats(allow_nan=True)), max_size=6))
+def test_remaining_structure_is_described_only_above_its_share(items):
+    from cablekit.diagnose.discover import DiscoveredTerm
+
+    terms = [DiscoveredTerm("ch", k, v, KINDS[k]) for k, v in items]
+    out = describe_remaining(terms)
+    assert len(out) == sum(1 for _, v in items if v >= 0.2)
+    assert all(s.startswith("the remaining gap on ch follows ") for s in out)
+
+
+# ---- schema 3 and the new forms ----------------------------------------------------------------------
+
+
+def test_new_forms_are_offered_with_their_parameters():
+    case = make_case(("sensor_lag",), seed=5, duration=4.0)
+    prep = prepare(case.spec, case.fit, case.hold)
+    ids = set(prep.candidates)
+    assert "sensor_lag@sensors.force/resonant" in ids
+    assert "sensor_sampling@sensors.force/averaging" in ids
+    specs = prep.fit0.with_effects(["sensor_lag@sensors.force/resonant"], 1).param_specs()
+    assert [s.name for s in specs] == ["tau_s", "zeta"]
+    assert {e["name"] for e in effect_catalogue()} >= {"sensor_lag", "sensor_sampling"}
+
+
+def test_schema_three_fields_round_trip_and_verdicts_are_documented():
+    case = make_case(("sensor_gain_bias",), seed=3, duration=4.0)
+    res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=300))
+    doc = json.loads(json.dumps(to_json(res)))
+    validate(doc)
+    assert doc["schema"] == "cablekit.diagnosis/3"
+    for key in ("discovery", "unexplained", "ambiguity", "vetoed"):
+        assert key in doc
+    assert {"nominal", "remaining"} <= set(doc["discovery"])
+    # the nominal gap of a gain error follows the channels' own level or an offset
+    kinds = {t["kind"] for t in doc["discovery"]["nominal"]}
+    assert kinds & {"level", "offset"}, kinds
+    assert type(res).from_json(doc).to_json() == doc
+    bad = dict(doc, verdict="confident")
+    with pytest.raises(ValueError, match="verdict"):
+        validate(bad)
+    assert not math.isnan(res.selected.held_out.closed_fraction)
