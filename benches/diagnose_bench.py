@@ -4,9 +4,10 @@
 Cases: by default the regression self-test's slowest effects (friction and hysteresis need the
 most RK4 substeps), a pair and a control, plus the independent self-test's CI subset and its
 slowest cases (pretension loss, LuGre and Tustin friction: kinks and sharp friction), each with the
-seed its self-test draws it with (the regression cases at 20 s instead of 8 s); ``--all`` runs every
-case of both self-tests (~15 min). Prints each case and the distribution (min, median, 90th
-percentile, max); exit 1 if the slowest is over budget.
+seed its self-test draws it with (the regression cases at 20 s instead of 8 s), and benchmark A's
+slowest cases (friction, and the friction + lag pair) when ``../shared`` is beside the checkout;
+``--all`` runs every case of both self-tests and of benchmark A (~20 min). Prints each case and
+the distribution (min, median, 90th percentile, max); exit 1 if the slowest is over budget.
 
 Usage (release build installed): python benches/diagnose_bench.py [--all]
 """
@@ -31,6 +32,8 @@ from cablekit.diagnose import selftest_transmission as tx  # noqa: E402
 from cablekit.diagnose.selftest import CONTROLS, PAIRS, SINGLE, make_case  # noqa: E402
 
 REGRESSION = [("dahl_hysteresis",), ("coulomb_friction", "sensor_lag"), ("sensor_sampling",), ()]
+#: benchmark A's slowest cases (issue #36 §5): sharp Coulomb friction, Stribeck, and the pair
+BENCHMARK_A = ["case00", "case01", "case13"]
 INDEPENDENT = [
     *si.CI_SUBSET,
     "slack@cable.both/lost_pretension",
@@ -79,6 +82,17 @@ def main() -> int:
         dt, what = _time(case.spec, case.fit, case.hold)
         times.append(dt)
         print(f"independent {label:<52} {dt:6.1f} s  {what}", flush=True)
+    bench = ROOT.parent / "shared" / "benchmarks" / "blind_joint_a"
+    if bench.is_dir():
+        from cablekit.diagnose import load_model_spec, load_run
+
+        for d in sorted(p for p in bench.iterdir() if (p / "truth.json").exists()):
+            if not args.all and d.name not in BENCHMARK_A:
+                continue
+            spec = load_model_spec(d / "model.toml")
+            dt, what = _time(spec, [load_run(d / "fit.csv.gz")], [load_run(d / "holdout.csv.gz")])
+            times.append(dt)
+            print(f"benchmark A {d.name:<52} {dt:6.1f} s  {what}", flush=True)
     t = np.array(times)
     worst = float(t.max())
     ok = worst <= budget
