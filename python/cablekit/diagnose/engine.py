@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from cablekit.diagnose import localise
 from cablekit.diagnose.data import Run, common_interval
-from cablekit.diagnose.discover import describe_remaining, discover, signature_missing
+from cablekit.diagnose.discover import DOMINANT, SIGNATURES, describe_remaining, discover, signature_missing
 from cablekit.diagnose.fit import CandidateFit, baseline, parameters_out
 from cablekit.diagnose.identifiability import identifiability, separating_experiment
 from cablekit.diagnose.intervals import refit_intervals
@@ -160,9 +160,10 @@ def diagnose(
                     "id": k,
                     "reason": f"closes {scores[k]['closed_fraction']:.0%} of the held-out gap, but the gap "
                     "follows "
-                    + ", ".join(sorted({t.kind for t in nominal_terms if t.held_out_share >= 0.3}))
-                    + " (discrepancy discovery), which creep cannot produce, and no memory, drift, "
-                    f"offset or level; {rivals[0]} explains it comparably",
+                    + ", ".join(sorted({t.kind for t in nominal_terms if t.held_out_share >= DOMINANT}))
+                    + f" (discrepancy discovery), which {name} cannot produce, and no "
+                    + ", ".join(sorted(SIGNATURES[name]))
+                    + f"; {rivals[0]} explains it comparably",
                 }
             )
     if vetoed:
@@ -198,7 +199,7 @@ def diagnose(
         else []
     )
     unexplained = describe_remaining(remaining_terms) if total["closed_fraction"] < 0.9 or not chosen else []
-    ambiguity = _ambiguity(chosen, ranked, fits, scores, notes, prep, better) if chosen else None
+    ambiguity = _ambiguity(chosen, fits, scores, notes, prep, better) if chosen else None
     flags = [
         f"the selected effects make channel {c['channel']} worse on held-out data "
         f"(gap {c['gap_before']:.3g} -> {c['gap_after']:.3g}, {c['change']:+.0%})"
@@ -339,7 +340,6 @@ def diagnose(
 
 def _ambiguity(
     chosen: list[str],
-    ranked: list[str],
     fits: dict[str, CandidateFit],
     scores: dict[str, dict[str, Any]],
     notes: dict[str, list[dict[str, Any]]],
