@@ -246,3 +246,80 @@ def test_schema_three_fields_round_trip_and_verdicts_are_documented():
     with pytest.raises(ValueError, match="verdict"):
         validate(bad)
     assert not math.isnan(res.selected.held_out.closed_fraction)
+
+
+# ---- screening on the head of the runs, the provisional first pick --------------------------------
+
+
+@pytest.fixture(scope="module")
+def viscous_prep():
+    case = make_case(("viscous_friction",), seed=5, duration=6.0)
+    return prepare(case.spec, case.fit, case.hold)
+
+
+def test_a_screen_on_the_head_is_scored_on_the_whole_runs(viscous_prep):
+    """A screening fit searches the first seconds only, but its cost and residuals are the whole
+    fit runs' (what the shortlist ranks), its held-out residuals are the held-out runs', and it
+    claims no standard errors; a wrong implementation would rank screens by the head's cost."""
+    from cablekit.diagnose.fit import fit_candidate
+
+    prep = viscous_prep
+    full = fit_candidate(prep, ["viscous_friction@joint"], max_iter=20)
+    head = fit_candidate(prep, ["viscous_friction@joint"], max_iter=20, head_s=2.0)
+    n_fit = [r.shape for r in full.fit_resid]
+    assert [r.shape for r in head.fit_resid] == n_fit
+    assert [r.shape for r in head.hold_resid] == [r.shape for r in full.hold_resid]
+    r = np.concatenate([x.ravel() for x in head.fit_resid])
+    assert head.cost == pytest.approx(0.5 * float(r @ r), rel=1e-12)
+    assert np.all(np.isnan(head.param_sd)) and np.all(np.isfinite(full.param_sd))
+    # one viscous coefficient is well determined by 2 s of a 6 s run: the same answer
+    assert head.params[0] == pytest.approx(full.params[0], rel=0.05)
+    # the core's head: fewer residuals, or None when a run is too short to cut
+    problem = prep.fit0.with_effects(["viscous_friction@joint"], prep.substeps)
+    cut = problem.head(2.0)
+    assert cut is not None and cut.n_residuals < problem.n_residuals
+    assert problem.head(1e4) is None
+    with pytest.raises(ValueError):
+        problem.head(float("nan"))
+    with pytest.raises(ValueError):
+        problem.fit(None, max_iter=2, atol=-1.0)
+
+
+def _fake_fit(effects: list[str], hold: list[np.ndarray]):
+    from cablekit.diagnose.fit import CandidateFit
+
+    return CandidateFit(effects, np.zeros(1), [], 1, True, [], hold, 0.0, np.zeros(1), 1)
+
+
+def test_the_first_pick_is_provisional_only_among_equivalents():
+    """Equivalent first picks (another effect, held-out closure within 5 points, neither
+    significantly better) are carried into round 2; a clearly worse one, one of the same effect,
+    or one that is not significant is not."""
+    from types import SimpleNamespace
+
+    from cablekit.diagnose.select import _equivalents, compare
+
+    rng = np.random.default_rng(3)
+    n = 20000
+    noise = [rng.normal(size=(n, 2))]
+    base = [noise[0] * 3.0]  # gap 9
+    a = [noise[0] * 1.30 + 0.05 * rng.normal(size=(n, 2))]
+    twin = [noise[0] * 1.30 + 0.05 * rng.normal(size=(n, 2))]
+    worse = [noise[0] * 2.0]
+    ids = {"a": "lag", "twin": "inertia", "same": "lag", "worse": "damping"}
+    info = {k: {"effect": v} for k, v in ids.items()}
+    fits = {
+        "a": _fake_fit(["a"], a),
+        "twin": _fake_fit(["twin"], twin),
+        "same": _fake_fit(["same"], twin),
+        "worse": _fake_fit(["worse"], worse),
+    }
+    from cablekit.diagnose.prepare import Options
+
+    opts = Options(progress=False)
+    scores = {k: compare(base, f.hold_resid, 1e-3, opts, rng) for k, f in fits.items()}
+    prep = SimpleNamespace(info=info)
+    got = _equivalents(prep, fits["a"], list(fits.values()), fits, scores, 1e-3, opts, rng, most=3)
+    assert got == ["twin"]
+    scores["twin"]["significant"] = False
+    assert _equivalents(prep, fits["a"], list(fits.values()), fits, scores, 1e-3, opts, rng, most=3) == []

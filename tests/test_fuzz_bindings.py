@@ -238,9 +238,10 @@ def _calls() -> dict[str, Call]:
         physics.calibrated, (motors, np.repeat(tensions, 12, axis=0), np.zeros((24, 2)))
     )
     out["JointProblem.fit"] = Call(
-        lambda th, ftol, max_iter: _problem().fit(th, ftol=ftol, max_iter=max_iter),
-        (_problem().reference(), 1e-8, 3),
+        lambda th, ftol, max_iter, atol: _problem().fit(th, ftol=ftol, max_iter=max_iter, atol=atol),
+        (_problem().reference(), 1e-8, 3, 1e-3),
     )
+    out["JointProblem.head"] = Call(_problem().head, (0.05,))
     from cablekit.cdpr import CdprPlant, PulleyFriction
 
     planar, home = shipped("seed003_planar"), np.array([0.6, 0.5, 0.0])

@@ -304,7 +304,9 @@ class JointProblem:
         threads: int = 1,
         ftol: float = 1e-8,
         xtol: float = 1e-8,
+        atol: float = 0.0,
     ) -> FitReport: ...
+    def head(self, seconds: float) -> JointProblem | None: ...
     def hold_from_updates(self) -> tuple[float, float] | None: ...
 
 @final

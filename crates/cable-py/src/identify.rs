@@ -284,7 +284,8 @@ impl JointProblem {
     }
 
     /// Fit the active effects (bounded Levenberg–Marquardt, GIL released): a `FitReport`.
-    #[pyo3(signature = (theta0 = None, *, max_iter = 60, threads = 1, ftol = 1e-8, xtol = 1e-8))]
+    #[pyo3(signature = (theta0 = None, *, max_iter = 60, threads = 1, ftol = 1e-8, xtol = 1e-8, atol = 0.0))]
+    #[allow(clippy::too_many_arguments)]
     fn fit<'py>(
         &self,
         py: Python<'py>,
@@ -293,17 +294,25 @@ impl JointProblem {
         threads: usize,
         ftol: f64,
         xtol: f64,
+        atol: f64,
     ) -> PyResult<FitReport> {
         let theta0 = theta0.map(|t| any_vector(t, "theta0")).transpose()?;
         let opts = LmOptions {
             max_iter,
             ftol,
+            atol,
             xtol,
             threads,
             ..LmOptions::default()
         };
         let rep = py.detach(|| guarded(|| self.inner.fit(theta0.as_deref(), &opts)))?;
         Ok(FitReport::new(py, rep))
+    }
+
+    /// The same problem on the first `seconds` of every run (after its warm-up), or None when
+    /// every run is shorter than twice that: a cheap objective for screening fits.
+    fn head(&self, seconds: f64) -> PyResult<Option<Self>> {
+        Ok(guarded(|| self.inner.head(seconds))?.map(|inner| Self { inner }))
     }
 
     /// Sample-and-hold `(period, phase)` read off the measured update instants of the first

@@ -178,6 +178,9 @@ def diagnose(
     if gap_significant:
         sel = refine_forms(prep, sel, fits, scores, opts, rng)
     chosen, steps, current = sel.chosen, sel.steps, sel.current
+    # the named effects first, in the order they were selected (a provisional first pick that
+    # round 2 replaced, or a form revisited, is no longer the diagnosis's first name)
+    ranked = [*chosen, *(k for k in ranked if k not in chosen)]
     total = compare(base.hold_resid, current.hold_resid, dt, opts, rng)
     total_fit = {
         "gap_before": g_fit,

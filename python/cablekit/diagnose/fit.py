@@ -56,12 +56,20 @@ def _split(prep: Prepared, runs: list[Run], r: _F) -> list[_F]:
 
 #: full fits (not screens) with at least this many iterations go on once when they run out
 RETRY_ITER = 20
+#: a fit has converged when two accepted steps in a row each lower the mean squared residual
+#: (noise units) by less than this: 50 times finer than the finest difference any decision of
+#: the diagnosis resolves (5 % of the noise variance)
+GAP_TOL = 1e-3
 
 
 def fit_candidate(
-    prep: Prepared, effects: list[str], theta0: _F | None = None, max_iter: int = 40
+    prep: Prepared, effects: list[str], theta0: _F | None = None, max_iter: int = 40, head_s: float = 0.0
 ) -> CandidateFit:
-    """Fit ``effects`` on the fit runs, then evaluate on the held-out runs (never fitted)."""
+    """Fit ``effects`` on the fit runs, then evaluate on the held-out runs (never fitted).
+
+    With ``head_s > 0`` (a screening fit) the search uses only the first ``head_s`` seconds of
+    every fit run — the cheap objective of the core's global stage — and the candidate is then
+    scored on the whole fit and held-out runs; its parameters get no standard errors."""
     base = prep.fit0.with_effects(effects, prep.substeps)
     specs = base.param_specs()
     start = np.array([s.initial for s in specs]) if theta0 is None else np.asarray(theta0, dtype=np.float64)
@@ -73,21 +81,25 @@ def fit_candidate(
             MAX_SUBSTEPS, max(prep.substeps, base.advised_substeps(start), base.advised_substeps(corner))
         )
         problem = base.with_effects(effects, sub)
+        search = (problem.head(head_s) if head_s > 0 else None) or problem
         # without a start: the core's global stage over every parameter (its starts, or a
         # spread of its own), then the local search from the best points; a warm start (a
         # screen's end, a combination's previous fits) goes straight to the local search
-        res = problem.fit(None if theta0 is None else start, max_iter=max_iter)
+        atol = 0.5 * GAP_TOL * search.n_residuals
+        res = search.fit(None if theta0 is None else start, max_iter=max_iter, atol=atol)
         if not res.converged and max_iter >= RETRY_ITER:
             # a full fit that ran out of iterations goes on once from where it stopped
-            res = problem.fit(res.params, max_iter=max_iter)
+            res = search.fit(res.params, max_iter=max_iter, atol=atol)
         theta = res.params
         need = min(MAX_SUBSTEPS, problem.advised_substeps(theta))
         if need > sub:  # the fitted model is stiffer than the start: refit with enough substeps
             sub = need
             problem = base.with_effects(effects, sub)
-            res = problem.fit(theta, max_iter=max_iter)
+            search = (problem.head(head_s) if head_s > 0 else None) or problem
+            res = search.fit(theta, max_iter=max_iter, atol=0.5 * GAP_TOL * search.n_residuals)
             theta = res.params
-
+        # a screen on the head is scored on the whole fit runs
+        r_fit = res.residuals if search is problem else problem.residuals(theta)
         r_hold = _held_out_residuals(prep, effects, theta, sub)
     except CablekitError as exc:
         return CandidateFit(
@@ -103,10 +115,13 @@ def fit_candidate(
             0,
             error=f"{type(exc).__name__}: {exc}",
         )
-    r_fit = res.residuals
     p = len(theta)
     try:
-        sd = np.sqrt(np.clip(np.diag(_sandwich(prep, res.jacobian, r_fit)), 0.0, None))
+        sd = (
+            np.sqrt(np.clip(np.diag(_sandwich(prep, res.jacobian, r_fit)), 0.0, None))
+            if search is problem
+            else np.full(p, np.nan)
+        )
     except np.linalg.LinAlgError:
         sd = np.full(p, np.nan)
     for j, s in enumerate(specs):
@@ -120,7 +135,7 @@ def fit_candidate(
         bool(res.converged),
         _split(prep, prep.fit_runs, r_fit),
         _split(prep, prep.hold_runs, r_hold),
-        float(res.cost),
+        0.5 * float(r_fit @ r_fit),
         sd,
         int(res.iterations),
         at_bound=bool(np.any(res.at_bound)),
@@ -199,16 +214,23 @@ def baseline(prep: Prepared) -> CandidateFit:
 
 
 def fit_many(
-    prep: Prepared, jobs: list[tuple[list[str], _F | None]], opts: Options, label: str, max_iter: int = 0
+    prep: Prepared,
+    jobs: list[tuple[list[str], _F | None]],
+    opts: Options,
+    label: str,
+    max_iter: int = 0,
+    head_s: float = 0.0,
 ) -> list[CandidateFit]:
+    """Fit every job (effects, start) in parallel (threads, or ``opts.executor``); ``max_iter``
+    and ``head_s`` as in :func:`fit_candidate`."""
     workers = opts.workers or min(len(jobs), os.cpu_count() or 1)
     out: list[CandidateFit | None] = [None] * len(jobs)
     with Progress(len(jobs), label, enabled=opts.progress) as bar:
         if opts.executor is not None:
-            return list(opts.executor.map(prep, jobs, max_iter or opts.max_iter, bar))
+            return list(opts.executor.map(prep, jobs, max_iter or opts.max_iter, bar, head_s))
         with ThreadPoolExecutor(max_workers=max(1, workers)) as ex:
             futs = {
-                ex.submit(fit_candidate, prep, eff, th, max_iter or opts.max_iter): i
+                ex.submit(fit_candidate, prep, eff, th, max_iter or opts.max_iter, head_s): i
                 for i, (eff, th) in enumerate(jobs)
             }
             for f in as_completed(futs):

@@ -159,7 +159,11 @@ _PREPARED_LOCK = threading.Lock()
 
 
 def _fit_task(
-    data: tuple[str, ModelSpec, list[Run], list[Run]], effects: list[str], theta0: Any, max_iter: int
+    data: tuple[str, ModelSpec, list[Run], list[Run]],
+    effects: list[str],
+    theta0: Any,
+    max_iter: int,
+    head_s: float = 0.0,
 ) -> CandidateFit:
     """A Ray task: fit one candidate of one group (the group is prepared once per worker)."""
     token, spec, fit_runs, hold_runs = data
@@ -169,7 +173,7 @@ def _fit_task(
             if len(_PREPARED) >= 8:  # a worker serves groups one after another: keep a few
                 _PREPARED.pop(next(iter(_PREPARED)))
             prep = _PREPARED[token] = prepare(spec, fit_runs, hold_runs)
-    return fit_candidate(prep, effects, theta0, max_iter)
+    return fit_candidate(prep, effects, theta0, max_iter, head_s)
 
 
 class RayFits:
@@ -195,10 +199,15 @@ class RayFits:
             self._refs.pop(prep.token, None)
 
     def map(
-        self, prep: Prepared, jobs: list[tuple[list[str], Any]], max_iter: int, bar: Progress
+        self,
+        prep: Prepared,
+        jobs: list[tuple[list[str], Any]],
+        max_iter: int,
+        bar: Progress,
+        head_s: float = 0.0,
     ) -> list[CandidateFit]:
         ref = self._data(prep)
-        futures = [self._task.remote(ref, eff, th, max_iter) for eff, th in jobs]
+        futures = [self._task.remote(ref, eff, th, max_iter, head_s) for eff, th in jobs]
         index = {f: i for i, f in enumerate(futures)}
         out: list[CandidateFit | None] = [None] * len(jobs)
         pending = list(futures)

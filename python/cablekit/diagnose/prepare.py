@@ -49,6 +49,9 @@ class Options:
     #: iterations of the screening fits of later selection rounds, and how many are refined
     screen_iter: int = 5
     refine: int = 3
+    #: seconds at the start of every fit run that screening fits search on (the cheap objective
+    #: of the core's global stage); they are then scored on the whole runs. 0 = whole runs
+    screen_head_s: float = 8.0
     bootstrap: int = 1000
     segment_s: float = 1.0
     max_iter: int = 30
@@ -58,7 +61,7 @@ class Options:
     #: bootstrap-segment refits of the selected model for ``ci95_refit`` (0 = linearised only)
     interval_refits: int = 0
     #: where candidate fits run: None = this machine's threads; an object with
-    #: ``map(prep, jobs, max_iter, bar)`` (e.g. :class:`cablekit.diagnose.many.RayFits`) otherwise
+    #: ``map(prep, jobs, max_iter, bar, head_s)`` (e.g. :class:`cablekit.diagnose.many.RayFits`) otherwise
     executor: Any = None
 
 

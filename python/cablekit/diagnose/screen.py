@@ -56,7 +56,14 @@ def screen(prep: Prepared, opts: Options) -> Screening:
     screened_out: dict[str, str] = {}
     second_chance: set[str] = set()
     if opts.shortlist and len(prep.candidates) > opts.shortlist:
-        quick = fit_many(prep, [([e], None) for e in prep.candidates], opts, "screen", opts.screen_fit_iter)
+        quick = fit_many(
+            prep,
+            [([e], None) for e in prep.candidates],
+            opts,
+            "screen",
+            opts.screen_fit_iter,
+            opts.screen_head_s,
+        )
         ok = [c for c in quick if not c.error]
         keep = shortlist(ok, opts.shortlist, opts.shortlist_per_channel)
         second_chance = {c.effects[0] for c in shortlist(ok, 0, 2 * opts.shortlist_per_channel)}
@@ -67,8 +74,10 @@ def screen(prep: Prepared, opts: Options) -> Screening:
                 continue  # a failed fit is no reason to screen a candidate out: fitted in full below
             if not any(c is k for k in keep):
                 screened_out[c.effects[0]] = (
-                    f"screened out: after a {opts.screen_fit_iter}-iteration fit its fit-run cost was "
-                    f"{c.cost:.4g} (shortlist of {opts.shortlist} ends at {cut:.4g}, "
+                    f"screened out: after a {opts.screen_fit_iter}-iteration fit"
+                    + (f" on the first {opts.screen_head_s:g} s" if opts.screen_head_s > 0 else "")
+                    + f" its cost on the whole fit runs was {c.cost:.4g} "
+                    f"(shortlist of {opts.shortlist} ends at {cut:.4g}, "
                     f"best {best_cost:.4g}) and it was not among the best {opts.shortlist_per_channel} "
                     "on any channel"
                 )

@@ -237,7 +237,8 @@ def refine_forms(
             effects = [a if e == k else e for e in chosen]
             jobs.append((effects, warm_start(prep, current, effects, fits[a])))
         # a short fit of each alternative, the most promising (by fit cost) refined in full
-        quick = [t for t in fit_many(prep, jobs, opts, "  forms", opts.screen_iter) if not t.error]
+        quick = fit_many(prep, jobs, opts, "  forms", opts.screen_iter, opts.screen_head_s)
+        quick = [t for t in quick if not t.error]
         quick = shortlist(quick, 1, 0)
         trials = fit_many(prep, [(t.effects, t.params) for t in quick], opts, "  refine", opts.max_iter)
         best, best_key = None, None
@@ -271,6 +272,41 @@ def refine_forms(
     return Forward(chosen, sel.steps, current)
 
 
+def _equivalents(
+    prep: Prepared,
+    first: CandidateFit,
+    trials: list[CandidateFit],
+    fits: dict[str, CandidateFit],
+    scores: dict[str, dict[str, Any]],
+    dt: float,
+    opts: Options,
+    rng: np.random.Generator,
+    most: int = 1,
+) -> list[str]:
+    """Other effects' single fits the held-out runs cannot tell from the first pick: held-out
+    closure within 5 points of it and neither significantly better than the other (paired
+    segment bootstrap). Alone they are equivalent; which pairs with a second effect to explain
+    the runs is evidence the first round did not have (an inertia error and a force-sensor lag
+    both close 80 % of a lag + friction gap; only the lag leaves a remainder friction explains)."""
+    a = first.effects[0]
+    ca = scores[a]["closed_fraction"]
+    out = []
+    for t in sorted(trials, key=lambda t: -scores[t.effects[0]]["closed_fraction"]):
+        b = t.effects[0]
+        if b == a or t.error or prep.info[b]["effect"] == prep.info[a]["effect"]:
+            continue
+        if not scores[b]["significant"] or abs(scores[b]["closed_fraction"] - ca) > 0.05:
+            continue
+        if compare(t.hold_resid, first.hold_resid, dt, opts, rng)["significant"]:
+            continue
+        if compare(first.hold_resid, t.hold_resid, dt, opts, rng)["significant"]:
+            continue
+        out.append(b)
+        if len(out) >= most:
+            break
+    return out
+
+
 @dataclass
 class Forward:
     """The outcome of forward selection: the chosen candidate ids, the steps, the final fit."""
@@ -302,6 +338,8 @@ def forward_select(
     g_hold = gap(base.hold_resid)
     screened_out, second_chance = screening.screened_out, screening.second_chance
     pool = [k for k in ranked if scores[k]["significant"]]
+    #: first picks the held-out runs could not tell from the chosen one (round 2 decides)
+    provisional: list[str] = []
     for round_ in range(opts.max_effects):
         if round_ == 0:
             trials = [fits[k] for k in pool[: opts.refine + 2]]
@@ -314,7 +352,20 @@ def forward_select(
                 if k not in chosen and not fits[k].error and (k not in screened_out or k in second_chance)
             ]
             jobs = [([*chosen, k], warm_start(prep, current_fit, [*chosen, k], fits[k])) for k in others]
-            screened = fit_many(prep, jobs, opts, f"round {round_ + 1}", opts.screen_iter) if jobs else []
+            if round_ == 1:
+                # the first pick is provisional among its equivalents: each is paired with every
+                # other candidate too, and the pair that explains the runs best decides
+                seen = {frozenset(e) for e, _ in jobs}
+                for alt in provisional:
+                    for k in others:
+                        if k != alt and frozenset((alt, k)) not in seen:
+                            seen.add(frozenset((alt, k)))
+                            jobs.append(([alt, k], warm_start(prep, fits[alt], [alt, k], fits[k])))
+            screened = (
+                fit_many(prep, jobs, opts, f"round {round_ + 1}", opts.screen_iter, opts.screen_head_s)
+                if jobs
+                else []
+            )
             screened = shortlist([c for c in screened if not c.error], opts.refine, 1)
             jobs = [(c.effects, c.params) for c in screened]
             trials = fit_many(prep, jobs, opts, "  refine", opts.max_iter) if jobs else []
@@ -353,7 +404,7 @@ def forward_select(
         if not best_key[0] and not (round_ == 0 and best_cmp["significant"]):
             break  # round 1 may take a significant effect that worsens a channel (flagged)
         added = [e for e in best.effects if e not in chosen]
-        chosen = sorted(set(chosen) | set(added), key=best.effects.index)
+        dropped = [e for e in chosen if e not in best.effects]  # a provisional first pick
         ch = channel_changes(prep, current.hold_resid, best.hold_resid, dt, opts, rng)
         steps.append(
             {
@@ -361,7 +412,11 @@ def forward_select(
                 "held_out": best_cmp,
                 "worsened_channels": [c["channel"] for c in ch if c["worsened"]],
             }
+            | ({"replaces": dropped[0]} if dropped else {})
         )
+        chosen = list(best.effects)
+        if round_ == 0:
+            provisional = _equivalents(prep, best, trials, fits, scores, dt, opts, rng)
         current = best
         current_fit = best
         if gap(current.hold_resid) < NOISE_LEVEL:

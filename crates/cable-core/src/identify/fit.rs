@@ -102,7 +102,7 @@ impl JointProblem {
     fn best_starts(&self, mut x0: Vec<f64>, keep: usize) -> Vec<Vec<f64>> {
         // the cheap objective: the first GLOBAL_STAGE_S seconds of every run (same parameters,
         // scales and specs); the local search then works on the whole runs
-        let cheap = self.prefix(GLOBAL_STAGE_S);
+        let cheap = self.head(GLOBAL_STAGE_S).ok().flatten();
         let p = cheap.as_ref().unwrap_or(self);
         let mut r = vec![0.0; p.n_residuals()];
         // sensor-site candidates replay the nominal plant whatever their parameters
@@ -204,11 +204,13 @@ impl JointProblem {
     }
 
     /// The same problem on the first `seconds` of every run (plus its warm-up), or `None` when
-    /// every run is shorter than twice that: the global stage's cheap objective.
-    fn prefix(&self, seconds: f64) -> Option<JointProblem> {
+    /// every run is shorter than twice that: the cheap objective of the global stage and of
+    /// screening fits. Error: `seconds` not finite and positive.
+    pub fn head(&self, seconds: f64) -> Result<Option<JointProblem>> {
+        check::positive("seconds", seconds)?;
         let keep = |run: &crate::identify::JointRun| run.start + (seconds / run.dt).ceil() as usize;
         if self.runs.iter().all(|r| 2 * keep(r) > r.len()) {
-            return None;
+            return Ok(None);
         }
         let mut p = self.clone();
         let q = self.channels.len();
@@ -224,7 +226,7 @@ impl JointProblem {
                 run.external.truncate(n * w);
             }
         }
-        Some(p)
+        Ok(Some(p))
     }
 
     /// Offset of candidate `c`'s parameters in `theta`.

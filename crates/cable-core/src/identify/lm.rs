@@ -32,6 +32,10 @@ pub struct LmOptions {
     pub max_iter: usize,
     /// Stop when the relative cost reduction of an accepted step is below this.
     pub ftol: f64,
+    /// Stop when two accepted steps in a row each reduce the cost by less than this (absolute,
+    /// in the cost's units; 0 = off): with residuals in noise units, a change no decision
+    /// resolves, where a relative tolerance keeps a crawl over a large, slowly falling cost going.
+    pub atol: f64,
     /// Stop when the scaled step is below this (relative to the scaled parameters + 1).
     pub xtol: f64,
     /// Forward-difference step relative to `max(|θ_i|, scale_i)`.
@@ -45,6 +49,7 @@ impl LmOptions {
     /// at most 100000 iterations (every loop is bounded) and at least one thread.
     pub fn validate(&self) -> Result<()> {
         check::non_negative("ftol", self.ftol)?;
+        check::non_negative("atol", self.atol)?;
         check::non_negative("xtol", self.xtol)?;
         check::positive("fd_step", self.fd_step)?;
         let count = |name: &str, v: usize, range: std::ops::RangeInclusive<usize>, words| {
@@ -68,6 +73,7 @@ impl Default for LmOptions {
         Self {
             max_iter: 60,
             ftol: 1e-8,
+            atol: 0.0,
             xtol: 1e-8,
             fd_step: 1e-6,
             threads: 1,
@@ -153,6 +159,7 @@ where
     let mut nu = 2.0;
     let mut converged = p == 0;
     let mut iterations = 0;
+    let mut small_steps = 0;
     let mut trial = vec![0.0; p];
     let mut r_trial = vec![0.0; m];
     while iterations < opts.max_iter && !converged {
@@ -212,12 +219,17 @@ where
         };
         if new_cost.is_finite() && new_cost < cost {
             let rel = (cost - new_cost) / cost.max(1e-300);
+            small_steps = if cost - new_cost < opts.atol {
+                small_steps + 1
+            } else {
+                0
+            };
             x.copy_from_slice(&trial);
             std::mem::swap(&mut r, &mut r_trial);
             cost = new_cost;
             lambda *= (1.0 - (2.0 * rho.clamp(0.0, 1.0) - 1.0).powi(3)).max(1.0 / 3.0);
             nu = 2.0;
-            if rel < opts.ftol {
+            if rel < opts.ftol || small_steps >= 2 {
                 converged = true;
             }
             jac = jacobian(&f, &x, &r, lower, upper, scale, opts, &mut evaluations);
@@ -407,6 +419,75 @@ mod tests {
             assert_relative_eq!(rep.params[2], 0.4, max_relative = 1e-6);
             assert!(rep.cost < 1e-12 && rep.initial_cost > 1.0);
         }
+    }
+
+    #[test]
+    fn an_absolute_tolerance_stops_a_crawl_a_relative_one_does_not() {
+        // a noisy decay: the cost settles at the noise floor (~0.5·Σn²), which a relative
+        // tolerance of 0 never accepts as converged; two steps in a row below `atol` do, within
+        // a few `atol` of the tight optimum and in fewer iterations
+        let t: Vec<f64> = (0..400).map(|k| k as f64 * 0.025).collect();
+        let clean = decay(&t, 2.5, 1.3, 0.4);
+        let y: Vec<f64> = clean
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v + 0.05 * ((i as f64 * 12.9898).sin() * 43_758.545_3).fract())
+            .collect();
+        let f = |th: &[f64], r: &mut [f64]| {
+            let m = decay(&t, th[0], th[1], th[2]);
+            for i in 0..r.len() {
+                r[i] = m[i] - y[i];
+            }
+            Ok(())
+        };
+        let run = |atol: f64| {
+            let opts = LmOptions {
+                max_iter: 200,
+                ftol: 0.0,
+                xtol: 0.0,
+                atol,
+                ..LmOptions::default()
+            };
+            least_squares(
+                f,
+                &[0.5, 5.0, -1.0],
+                &[-10.0, 0.0, -10.0],
+                &[10.0, 10.0, 10.0],
+                &[1.0, 1.0, 1.0],
+                t.len(),
+                &opts,
+            )
+            .unwrap()
+        };
+        let tight = run(0.0);
+        let loose = run(1e-3);
+        assert!(loose.converged);
+        assert!(
+            loose.iterations < tight.iterations,
+            "{} vs {}",
+            loose.iterations,
+            tight.iterations
+        );
+        assert!(
+            loose.cost <= tight.cost + 4e-3,
+            "{} vs {}",
+            loose.cost,
+            tight.cost
+        );
+        let bad = LmOptions {
+            atol: -1.0,
+            ..LmOptions::default()
+        };
+        assert!(least_squares(
+            f,
+            &[1.0, 1.0, 0.0],
+            &[-10.0; 3],
+            &[10.0; 3],
+            &[1.0; 3],
+            t.len(),
+            &bad
+        )
+        .is_err());
     }
 
     #[test]
