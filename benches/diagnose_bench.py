@@ -73,12 +73,17 @@ def main() -> int:
         times.append(dt)
         label = f"{plant}:{'+'.join(effects) or 'control'}"
         print(f"regression  {label:<52} {dt:6.1f} s  {what}", flush=True)
-    plan = [f"{e}@{s}/{f}" for e, s, f in si.CASES] + [f"control/{i}" for i in range(si.CONTROLS)]
-    for i, label in enumerate(plan):
+    # the cases with the seeds run_independent draws them with (si.case_plan)
+    for c in si.case_plan(4242):
+        label = c["label"]
         if not args.all and label not in INDEPENDENT:
             continue
-        e, s, f = si.CASES[i] if i < len(si.CASES) else (None, None, None)
-        case = si.make_independent_case(e, s, f, 4242 + 131 * i, 20.0)
+        effs = c["effects"]
+        if c["kind"] == "pair":
+            case = si.make_independent_pair(effs, c["seed"], 20.0)
+        else:
+            e, s, f = effs[0] if effs else (None, None, None)
+            case = si.make_independent_case(e, s, f, c["seed"], 20.0)
         dt, what = _time(case.spec, case.fit, case.hold)
         times.append(dt)
         print(f"independent {label:<52} {dt:6.1f} s  {what}", flush=True)
