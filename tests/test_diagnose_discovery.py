@@ -319,7 +319,7 @@ def test_the_first_pick_is_provisional_only_among_equivalents():
     opts = Options(progress=False)
     scores = {k: compare(base, f.hold_resid, 1e-3, opts, rng) for k, f in fits.items()}
     prep = SimpleNamespace(info=info)
-    got = _equivalents(prep, fits["a"], list(fits.values()), fits, scores, 1e-3, opts, rng, most=3)
+    got = _equivalents(prep, fits["a"], list(fits.values()), scores, 1e-3, opts, rng, most=3)
     assert got == ["twin"]
     scores["twin"]["significant"] = False
-    assert _equivalents(prep, fits["a"], list(fits.values()), fits, scores, 1e-3, opts, rng, most=3) == []
+    assert _equivalents(prep, fits["a"], list(fits.values()), scores, 1e-3, opts, rng, most=3) == []

@@ -81,11 +81,11 @@ def fit_candidate(
             MAX_SUBSTEPS, max(prep.substeps, base.advised_substeps(start), base.advised_substeps(corner))
         )
         problem = base.with_effects(effects, sub)
-        search = (problem.head(head_s) if head_s > 0 else None) or problem
+        search = _search(problem, head_s)
         # without a start: the core's global stage over every parameter (its starts, or a
         # spread of its own), then the local search from the best points; a warm start (a
         # screen's end, a combination's previous fits) goes straight to the local search
-        atol = 0.5 * GAP_TOL * search.n_residuals
+        atol = 0.5 * GAP_TOL * search.n_residuals  # GAP_TOL in cost units
         res = search.fit(None if theta0 is None else start, max_iter=max_iter, atol=atol)
         if not res.converged and max_iter >= RETRY_ITER:
             # a full fit that ran out of iterations goes on once from where it stopped
@@ -95,7 +95,7 @@ def fit_candidate(
         if need > sub:  # the fitted model is stiffer than the start: refit with enough substeps
             sub = need
             problem = base.with_effects(effects, sub)
-            search = (problem.head(head_s) if head_s > 0 else None) or problem
+            search = _search(problem, head_s)
             res = search.fit(theta, max_iter=max_iter, atol=0.5 * GAP_TOL * search.n_residuals)
             theta = res.params
         # a screen on the head is scored on the whole fit runs
@@ -141,6 +141,12 @@ def fit_candidate(
         at_bound=bool(np.any(res.at_bound)),
         bound=_bound_away(res.params, res.at_bound, specs),
     )
+
+
+def _search(problem: Any, head_s: float) -> Any:
+    """The problem a fit searches: the first ``head_s`` seconds of every run (a screen), or the
+    whole runs (``head_s`` 0, or runs too short to cut)."""
+    return (problem.head(head_s) if head_s > 0 else None) or problem
 
 
 def _held_out_residuals(prep: Prepared, effects: list[str], theta: _F, sub: int) -> _F:

@@ -276,7 +276,6 @@ def _equivalents(
     prep: Prepared,
     first: CandidateFit,
     trials: list[CandidateFit],
-    fits: dict[str, CandidateFit],
     scores: dict[str, dict[str, Any]],
     dt: float,
     opts: Options,
@@ -416,7 +415,7 @@ def forward_select(
         )
         chosen = list(best.effects)
         if round_ == 0:
-            provisional = _equivalents(prep, best, trials, fits, scores, dt, opts, rng)
+            provisional = _equivalents(prep, best, trials, scores, dt, opts, rng)
         current = best
         current_fit = best
         if gap(current.hold_resid) < NOISE_LEVEL:
