@@ -163,6 +163,8 @@ def _truth(directory: Path) -> tuple[list[str], dict[str, str], bool]:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DataError(f"{path}: not a readable truth.json ({exc})") from exc
+    if not isinstance(doc, dict):
+        raise DataError(f"{path}: a truth.json is a JSON object, not {type(doc).__name__}")
     effects = doc.get("effects")
     if not isinstance(effects, dict):
         raise DataError(f"{path}: 'effects' must be a table of withheld effects (empty for a control)")
