@@ -211,62 +211,70 @@ def test_a_long_gap_is_a_data_error_naming_its_rows(tmp_path):
         load_run(_csv(tmp_path, ["t", "x_m", "T"], rows))
 
 
-def test_a_jittered_run_gets_the_same_diagnosis_as_the_uniform_one(tmp_path, capsys):
+@pytest.fixture(scope="module")
+def example_diagnosed(tmp_path_factory):
+    """The embedded example's runs and model, and its diagnosis as the CLI writes it (computed
+    once: three tests compare a transformed copy of the runs against it)."""
+    from cablekit.cli import _write_example, main
+
+    root = tmp_path_factory.mktemp("example")
+    fit, hold, model = _write_example(root / "example")
+    out = root / "out"
+    options = ["--model", str(model), "--out", str(out), "--quiet", "--no-html"]
+    assert main(["diagnose", str(fit), "--holdout", str(hold), *options]) == 0
+    return fit, hold, model, json.loads((out / "diagnosis.json").read_text())
+
+
+def test_a_jittered_run_gets_the_same_diagnosis_as_the_uniform_one(tmp_path, capsys, example_diagnosed):
     """The embedded example with its time stamps jittered by up to ±20 % of the interval: the
     loader puts both runs back on a uniform grid, the CLI prints the note, and the same effects
     are selected."""
-    from cablekit.cli import _write_example, main
+    from cablekit.cli import main
 
-    fit, hold, model = _write_example(tmp_path / "example")
+    fit, hold, model, uniform = example_diagnosed
     rng = np.random.default_rng(5)
+    jittered = []
     for p in (fit, hold):
         header, *body = p.read_text().splitlines()
         rows = [[float(v) for v in line.split(",")] for line in body]
         for r in rows[1:-1]:
             r[0] += rng.uniform(-2e-4, 2e-4)
-        p.with_name(f"jit_{p.name}").write_text(
-            header + "\n" + "\n".join(",".join(repr(v) for v in r) for r in rows) + "\n"
-        )
-    chosen = {}
-    for tag in ("", "jit_"):
-        out = tmp_path / f"out{tag}"
-        runs = [str(fit.with_name(tag + fit.name)), "--holdout", str(hold.with_name(tag + hold.name))]
-        options = ["--model", str(model), "--out", str(out), "--quiet", "--no-html"]
-        assert main(["diagnose", *runs, *options]) == 0
-        doc = json.loads((out / "diagnosis.json").read_text())
-        chosen[tag] = doc["selected"]["effects"]
+        jittered.append(tmp_path / f"jit_{p.name}")
+        jittered[-1].write_text(header + "\n" + "\n".join(",".join(repr(v) for v in r) for r in rows) + "\n")
+    out = tmp_path / "out"
+    options = ["--model", str(model), "--out", str(out), "--quiet", "--no-html"]
+    assert main(["diagnose", str(jittered[0]), "--holdout", str(jittered[1]), *options]) == 0
+    doc = json.loads((out / "diagnosis.json").read_text())
     assert "note: run jit_fit: time stamps jitter" in capsys.readouterr().out
-    assert chosen["jit_"] == chosen[""] and chosen[""]
+    assert doc["selected"]["effects"] == uniform["selected"]["effects"] and uniform["selected"]["effects"]
 
 
-def test_columns_in_other_units_are_declared_and_diagnosed_as_in_si(tmp_path, capsys):
+def test_columns_in_other_units_are_declared_and_diagnosed_as_in_si(tmp_path, capsys, example_diagnosed):
     """The embedded example recorded as a bench would log it: the angle in degrees, the motor
     displacement in mm, the tensions in kgf. Without ``[units]`` the unit check refuses the
     millimetres; with it the runs are converted on load (a note says so) and the same effects are
     selected with the same fitted values."""
-    from cablekit.cli import _write_example, main
+    from cablekit.cli import main
 
-    fit, hold, model = _write_example(tmp_path / "example")
+    fit, hold, model, uniform = example_diagnosed
     scale = {"theta": 180 / math.pi, "x_m": 1e3, "T_drive": 1 / 9.80665, "T_return": 1 / 9.80665}
     for p in (fit, hold):
         header, *body = p.read_text().splitlines()
         names = header.split(",")
         factors = [scale.get(n, 1.0) for n in names]
         rows = [[float(v) * f for v, f in zip(line.split(","), factors, strict=True)] for line in body]
-        p.with_name(f"raw_{p.name}").write_text(
+        (tmp_path / f"raw_{p.name}").write_text(
             header + "\n" + "\n".join(",".join(repr(v) for v in r) for r in rows) + "\n"
         )
     units = '\n[units]\ntheta = "deg"\nx_m = "mm"\nT_drive = "kgf"\nT_return = {scale = 9.80665}\n'
-    declared = model.with_name("raw_model.toml")
+    declared = tmp_path / "raw_model.toml"
     declared.write_text(model.read_text() + units)
-    raw = [str(fit.with_name("raw_" + fit.name)), "--holdout", str(hold.with_name("raw_" + hold.name))]
+    raw = [str(tmp_path / ("raw_" + fit.name)), "--holdout", str(tmp_path / ("raw_" + hold.name))]
     assert main(["diagnose", *raw, "--model", str(model), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     assert "looks like millimetres" in capsys.readouterr().err
-    docs = []
-    for runs, m in (([str(fit), "--holdout", str(hold)], model), (raw, declared)):
-        out = tmp_path / f"out_{m.stem}"
-        assert main(["diagnose", *runs, "--model", str(m), "--out", str(out), "--quiet", "--no-html"]) == 0
-        docs.append(json.loads((out / "diagnosis.json").read_text()))
+    out = tmp_path / "out_raw"
+    assert main(["diagnose", *raw, "--model", str(declared), "--out", str(out), "--quiet", "--no-html"]) == 0
+    docs = [uniform, json.loads((out / "diagnosis.json").read_text())]
     assert docs[1]["selected"]["effects"] == docs[0]["selected"]["effects"]
     for a, b in zip(docs[0]["selected"]["parameters"], docs[1]["selected"]["parameters"], strict=True):
         assert b["value"] == pytest.approx(a["value"], rel=1e-3, abs=1e-9)
@@ -345,22 +353,20 @@ def test_other_separators_and_decimal_commas_read_as_the_comma_file(tmp_path, na
         np.testing.assert_array_equal(run.column(c), ref.column(c))
 
 
-def test_runs_at_different_rates_are_diagnosed_at_the_coarsest(tmp_path):
+def test_runs_at_different_rates_are_diagnosed_at_the_coarsest(tmp_path, example_diagnosed):
     """The example's held-out run logged at 500 Hz, its fit run at 1 kHz: the fit run is
     resampled onto 2 ms (noted), never the held-out run onto 1 ms, and the same effects are
     selected with the same backlash (to 0.1 %)."""
-    from cablekit.cli import _write_example, main
+    from cablekit.cli import main
 
-    fit, hold, model = _write_example(tmp_path / "example")
+    fit, hold, model, uniform = example_diagnosed
     rows = hold.read_text().splitlines()
-    slow = hold.with_name("hold_500hz.csv")
+    slow = tmp_path / "hold_500hz.csv"
     slow.write_text("\n".join([rows[0], *rows[1::2]]) + "\n")
-    docs = []
-    for h in (hold, slow):
-        out = tmp_path / h.stem
-        options = ["--model", str(model), "--out", str(out), "--quiet", "--no-html"]
-        assert main(["diagnose", str(fit), "--holdout", str(h), *options]) == 0
-        docs.append(json.loads((out / "diagnosis.json").read_text()))
+    out = tmp_path / slow.stem
+    options = ["--model", str(model), "--out", str(out), "--quiet", "--no-html"]
+    assert main(["diagnose", str(fit), "--holdout", str(slow), *options]) == 0
+    docs = [uniform, json.loads((out / "diagnosis.json").read_text())]
     assert docs[1]["selected"]["effects"] == docs[0]["selected"]["effects"]
     backlash = [d["selected"]["parameters"][0]["value"] for d in docs]
     assert backlash[1] == pytest.approx(backlash[0], rel=1e-3)
