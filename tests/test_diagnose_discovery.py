@@ -323,3 +323,77 @@ def test_the_first_pick_is_provisional_only_among_equivalents():
     assert got == ["twin"]
     scores["twin"]["significant"] = False
     assert _equivalents(prep, fits["a"], list(fits.values()), scores, 1e-3, opts, rng, most=3) == []
+
+
+def test_stick_phase_forms_share_the_bristle_and_a_dahl_at_its_floor_is_named_sticking():
+    """The sticking Coulomb and LuGre Stribeck forms are offered with their break-away fixed
+    (lower = upper: not a fitted parameter), never fitted together with a joint Dahl element
+    (one bristle state), and a Dahl fit whose break-away ended at that floor loses the name to
+    the sticking law it became even when it is significantly better; above the floor it keeps it."""
+    from cablekit.diagnose.fit import CandidateFit, combinable, n_free
+    from cablekit.diagnose.select import parsimony, reduces_to
+
+    case = make_case(("sensor_lag",), seed=5, duration=4.0)
+    prep = prepare(case.spec, case.fit, case.hold)
+    dahl, stick, lugre = (
+        "dahl_hysteresis@joint",
+        "coulomb_friction@joint/sticking",
+        "stribeck_friction@joint/lugre",
+    )
+    assert {dahl, stick, lugre} <= set(prep.candidates)
+    specs = {k: prep.fit0.with_effects([k], 1).param_specs() for k in (dahl, stick, lugre)}
+    assert [s.name for s in specs[stick]] == ["F_c", "theta_d"]
+    assert [s.name for s in specs[lugre]] == ["F_c", "F_s_minus_F_c", "v_s", "theta_d"]
+    floor = specs[stick][1].lower
+    assert specs[stick][1].upper == floor == specs[lugre][3].lower == specs[dahl][1].lower > 0
+    assert not combinable(prep, [dahl, stick]) and not combinable(prep, [lugre, stick])
+    assert combinable(prep, [stick, "viscous_friction@joint"])
+
+    def fake(k: str, params: list[float], hold_gap: float) -> CandidateFit:
+        hold = [np.full((100, 1), math.sqrt(hold_gap))]
+        return CandidateFit([k], np.array(params), specs[k], 1, True, [], hold, 0.0, np.zeros(len(params)), 1)
+
+    assert (
+        n_free(fake(stick, [0.1, floor], 2.0)) == 1 and n_free(fake(lugre, [0.1, 0.1, 0.1, floor], 2.0)) == 3
+    )
+    for theta_d, named in ((floor, stick), (30 * floor, dahl)):
+        fits = {dahl: fake(dahl, [0.1, theta_d], 2.0), stick: fake(stick, [0.1, floor], 2.2)}
+        assert reduces_to(fits[dahl]) == ("coulomb_friction" if theta_d == floor else None)
+        scores = {k: {"gap_after": f.hold_resid[0][0, 0] ** 2} for k, f in fits.items()}
+        # the Dahl fit is "significantly better" here: only its degeneracy takes the name away
+        assert parsimony([dahl, stick], fits, scores, lambda a, b: a == dahl)[0] == named
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    st.lists(
+        st.one_of(
+            st.text(max_size=40),
+            st.sampled_from(
+                [
+                    "dahl_hysteresis@joint",
+                    "dahl_hysteresis@joint/generalised",
+                    "coulomb_friction@joint/sticking",
+                    "stribeck_friction@joint/lugre",
+                    "viscous_friction@joint/power_law",
+                    "backlash@joint",
+                    "no_such_effect@joint",
+                    "coulomb_friction@joint/no_such_form",
+                ]
+            ),
+        ),
+        max_size=4,
+    )
+)
+def test_any_combination_of_ids_is_combinable_or_not_without_raising(control_prep, ids):
+    """``combinable`` answers for any list of ids (unknown ids, forms and sites included) and
+    refuses exactly the pairs that share the joint's bristle state among valid ids."""
+    from cablekit.diagnose.fit import combinable
+
+    prep, _ = control_prep
+    got = combinable(prep, ids)
+    assert isinstance(got, bool)
+    bristle = {"dahl_hysteresis@joint", "dahl_hysteresis@joint/generalised"}
+    bristle |= {"coulomb_friction@joint/sticking", "stribeck_friction@joint/lugre"}
+    if len(set(ids) & bristle) >= 2:
+        assert not got

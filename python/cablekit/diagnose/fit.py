@@ -16,9 +16,18 @@ from cablekit._cablekit import ParamSpec
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.prepare import MAX_SUBSTEPS, Options, Prepared
 from cablekit.diagnose.progress import Progress
-from cablekit.errors import CablekitError, SimulationDivergedError
+from cablekit.errors import CablekitError, ParameterError, SimulationDivergedError
 
-__all__ = ["CandidateFit", "baseline", "fit_candidate", "fit_many", "parameters_out", "warm_start"]
+__all__ = [
+    "CandidateFit",
+    "baseline",
+    "combinable",
+    "fit_candidate",
+    "fit_many",
+    "n_free",
+    "parameters_out",
+    "warm_start",
+]
 
 _F = NDArray[np.float64]
 
@@ -262,6 +271,23 @@ def parameters_out(c: CandidateFit, refit: list[list[float] | None] | None = Non
             }
         )
     return rows
+
+
+def n_free(c: CandidateFit) -> int:
+    """Parameters the fit may move (a parameter with lower = upper, such as the break-away of
+    the sticking and LuGre friction forms, is part of the law, not of the fit)."""
+    return sum(1 for s in c.specs if s.lower < s.upper)
+
+
+def combinable(prep: Prepared, effects: list[str]) -> bool:
+    """Whether the candidates can be fitted together: the core refuses, e.g., two candidates
+    that would share the joint's one bristle state (Dahl hysteresis and the sticking Coulomb
+    or LuGre Stribeck friction)."""
+    try:
+        prep.fit0.with_effects(effects, prep.substeps)
+    except ParameterError:
+        return False
+    return True
 
 
 def warm_start(prep: Prepared, current: CandidateFit, effects: list[str], single: CandidateFit) -> _F | None:

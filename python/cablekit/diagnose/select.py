@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from cablekit.diagnose.fit import CandidateFit, fit_many, warm_start
+from cablekit.diagnose.fit import CandidateFit, combinable, fit_many, n_free, warm_start
 from cablekit.diagnose.prepare import MIN_CLOSED, NOISE_LEVEL, Options, Prepared
 from cablekit.diagnose.screen import Screening, shortlist
 
@@ -99,7 +99,7 @@ def compare(
 
 def bic(c: CandidateFit, n_eff: float) -> float:
     g = gap(c.fit_resid)
-    return n_eff * math.log(max(g, 1e-300)) + len(c.params) * math.log(n_eff)
+    return n_eff * math.log(max(g, 1e-300)) + n_free(c) * math.log(n_eff)
 
 
 def channel_changes(
@@ -135,6 +135,22 @@ def channel_changes(
     return out
 
 
+#: a richer law whose distinguishing parameter ended at the bound where it becomes a simpler
+#: law: (effect, parameter) → the effect it then is. Dahl hysteresis with its break-away
+#: displacement at the resolution floor (one sample's travel) shows no pre-sliding: it is dry
+#: friction that sticks (``coulomb_friction``, the sticking form).
+DEGENERATE = {("dahl_hysteresis", "theta_d"): "coulomb_friction"}
+
+
+def reduces_to(c: CandidateFit) -> str | None:
+    """The simpler effect ``c``'s fitted law has become (:data:`DEGENERATE`), if any."""
+    for s, v in zip(c.specs, c.params, strict=False):
+        target = DEGENERATE.get((s.effect.split("@")[0], s.name))
+        if target and s.lower < s.upper and v <= s.lower * 1.05:
+            return target
+    return None
+
+
 def parsimony(
     ranked: list[str],
     fits: dict[str, CandidateFit],
@@ -145,7 +161,8 @@ def parsimony(
     held-out remaining gap is equivalent (within 25 % of it plus 5 % of the noise variance) comes
     first — unless ``better(top, simpler)`` says the best of them is significantly better on the
     held-out runs (a paired segment bootstrap): a nested, richer effect (Stribeck over Coulomb)
-    must earn its extra parameters on held-out data, and wins when it does."""
+    must earn its extra parameters on held-out data, and wins when it does — unless its fitted
+    law has become the simpler one (:func:`reduces_to`)."""
 
     def excess(k: str) -> float:
         g = scores[k]["gap_after"]
@@ -159,8 +176,11 @@ def parsimony(
         same = [k for k in order[i:] if excess(k) <= 1.25 * ref + 0.05]
         top = min(same, key=excess)
         pick = top
-        for k in sorted(same, key=lambda k: (len(fits[k].params), excess(k))):
-            if k == top or better is None or not better(top, k):
+        degenerate = reduces_to(fits[top])
+        for k in sorted(same, key=lambda k: (n_free(fits[k]), excess(k))):
+            # a richer law that became a simpler one earns nothing over it (the Dahl element
+            # at the floor over the sticking Coulomb law)
+            if k == top or better is None or not better(top, k) or k.split("@")[0] == degenerate:
                 pick = k
                 break
         order.remove(pick)
@@ -185,8 +205,8 @@ def _simplest_equivalent(
     earn its parameters on held-out data."""
     ref = max(gap(best.hold_resid) - 1.0, 0.0)
     pick, pick_cmp = best, best_cmp
-    for t in sorted(trials, key=lambda t: (len(t.params), gap(t.hold_resid))):
-        if t is best or t.error or len(t.params) >= len(pick.params):
+    for t in sorted(trials, key=lambda t: (n_free(t), gap(t.hold_resid))):
+        if t is best or t.error or n_free(t) >= n_free(pick):
             continue
         if max(gap(t.hold_resid) - 1.0, 0.0) > 1.25 * ref + 0.05:
             continue
@@ -201,8 +221,9 @@ def _simplest_equivalent(
 
 
 #: effects whose law contains another's as a special case (the simpler one is an alternative
-#: when the richer is selected): Stribeck with F_s = F_c is Coulomb friction
-NESTED = {"stribeck_friction": ("coulomb_friction",)}
+#: when the richer is selected): Stribeck with F_s = F_c is Coulomb friction; Dahl with its
+#: break-away at the floor is the sticking Coulomb law
+NESTED = {"stribeck_friction": ("coulomb_friction",), "dahl_hysteresis": ("coulomb_friction",)}
 
 
 def refine_forms(
@@ -228,7 +249,14 @@ def refine_forms(
     for k in list(chosen):
         eff = prep.info[k]["effect"]
         family = {eff, *NESTED.get(eff, ())}
-        alts = [a for a in fits if a not in chosen and prep.info[a]["effect"] in family and not fits[a].error]
+        alts = [
+            a
+            for a in fits
+            if a not in chosen
+            and prep.info[a]["effect"] in family
+            and not fits[a].error
+            and combinable(prep, [a if e == k else e for e in chosen])
+        ]
         alts = sorted(alts, key=lambda a: -(scores[a]["closed_fraction"]))[:per_effect]
         if not alts:
             continue
@@ -249,7 +277,7 @@ def refine_forms(
             if any(c["worsened"] for c in ch):
                 continue
             cmp_ = compare(current.hold_resid, t.hold_resid, dt, opts, rng)
-            simpler = len(t.params) <= len(current.params)
+            simpler = n_free(t) <= n_free(current)
             back = compare(t.hold_resid, current.hold_resid, dt, opts, rng)
             if cmp_["significant"] or (
                 simpler and not back["significant"] and gap(t.hold_resid) <= gap(current.hold_resid) * 1.05
@@ -350,6 +378,7 @@ def forward_select(
                 for k in ranked
                 if k not in chosen and not fits[k].error and (k not in screened_out or k in second_chance)
             ]
+            others = [k for k in others if combinable(prep, [*chosen, k])]
             jobs = [([*chosen, k], warm_start(prep, current_fit, [*chosen, k], fits[k])) for k in others]
             if round_ == 1:
                 # the first pick is provisional among its equivalents: each is paired with every
@@ -357,7 +386,7 @@ def forward_select(
                 seen = {frozenset(e) for e, _ in jobs}
                 for alt in provisional:
                     for k in others:
-                        if k != alt and frozenset((alt, k)) not in seen:
+                        if k != alt and frozenset((alt, k)) not in seen and combinable(prep, [alt, k]):
                             seen.add(frozenset((alt, k)))
                             jobs.append(([alt, k], warm_start(prep, fits[alt], [alt, k], fits[k])))
             screened = (

@@ -6,7 +6,9 @@ use crate::dynamics::{AntagonisticJoint, CableTransmission};
 use crate::error::Result;
 
 use super::effects::Effect;
-use super::plant::{exponential, CreepLaw, Hysteresis, JointPlant, JointPlay};
+use super::plant::{
+    exponential, BristleStribeck, CreepLaw, Hysteresis, JointPlant, JointPlay, PowerDrag,
+};
 use super::signal;
 use super::site::{Candidate, Form, Site};
 
@@ -134,6 +136,26 @@ pub fn augment_joint(nom: &AntagonisticJoint, effects: &[(Candidate, &[f64])]) -
             continue;
         }
         match c.effect {
+            // dry friction in a stiff bristle state: it sticks at rest (the level, or the
+            // Stribeck curve's static level, holds the joint) and slides at the level
+            Effect::CoulombFriction | Effect::StribeckFriction
+                if matches!(c.form, Form::Sticking | Form::Lugre) =>
+            {
+                let (stribeck, breakaway) = if c.form == Form::Lugre {
+                    (BristleStribeck::new(p[1], p[2]), p[3])
+                } else {
+                    (None, p[1])
+                };
+                let level = p[0].max(0.0);
+                if level + stribeck.map_or(0.0, |b| b.excess) > 0.0 && breakaway > 0.0 {
+                    m.dahl = Some(Hysteresis {
+                        level,
+                        breakaway,
+                        exponent: 1.0,
+                    });
+                    m.dahl_stribeck = stribeck;
+                }
+            }
             Effect::CoulombFriction => {
                 m.friction.coulomb += p[0];
                 m.friction.static_level += p[0];
@@ -142,6 +164,15 @@ pub fn augment_joint(nom: &AntagonisticJoint, effects: &[(Candidate, &[f64])]) -
                     m.friction.smoothing = p[2];
                 } else {
                     m.friction.smoothing = p[1];
+                }
+            }
+            Effect::ViscousFriction if c.form == Form::PowerLaw => {
+                if p[0] > 0.0 && p[1] > 0.0 && p[2] > 0.0 {
+                    m.power_drag = Some(PowerDrag {
+                        coefficient: p[0],
+                        exponent: p[1],
+                        reference: p[2],
+                    });
                 }
             }
             Effect::ViscousFriction => m.friction.viscous = (m.friction.viscous + p[0]).max(0.0),

@@ -20,6 +20,13 @@
 //! | `time_delay` | input | `d` (s) delay between the recorded input and the response |
 //! | `sensor_gain_bias` | force sensors | per sensor channel: gain error (–), bias (N) |
 //! | `inertia_error` | joint | `ε` (–): `J·(1 + ε)` |
+//!
+//! Forms with a stick phase: `coulomb_friction@joint/sticking` (`F_c`) and
+//! `stribeck_friction@joint/lugre` (`F_c`, `F_s − F_c`, `v_s`; Gaussian shape) carry the friction
+//! in a bristle state whose break-away displacement `θ_d` is [`bristle_floor`] (a fixed
+//! parameter, lower = upper, so that every run replays the same law): the joint holds at rest
+//! until the applied torque exceeds the (static) level, which a sign law smoothed in velocity
+//! cannot do (it creeps at rest).
 
 use crate::error::{CableError, Result};
 
@@ -424,7 +431,7 @@ impl Effect {
                 // break-away displacement θ_d = F_d/σ₀ rather than σ₀: the pre-sliding rate
                 // |θ̇|/θ_d then does not grow without bound as F_d → 0, and its lower bound keeps
                 // the state resolvable at the sample rate
-                let th_lo = (s.speed * s.dt).max(1e-7);
+                let th_lo = bristle_floor(s);
                 let th0 = (0.02 * s.speed).max(20.0 * th_lo);
                 vec![
                     p("F_d", "N·m", 0.0, 0.02 * tq, 0.0, 10.0 * tq, 0.1 * tq),
@@ -538,6 +545,12 @@ impl Effect {
     }
 }
 
+/// The smallest break-away displacement of a joint bristle (Dahl, sticking, LuGre) state (rad):
+/// one sample's travel at the typical joint speed, below which pre-sliding is not observable.
+pub fn bristle_floor(s: &Scales) -> f64 {
+    (s.speed * s.dt).max(1e-7)
+}
+
 impl Candidate {
     /// Parameters of the candidate for data of typical magnitudes `s`: the effect's own
     /// parameters, laid out for its site and form.
@@ -570,6 +583,33 @@ impl Candidate {
             )
         };
         match (self.effect, self.site, self.form) {
+            // the bristle forms carry the level(s) only: their break-away displacement is the
+            // resolution floor (one sample's travel), below which no pre-sliding is observable
+            // (fixed: lower = upper, carried with the parameters so that every run replays the
+            // same law)
+            (Effect::CoulombFriction, _, Form::Sticking)
+            | (Effect::StribeckFriction, _, Form::Lugre) => {
+                let th = bristle_floor(s);
+                let n = if self.effect == Effect::CoulombFriction {
+                    1
+                } else {
+                    3
+                };
+                let mut v: Vec<ParamSpec> = base.into_iter().take(n).collect();
+                v.push(p("theta_d", "rad", th, th, th, th, th));
+                v
+            }
+            (Effect::ViscousFriction, _, Form::PowerLaw) => {
+                // the drag at the typical speed w (so that n moves the shape, not the level), n
+                // from shear thinning (0.2) to thickening (3), and w itself as a fixed parameter
+                let w = s.speed.max(1e-9);
+                let sc = 0.1 * s.torque;
+                vec![
+                    p("b_w", "N·m", 0.0, 0.0, 0.0, 100.0 * sc, sc),
+                    p("n", "1", 1.0, 1.0, 0.2, 3.0, 0.3).starts(&[0.5, 2.0]),
+                    p("v_r", "rad/s", w, w, w, w, w),
+                ]
+            }
             (Effect::CoulombFriction, _, Form::LoadDependent) => {
                 let mut v = base;
                 // μ_L: dry friction per N·m of transmitted torque (arXiv 2410.08650, M3)

@@ -109,6 +109,55 @@ impl Hysteresis {
     }
 }
 
+/// The Stribeck part of the joint's bristle state (LuGre): the level the state saturates at is
+/// `g(θ̇) = F + ΔF·exp(−(θ̇/v_s)²)` instead of the constant `F`, with the bristle stiffness
+/// `σ₀ = g(0)/θ_d` fixed (the pre-sliding displacement at speed is `g(θ̇)/σ₀`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BristleStribeck {
+    /// Static minus Coulomb level `ΔF = F_s − F_c` (same unit as the level), ≥ 0.
+    pub excess: f64,
+    /// Stribeck velocity `v_s` (rad/s), > 0.
+    pub velocity: f64,
+}
+
+impl BristleStribeck {
+    /// `None` for a non-positive (or non-finite) velocity; a negative excess counts as 0.
+    pub fn new(excess: f64, velocity: f64) -> Option<Self> {
+        (velocity.is_finite() && velocity > 0.0 && excess.is_finite()).then_some(Self {
+            excess: excess.max(0.0),
+            velocity,
+        })
+    }
+}
+
+/// Viscous drag that is not linear in speed (lubricant shear thinning or thickening; the
+/// `σ₂·|v|^{δ_v}` term of Armstrong-Hélouvry et al. 1994): with `u = v/v_r`,
+/// `F = b·u·(u² + ε²)^{(n−1)/2}`, which is `b·|u|ⁿ·sgn(u)` beyond `|u| ≈ ε` (`b` is the drag at
+/// the reference speed `v_r`, so the exponent changes the shape, not the level) and has the
+/// finite slope `b·εⁿ⁻¹/v_r` at rest.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PowerDrag {
+    /// Drag `b` at the reference speed (N·m), ≥ 0.
+    pub coefficient: f64,
+    /// Exponent `n` > 0 (1: linear viscous).
+    pub exponent: f64,
+    /// Reference speed `v_r` (rad/s), > 0.
+    pub reference: f64,
+}
+
+impl PowerDrag {
+    /// Smoothing `ε` of the law at rest, in units of the reference speed.
+    pub const SMOOTHING: f64 = 0.02;
+
+    /// The drag torque at speed `v`.
+    #[inline]
+    pub fn force(&self, v: f64) -> f64 {
+        let u = v / self.reference;
+        let e2 = Self::SMOOTHING * Self::SMOOTHING;
+        self.coefficient * u * (u * u + e2).powf(0.5 * (self.exponent - 1.0))
+    }
+}
+
 /// Creep of one cable: the relaxed fraction `κ`, time constant `τ`, and whether the whole
 /// tension (pretension included) relaxes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -206,8 +255,12 @@ pub struct JointPlant {
     pub capstan_smoothing: f64,
     /// Hysteresis of each cable's routing contact (level = capstan exponent, break-away in m).
     pub contact_hysteresis: [Option<Hysteresis>; 2],
-    /// Dahl hysteresis at the joint.
+    /// Dahl hysteresis at the joint (the bristle state of the sticking and LuGre friction forms).
     pub dahl: Option<Hysteresis>,
+    /// The joint bristle's Stribeck level (LuGre form); `None`: the constant level of `dahl`.
+    pub dahl_stribeck: Option<BristleStribeck>,
+    /// Joint drag with a power law in speed (added to the nominal friction).
+    pub power_drag: Option<PowerDrag>,
     /// Friction on the motor side of the cables.
     pub motor: MotorFriction,
     /// Optional contact with an object.
@@ -247,6 +300,8 @@ impl From<&AntagonisticJoint> for JointPlant {
                 breakaway: d.coulomb / d.sigma0,
                 exponent: d.exponent,
             }),
+            dahl_stribeck: None,
+            power_drag: None,
             motor: MotorFriction::default(),
             contact: j.contact,
             play: None,
@@ -359,23 +414,51 @@ impl JointPlant {
     #[inline]
     fn dahl_torque(&self, x: &[f64], theta: f64) -> f64 {
         match (self.dahl, self.dahl_at) {
-            (Some(h), Some(k)) => h.level * h.advance(x[k], theta - x[k + 1]),
+            (Some(h), Some(k)) => match self.dahl_stribeck {
+                None => h.level * h.advance(x[k], theta - x[k + 1]),
+                Some(b) => self.bristle(h, b, x[1], x[k], theta - x[k + 1]),
+            },
             _ => 0.0,
         }
+    }
+
+    /// LuGre bristle torque after a displacement `delta` from the anchor `zeta_a` (the state in
+    /// units of the static level `F + ΔF`) at joint speed `v`: a Dahl element with the level
+    /// `g(v)` and the break-away displacement `θ_d·g(v)/(F + ΔF)` (constant bristle stiffness).
+    #[inline]
+    fn bristle(&self, h: Hysteresis, b: BristleStribeck, v: f64, zeta_a: f64, delta: f64) -> f64 {
+        let fs = h.level + b.excess;
+        let r = v / b.velocity;
+        let g = h.level + b.excess * (-r * r).exp();
+        if g.is_nan() || g <= 0.0 {
+            return 0.0;
+        }
+        let at = Hysteresis {
+            level: g,
+            breakaway: h.breakaway * g / fs,
+            exponent: 1.0,
+        };
+        g * at.advance(zeta_a * fs / g, delta)
     }
 
     /// Re-anchor the Dahl state at the current angle (after each substep).
     #[inline]
     fn reanchor(&self, x: &mut [f64]) {
         if let (Some(h), Some(k)) = (self.dahl, self.dahl_at) {
-            x[k] = h.advance(x[k], x[0] - x[k + 1]);
+            x[k] = match self.dahl_stribeck {
+                None => h.advance(x[k], x[0] - x[k + 1]),
+                Some(b) => self.bristle(h, b, x[1], x[k], x[0] - x[k + 1]) / (h.level + b.excess),
+            };
             x[k + 1] = x[0];
         }
     }
 
     /// Whether the joint has a dry (sign-smoothed) friction whose stiffness depends on speed.
     fn has_dry_friction(&self) -> bool {
-        self.friction.coulomb > 0.0 || self.friction.static_level > 0.0 || self.load_friction != 0.0
+        self.friction.coulomb > 0.0
+            || self.friction.static_level > 0.0
+            || self.load_friction != 0.0
+            || self.power_drag.is_some()
     }
 
     /// Joint friction torque at velocity `v` with transmitted torque magnitude `load`.
@@ -384,6 +467,9 @@ impl JointPlant {
         let mut f = self.friction.force(v);
         if self.load_friction != 0.0 {
             f += self.load_friction * load * smooth_sign(v, self.friction.smoothing);
+        }
+        if let Some(d) = self.power_drag {
+            f += d.force(v);
         }
         f
     }
@@ -400,7 +486,10 @@ impl JointPlant {
         } else {
             v0.abs().min(v1.abs())
         };
-        let h = 0.05 * self.friction.smoothing;
+        let h = 0.05
+            * self.power_drag.map_or(self.friction.smoothing, |d| {
+                (PowerDrag::SMOOTHING * d.reference).min(self.friction.smoothing)
+            });
         let slope =
             (self.friction_torque(v + h, load) - self.friction_torque(v - h, load)) / (2.0 * h);
         let rate = slope.max(0.0) / self.inertias().0;
@@ -581,7 +670,8 @@ impl JointPlant {
         let r2 = self.radius * self.radius;
         let mut kt = r2 * (self.cables[0].slope(0.0) + self.cables[1].slope(0.0));
         if let Some(h) = self.dahl {
-            kt += h.level / h.breakaway;
+            let excess = self.dahl_stribeck.map_or(0.0, |b| b.excess);
+            kt += (h.level + excess) / h.breakaway;
         }
         if let Some(c) = self.contact {
             kt += c.stiffness * c.lever_arm * c.lever_arm;
@@ -636,6 +726,9 @@ impl Model for JointPlant {
         if self.load_friction != 0.0 {
             torque -=
                 self.load_friction * transmitted.abs() * smooth_sign(x[1], self.friction.smoothing);
+        }
+        if let Some(d) = self.power_drag {
+            torque -= d.force(x[1]);
         }
         torque -= self.dahl_torque(x, x[0]);
         if let Some(k) = self.dahl_at {
@@ -837,6 +930,95 @@ mod tests {
         x[3] = 0.0;
         assert_relative_eq!(p.dahl_torque(&x, 1e-6), f, max_relative = 1e-12);
         assert_relative_eq!(p.dahl_torque(&x, -1e-6), -f, max_relative = 1e-12);
+    }
+
+    #[test]
+    fn a_lugre_bristle_slides_on_the_stribeck_curve_and_holds_the_static_level() {
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        j.friction = StaticFriction::NONE;
+        let mut p = JointPlant::from(&j);
+        let (fc, df, vs, th) = (2e-3, 3e-3, 0.05, 1e-4);
+        p.dahl = Some(Hysteresis {
+            level: fc,
+            breakaway: th,
+            exponent: 1.0,
+        });
+        p.dahl_stribeck = BristleStribeck::new(df, vs);
+        p.layout();
+        // sliding far at speed v: the level of the Stribeck curve, either way
+        for v in [0.0, 0.02, 0.05, 0.2, -0.03] {
+            let mut x = p.rest(0.0);
+            x[1] = v;
+            let g = fc + df * (-(v / vs) * (v / vs)).exp();
+            let s = if v < 0.0 { -1.0 } else { 1.0 };
+            assert_relative_eq!(p.dahl_torque(&x, s * 1.0), s * g, max_relative = 1e-9);
+        }
+        // at rest the bristle is a spring of stiffness F_s/θ_d: a deflection of θ_d/100 holds
+        // about F_s/100, more than the Coulomb level's share
+        let x = p.rest(0.0);
+        let small = p.dahl_torque(&x, th / 100.0);
+        assert_relative_eq!(small, (fc + df) / 100.0, max_relative = 1e-2);
+        // without the Stribeck excess it is the Dahl element of the same level
+        let mut d = p.clone();
+        d.dahl_stribeck = BristleStribeck::new(0.0, vs);
+        let mut q = p.clone();
+        q.dahl_stribeck = None;
+        let mut x = p.rest(0.0);
+        x[1] = 0.01;
+        x[2] = 0.4;
+        for delta in [-3e-4, 1e-5, 2e-4] {
+            assert_relative_eq!(
+                d.dahl_torque(&x, delta),
+                q.dahl_torque(&x, delta),
+                max_relative = 1e-12
+            );
+        }
+        // and a replay with it stays finite
+        let (dt, t_len) = (1e-3, 2000);
+        let u = inputs(t_len, dt, 3e-3);
+        let y = p.simulate(&u, &p.rest(0.0), dt, 4).unwrap();
+        assert!(y.iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn power_drag_is_a_power_of_speed_away_from_rest_and_linear_for_n_one() {
+        let d = PowerDrag {
+            coefficient: 0.2,
+            exponent: 0.5,
+            reference: 2.0,
+        };
+        // b·|v/v_r|ⁿ·sgn(v) once |v| ≫ ε·v_r, odd, finite slope b·εⁿ⁻¹/v_r at rest
+        for v in [1.0, 4.0, -3.0] {
+            let want = 0.2 * (v / 2.0_f64).abs().powf(0.5) * v.signum();
+            assert_relative_eq!(d.force(v), want, max_relative = 2e-3);
+        }
+        let h = 1e-9;
+        let slope = (d.force(h) - d.force(-h)) / (2.0 * h);
+        assert_relative_eq!(
+            slope,
+            0.2 * PowerDrag::SMOOTHING.powf(-0.5) / 2.0,
+            max_relative = 1e-6
+        );
+        let lin = PowerDrag { exponent: 1.0, ..d };
+        assert_relative_eq!(lin.force(0.7), 0.2 * 0.7 / 2.0, max_relative = 1e-12);
+        // on the joint it adds to the friction torque and asks for substeps where it is stiff
+        let mut j = AntagonisticJoint::forceps_example();
+        j.contact = None;
+        j.friction = StaticFriction::NONE;
+        let mut p = JointPlant::from(&j);
+        assert_eq!(p.friction_substeps(0.0, 0.0, 0.0, 1e-3), 1);
+        p.power_drag = Some(PowerDrag {
+            coefficient: 10.0,
+            exponent: 0.3,
+            reference: 1.0,
+        });
+        assert_relative_eq!(
+            p.friction_torque(1.0, 0.0),
+            d.force(0.0) + 10.0,
+            max_relative = 1e-3
+        );
+        assert!(p.friction_substeps(0.0, 0.0, 0.0, 1e-3) > 1);
     }
 
     #[test]

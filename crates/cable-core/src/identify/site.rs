@@ -174,11 +174,21 @@ pub enum Form {
     /// An integrating converter (HX711, sigma-delta): each report is the mean over its
     /// conversion window (standard: the instantaneous value is held).
     Averaging,
+    /// Dry friction carried by a bristle state stiff enough that its pre-sliding displacement
+    /// is one sample's travel (Coulomb's level): the joint sticks at rest until the applied
+    /// torque exceeds the level (standard: a sign law smoothed in velocity, which creeps).
+    Sticking,
+    /// Stribeck friction carried by a LuGre bristle state (Canudas de Wit et al. 1995, without
+    /// the bristle damping): the joint sticks at rest below the static level `F_s`, breaks away
+    /// and slides at the Stribeck curve's level (standard: a smoothed velocity law, which creeps).
+    Lugre,
+    /// Viscous drag as a power of speed, `b·|θ̇|ⁿ·sgn(θ̇)` (standard: linear in speed).
+    PowerLaw,
 }
 
 impl Form {
     /// `"standard"`, `"load_dependent"`, `"generalised"`, `"whole"`, `"cubic"`, `"second_order"`,
-    /// `"scale"`, `"resonant"`, `"averaging"`.
+    /// `"scale"`, `"resonant"`, `"averaging"`, `"sticking"`, `"lugre"`, `"power_law"`.
     pub fn name(self) -> &'static str {
         match self {
             Form::Standard => "standard",
@@ -190,6 +200,9 @@ impl Form {
             Form::Scale => "scale",
             Form::Resonant => "resonant",
             Form::Averaging => "averaging",
+            Form::Sticking => "sticking",
+            Form::Lugre => "lugre",
+            Form::PowerLaw => "power_law",
         }
     }
 
@@ -205,6 +218,9 @@ impl Form {
             Form::Scale,
             Form::Resonant,
             Form::Averaging,
+            Form::Sticking,
+            Form::Lugre,
+            Form::PowerLaw,
         ]
         .into_iter()
         .find(|f| f.name() == name)
@@ -212,7 +228,7 @@ impl Form {
             name: "form".into(),
             value: name.into(),
             allowed: "standard, load_dependent, generalised, whole, cubic, second_order, scale, \
-                      resonant, averaging"
+                      resonant, averaging, sticking, lugre, power_law"
                 .into(),
         })
     }
@@ -350,9 +366,14 @@ impl Candidate {
             CoulombFriction => motor(vec![
                 c(Site::Joint),
                 c(Site::Joint).with_form(Form::LoadDependent),
+                c(Site::Joint).with_form(Form::Sticking),
             ]),
-            ViscousFriction => motor(vec![c(Site::Joint)]),
-            StribeckFriction | InertiaError => vec![c(Site::Joint)],
+            ViscousFriction => motor(vec![
+                c(Site::Joint),
+                c(Site::Joint).with_form(Form::PowerLaw),
+            ]),
+            StribeckFriction => vec![c(Site::Joint), c(Site::Joint).with_form(Form::Lugre)],
+            InertiaError => vec![c(Site::Joint)],
             DahlHysteresis => {
                 let mut v = vec![c(Site::Joint), c(Site::Joint).with_form(Form::Generalised)];
                 if ctx.motor_side_measured() {
@@ -399,6 +420,16 @@ impl Candidate {
             SensorGainBias => sensors(&[Form::Standard]),
             _ => vec![],
         }
+    }
+
+    /// Whether the candidate lives in the joint's bristle state (Dahl hysteresis, the sticking
+    /// Coulomb and the LuGre Stribeck forms); a fit holds at most one of them.
+    pub fn uses_joint_bristle(&self) -> bool {
+        self.effect == Effect::DahlHysteresis
+            || matches!(
+                (self.effect, self.form),
+                (Effect::CoulombFriction, Form::Sticking) | (Effect::StribeckFriction, Form::Lugre)
+            )
     }
 
     /// Whether the candidate can act on a plant with this context.
@@ -449,6 +480,15 @@ impl Candidate {
         let what = match (self.effect, self.form) {
             (Effect::CoulombFriction, Form::LoadDependent) => {
                 "dry friction growing with the transmitted load"
+            }
+            (Effect::ViscousFriction, Form::PowerLaw) => {
+                "joint drag growing as a power of speed (not linearly)"
+            }
+            (Effect::CoulombFriction, Form::Sticking) => {
+                "dry friction that holds the joint at rest (a stiff bristle state)"
+            }
+            (Effect::StribeckFriction, Form::Lugre) => {
+                "joint friction that sticks at rest and drops once sliding (Stribeck, LuGre state)"
             }
             (Effect::DahlHysteresis, Form::Generalised) => {
                 "hysteresis (Dahl, fitted shape exponent)"
