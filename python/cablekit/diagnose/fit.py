@@ -291,10 +291,13 @@ def combinable(prep: Prepared, effects: list[str]) -> bool:
 
 
 def warm_start(prep: Prepared, current: CandidateFit, effects: list[str], single: CandidateFit) -> _F | None:
-    """Start a combined fit from the current model's and the single fit's parameters."""
+    """Start a combined fit from the current model's and the single fit's parameters — but not
+    from a single fit that ended on a bound: alone, a candidate often absorbs another effect by
+    running to a bound (a Coulomb smoothing of 7 rad/s imitating a sensor lag), and that start
+    keeps the pair away from the optimum; its parameters then start where its own fit does."""
     specs = prep.fit0.with_effects(effects, prep.substeps).param_specs()
     have = {}
-    for src in (single, current):
+    for src in (single, current) if not single.bound else (current,):
         for s, v in zip(src.specs, src.params, strict=False):
             have[(s.effect, s.name)] = v
     return np.array([have.get((s.effect, s.name), s.initial) for s in specs])
