@@ -166,15 +166,16 @@ pub fn augment_joint(nom: &AntagonisticJoint, effects: &[(Candidate, &[f64])]) -
                     m.friction.smoothing = p[1];
                 }
             }
-            Effect::ViscousFriction if c.form == Form::PowerLaw => {
-                if p[0] > 0.0 && p[1] > 0.0 && p[2] > 0.0 {
-                    m.power_drag = Some(PowerDrag {
-                        coefficient: p[0],
-                        exponent: p[1],
-                        reference: p[2],
-                    });
-                }
+            Effect::ViscousFriction
+                if c.form == Form::PowerLaw && p[..3].iter().all(|&v| v > 0.0) =>
+            {
+                m.power_drag = Some(PowerDrag {
+                    coefficient: p[0],
+                    exponent: p[1],
+                    reference: p[2],
+                });
             }
+            Effect::ViscousFriction if c.form == Form::PowerLaw => {} // no drag at b = 0
             Effect::ViscousFriction => m.friction.viscous = (m.friction.viscous + p[0]).max(0.0),
             Effect::StribeckFriction => {
                 m.friction.coulomb += p[0];

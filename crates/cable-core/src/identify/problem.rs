@@ -147,6 +147,8 @@ pub struct Augmented {
 }
 
 /// The plant a replay simulates: the joint with located effects, or the transmission.
+// one value per simulation, never stored in bulk: the joint's size costs nothing to keep inline
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Replay {
     /// The antagonistic joint with its located effects.
@@ -827,6 +829,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::float_cmp)] // a fixed parameter is exactly its bound: the claim under test
     fn stick_phase_forms_are_recovered_with_their_bristle_fixed_and_never_share_it() {
         use super::super::site::Form;
         let lugre = cand(Effect::StribeckFriction).with_form(Form::Lugre);
