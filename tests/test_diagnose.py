@@ -1185,7 +1185,11 @@ def test_parsimony_prefers_the_simpler_unless_the_richer_is_better_on_held_out_d
 
     from cablekit.diagnose.select import parsimony
 
-    fits = {"stribeck": SimpleNamespace(params=[0.0] * 4), "coulomb": SimpleNamespace(params=[0.0] * 2)}
+    def fake(effect: str, n: int) -> SimpleNamespace:
+        specs = [SimpleNamespace(effect=effect, name=f"p{i}", lower=0.0, upper=1.0) for i in range(n)]
+        return SimpleNamespace(params=[0.5] * n, specs=specs)
+
+    fits = {"stribeck": fake("stribeck_friction@joint", 4), "coulomb": fake("coulomb_friction@joint", 2)}
     scores = {"stribeck": {"gap_after": 1.9}, "coulomb": {"gap_after": 2.0}}
     ranked = ["stribeck", "coulomb"]
     assert parsimony(ranked, fits, scores) == ["coulomb", "stribeck"]  # type: ignore[arg-type]

@@ -397,3 +397,113 @@ def test_any_combination_of_ids_is_combinable_or_not_without_raising(control_pre
     bristle |= {"coulomb_friction@joint/sticking", "stribeck_friction@joint/lugre"}
     if len(set(ids) & bristle) >= 2:
         assert not got
+
+
+def test_backward_elimination_drops_an_effect_the_others_made_superfluous(viscous_prep):
+    """A selection that carries a superfluous effect next to the one in the data (creep fitted
+    beside the viscous friction that made the runs) loses it, with a ``removed`` step; the true
+    effect stays (dropping it costs a significant, practical share of the held-out gap), and a
+    selection of the true effect alone is left as it is. A pass that never removes anything, or
+    removes the wrong one, fails."""
+    from cablekit.diagnose.fit import fit_candidate
+    from cablekit.diagnose.select import Forward, backward_eliminate
+
+    prep = viscous_prep
+    base = baseline(prep)
+    true, spurious = "viscous_friction@joint", "creep@cable.both"
+    both = fit_candidate(prep, [spurious, true], max_iter=20)
+    assert not both.error
+    sel = Forward([spurious, true], [{"added": [spurious]}, {"added": [true]}], both)
+    out = backward_eliminate(prep, sel, base, Options(progress=False), np.random.default_rng(1))
+    assert out.chosen == [true]
+    assert out.steps[-1]["removed"] == spurious and out.steps[-1]["added"] == []
+    assert out.current.effects == [true] and not out.current.error
+    alone = fit_candidate(prep, [true], max_iter=20)
+    kept = backward_eliminate(
+        prep, Forward([true], [], alone), base, Options(progress=False), np.random.default_rng(1)
+    )
+    assert kept.chosen == [true] and kept.current is alone and kept.steps == []
+
+
+def test_a_revisited_law_starts_from_the_parameters_it_shares_with_the_one_it_replaces(control_prep):
+    """Swapping a selected Stribeck law for the Coulomb law nested in it starts the Coulomb
+    level where the Stribeck fit left ``F_c`` (clipped to the bounds), not where Coulomb's own
+    single fit did; parameters of the other selected effects and unshared ones are untouched."""
+    from cablekit.diagnose.fit import CandidateFit
+    from cablekit.diagnose.select import _carry_over
+
+    prep, _ = control_prep
+    strib, coul, lag = "stribeck_friction@joint", "coulomb_friction@joint", "sensor_lag@sensors.force"
+    specs = prep.fit0.with_effects([lag, strib], prep.substeps).param_specs()
+    params = np.array([0.5 * (s.lower + s.upper) if s.effect == lag else 0.0 for s in specs])
+    fc = next(i for i, s in enumerate(specs) if s.effect == strib and s.name == "F_c")
+    params[fc] = 0.0123
+    cur = CandidateFit([lag, strib], params, specs, 1, True, [], [], 0.0, np.zeros(len(specs)), 1)
+    new_specs = prep.fit0.with_effects([lag, coul], prep.substeps).param_specs()
+    start = np.array([-7.0] * len(new_specs))
+    out = _carry_over(prep, cur, strib, coul, [lag, coul], start)
+    for i, s in enumerate(new_specs):
+        want = 0.0123 if (s.effect, s.name) == (coul, "F_c") else -7.0
+        assert out[i] == pytest.approx(want)
+    params[fc] = 1e9  # beyond the Coulomb bound: clipped
+    cur.params = params
+    out = _carry_over(prep, cur, strib, coul, [lag, coul], start)
+    i = next(i for i, s in enumerate(new_specs) if (s.effect, s.name) == (coul, "F_c"))
+    assert out[i] == new_specs[i].upper
+    assert _carry_over(prep, cur, strib, coul, [lag, coul], None) is None
+
+
+def test_two_forms_of_one_law_at_one_site_are_never_fitted_together(control_prep):
+    """Coulomb beside Stribeck friction at the joint, or two forms of one effect at one site, are
+    alternatives of one law (their sum is that law with other parameters): not combinable. The
+    same effect at two sites and unrelated effects at one site are."""
+    from cablekit.diagnose.fit import combinable
+
+    prep, _ = control_prep
+    assert not combinable(prep, ["coulomb_friction@joint", "stribeck_friction@joint"])
+    assert not combinable(prep, ["stribeck_friction@joint/lugre", "stribeck_friction@joint"])
+    assert not combinable(prep, ["sensor_lag@sensors.force", "sensor_lag@sensors.force/second_order"])
+    assert combinable(prep, ["coulomb_friction@joint", "viscous_friction@joint"])
+    assert combinable(
+        prep, ["sensor_lag@sensor.tension_motor_drive", "sensor_lag@sensor.tension_motor_return"]
+    )
+
+
+def test_a_richer_law_worse_than_the_law_it_contains_is_refitted_from_it(control_prep, monkeypatch):
+    """LuGre-Stribeck contains the sticking Coulomb law (F_s = F_c): when its fit ended with a
+    higher cost than the sticking law's full fit, it is fitted again from the sticking law's F_c
+    and its own other parameters, and the better of its fits is kept (and counts as a full fit);
+    when its cost is already lower, nothing is refitted."""
+    import cablekit.diagnose.screen as screen_mod
+    from cablekit.diagnose.fit import CandidateFit
+
+    prep, _ = control_prep
+    stick, lugre = "coulomb_friction@joint/sticking", "stribeck_friction@joint/lugre"
+
+    def fake(k: str, params: list[float], cost: float) -> CandidateFit:
+        specs = prep.fit0.with_effects([k], 1).param_specs()
+        return CandidateFit([k], np.array(params), specs, 1, True, [], [], cost, np.zeros(len(specs)), 1)
+
+    floor = prep.fit0.with_effects([stick], 1).param_specs()[1].lower
+    jobs_seen: list = []
+
+    def fit_many(prep_, jobs, opts, label, *a, **k):
+        jobs_seen.extend(jobs)
+        return [fake(e[0], list(theta), refit_cost) for e, theta in jobs]
+
+    monkeypatch.setattr(screen_mod, "fit_many", fit_many)
+    opts = Options(progress=False)
+    singles = [fake(stick, [0.05, floor], 10.0), fake(lugre, [0.2, 0.03, 0.4, floor], 50.0)]
+    for refit_cost, kept_cost in ((20.0, 20.0), (80.0, 50.0)):
+        for was_full in (False, True):
+            jobs_seen.clear()
+            out, full = screen_mod._nest(prep, singles, {stick, lugre} if was_full else {stick}, opts)
+            assert len(jobs_seen) == 1 and jobs_seen[0][0] == [lugre]
+            assert list(jobs_seen[0][1]) == pytest.approx([0.05, 0.03, 0.4, floor])
+            assert next(c for c in out if c.effects == [lugre]).cost == kept_cost
+            # a screen fit that the refit did not beat stays a screen fit
+            assert (lugre in full) == (was_full or refit_cost < 50.0)
+    jobs_seen.clear()
+    better = [singles[0], fake(lugre, [0.05, 0.01, 0.4, floor], 9.0)]
+    out, full = screen_mod._nest(prep, better, {stick, lugre}, opts)
+    assert jobs_seen == [] and out is better

@@ -38,6 +38,7 @@ from cablekit.diagnose.result import SCHEMA, Diagnosis, jsonable
 from cablekit.diagnose.screen import screen
 from cablekit.diagnose.select import (
     Forward,
+    backward_eliminate,
     bic,
     channel_changes,
     closed_fraction,
@@ -176,7 +177,7 @@ def diagnose(
         else Forward([], [], base)
     )
     if gap_significant:
-        sel = refine_forms(prep, sel, fits, scores, opts, rng)
+        sel = backward_eliminate(prep, refine_forms(prep, sel, fits, scores, opts, rng), base, opts, rng)
     chosen, steps, current = sel.chosen, sel.steps, sel.current
     # the named effects first, in the order they were selected (a provisional first pick that
     # round 2 replaced, or a form revisited, is no longer the diagnosis's first name)

@@ -19,6 +19,7 @@ from cablekit.diagnose.progress import Progress
 from cablekit.errors import CablekitError, ParameterError, SimulationDivergedError
 
 __all__ = [
+    "NESTED",
     "CandidateFit",
     "baseline",
     "combinable",
@@ -279,10 +280,36 @@ def n_free(c: CandidateFit) -> int:
     return sum(1 for s in c.specs if s.lower < s.upper)
 
 
+#: effects whose law contains another's as a special case (the simpler one is an alternative
+#: when the richer is selected): Stribeck with F_s = F_c is Coulomb friction; Dahl with its
+#: break-away at the floor is the sticking Coulomb law
+NESTED = {"stribeck_friction": ("coulomb_friction",), "dahl_hysteresis": ("coulomb_friction",)}
+
+
+def _one_law_twice(prep: Prepared, effects: list[str]) -> bool:
+    """Two candidates that are alternatives of one law at one site: the same effect in two
+    forms, or an effect beside one nested in it (Coulomb beside Stribeck friction at the joint:
+    their sum is a Stribeck law with another F_c)."""
+    seen: list[tuple[str, str]] = []
+    for k in effects:
+        info = prep.info.get(k)
+        if info is None:
+            continue
+        eff, site = info["effect"], info["site"]
+        for e2, s2 in seen:
+            if s2 == site and (e2 == eff or eff in NESTED.get(e2, ()) or e2 in NESTED.get(eff, ())):
+                return True
+        seen.append((eff, site))
+    return False
+
+
 def combinable(prep: Prepared, effects: list[str]) -> bool:
-    """Whether the candidates can be fitted together: the core refuses, e.g., two candidates
-    that would share the joint's one bristle state (Dahl hysteresis and the sticking Coulomb
-    or LuGre Stribeck friction)."""
+    """Whether the candidates can be fitted together: never two alternatives of one law at one
+    site (:func:`_one_law_twice`), and the core refuses, e.g., two candidates that would share
+    the joint's one bristle state (Dahl hysteresis and the sticking Coulomb or LuGre Stribeck
+    friction)."""
+    if _one_law_twice(prep, effects):
+        return False
     try:
         prep.fit0.with_effects(effects, prep.substeps)
     except ParameterError:

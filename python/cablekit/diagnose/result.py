@@ -131,6 +131,8 @@ class Step:
     worsened_channels: list[str]
     #: schema 3: a revisited form or site (``refine_forms``): the candidate the added one replaces
     replaces: str | None = None
+    #: schema 3: an effect the later ones made superfluous (``backward_eliminate``); ``added`` is empty
+    removed: str | None = None
 
 
 @dataclass(frozen=True)

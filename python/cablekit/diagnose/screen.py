@@ -36,6 +36,63 @@ def shortlist(cands: list[CandidateFit], n: int, per_channel: int) -> list[Candi
     return keep
 
 
+#: (effect, form) → the richer laws, at the same site, that contain it as a special case with
+#: every one of its parameters (by name) and the rest at their "off" value: LuGre-Stribeck with
+#: F_s = F_c is the sticking Coulomb law; the generalised Dahl element with n = 1 is Dahl's
+CONTAINED_IN = {
+    ("coulomb_friction", "sticking"): (("stribeck_friction", "lugre"),),
+    ("dahl_hysteresis", "standard"): (("dahl_hysteresis", "generalised"),),
+}
+
+
+def _contained_pairs(prep: Prepared) -> list[tuple[str, str]]:
+    """(contained, richer) candidate ids at one site, from :data:`CONTAINED_IN`."""
+    out = []
+    for c, ci in prep.info.items():
+        for eff, form in CONTAINED_IN.get((ci["effect"], ci["form"]), ()):
+            out += [
+                (c, r)
+                for r, ri in prep.info.items()
+                if (ri["effect"], ri["form"], ri["site"]) == (eff, form, ci["site"])
+            ]
+    return out
+
+
+def _nest(
+    prep: Prepared, singles: list[CandidateFit], full: set[str], opts: Options
+) -> tuple[list[CandidateFit], set[str]]:
+    """A richer law that contains a fully fitted one (:data:`CONTAINED_IN`) cannot be worse than
+    it from the right start: when its fit (full or screen) ended with a higher cost, its short
+    or full fit fell into another basin — a search failure, not evidence. It is fitted in full
+    again from the contained law's values of the parameters the two share by name and its own
+    values of the rest, and the better of its two fits is kept. Returns the singles and the ids
+    whose kept fit is a full one."""
+    by_id = {c.effects[0]: c for c in singles if not c.error}
+    jobs: list[tuple[list[str], _F | None]] = []
+    for c, r in _contained_pairs(prep):
+        if c not in full or c not in by_id or r not in by_id or by_id[r].cost <= by_id[c].cost:
+            continue
+        have = {sp.name: v for sp, v in zip(by_id[c].specs, by_id[c].params, strict=False)}
+        rc = by_id[r]
+        start = [
+            min(max(have.get(sp.name, v), sp.lower), sp.upper)
+            for sp, v in zip(rc.specs, rc.params, strict=False)
+        ]
+        jobs.append(([r], np.array(start)))
+    if not jobs:
+        return singles, full
+    again = {t.effects[0]: t for t in fit_many(prep, jobs, opts, "nested") if not t.error}
+    out, full = [], set(full)
+    for t in singles:
+        new = again.get(t.effects[0])
+        if new is not None and (t.error or new.cost < t.cost):
+            out.append(new)
+            full.add(new.effects[0])
+        else:
+            out.append(t)
+    return out, full
+
+
 @dataclass
 class Screening:
     """Every candidate fitted alone: in full for the shortlist, from the screen for the rest."""
@@ -85,7 +142,12 @@ def screen(prep: Prepared, opts: Options) -> Screening:
         # fitted in full from its own global stage (and reported as failed if that fails too)
         jobs = [(c.effects, c.params) for c in keep] + [(c.effects, None) for c in quick if c.error]
         singles = fit_many(prep, jobs, opts, "candidates")
+        full = {c.effects[0] for c in singles}
         singles += [c for c in quick if c.effects[0] in screened_out]
     else:
         singles = fit_many(prep, [([e], None) for e in prep.candidates], opts, "candidates")
+        full = set(prep.candidates)
+    singles, full = _nest(prep, singles, full, opts)
+    for k in full:
+        screened_out.pop(k, None)
     return Screening(singles, screened_out, second_chance)

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from cablekit.diagnose.fit import CandidateFit, combinable, fit_many, n_free, warm_start
+from cablekit.diagnose.fit import NESTED, CandidateFit, combinable, fit_many, n_free, warm_start
 from cablekit.diagnose.prepare import MIN_CLOSED, NOISE_LEVEL, Options, Prepared
 from cablekit.diagnose.screen import Screening, shortlist
 
@@ -220,10 +220,21 @@ def _simplest_equivalent(
     return pick, pick_cmp
 
 
-#: effects whose law contains another's as a special case (the simpler one is an alternative
-#: when the richer is selected): Stribeck with F_s = F_c is Coulomb friction; Dahl with its
-#: break-away at the floor is the sticking Coulomb law
-NESTED = {"stribeck_friction": ("coulomb_friction",), "dahl_hysteresis": ("coulomb_friction",)}
+def _carry_over(
+    prep: Prepared, current: CandidateFit, k: str, a: str, effects: list[str], start: _F | None
+) -> _F | None:
+    """Start alternative ``a`` (another form, site or a nested law of ``k``'s effect) where ``k``
+    left the parameters they share by name: ``F_c`` of a Stribeck law fitted beside a lag is the
+    Coulomb level to start from, not the Coulomb single fit's (which may have absorbed the lag)."""
+    if start is None:
+        return None
+    have = {s.name: v for s, v in zip(current.specs, current.params, strict=False) if s.effect == k}
+    specs = prep.fit0.with_effects(effects, prep.substeps).param_specs()
+    out = np.array(start, dtype=float)
+    for i, s in enumerate(specs):
+        if s.effect == a and s.name in have:
+            out[i] = min(max(have[s.name], s.lower), s.upper)
+    return out
 
 
 def refine_forms(
@@ -263,7 +274,12 @@ def refine_forms(
         jobs = []
         for a in alts:
             effects = [a if e == k else e for e in chosen]
-            jobs.append((effects, warm_start(prep, current, effects, fits[a])))
+            jobs.append(
+                (
+                    effects,
+                    _carry_over(prep, current, k, a, effects, warm_start(prep, current, effects, fits[a])),
+                )
+            )
         # a short fit of each alternative, the most promising (by fit cost) refined in full
         quick = fit_many(prep, jobs, opts, "  forms", opts.screen_iter, opts.screen_head_s)
         quick = [t for t in quick if not t.error]
@@ -332,6 +348,19 @@ def _equivalents(
         if len(out) >= most:
             break
     return out
+
+
+def _practical(g_cur: float, g_new: float, g_hold: float, ch: list[dict[str, Any]]) -> bool:
+    """Practical significance of a step from held-out gap ``g_cur`` to ``g_new`` (``g_hold``
+    before any effect; ``ch`` the channel changes): a real share of the original gap, most of a
+    remainder that is still above the noise (a small second effect behind a large first one), or
+    a quarter of one channel's remaining gap (an effect the pooled gap, dominated by another
+    channel, cannot see)."""
+    return (
+        g_cur - g_new >= MIN_CLOSED * (g_hold - 1.0)
+        or (g_cur > NOISE_LEVEL and g_cur - g_new >= 0.5 * (g_cur - 1.0))
+        or any(c["better"] and c["closed_fraction"] >= 0.25 for c in ch)
+    )
 
 
 @dataclass
@@ -409,17 +438,11 @@ def forward_select(
             worse = any(c["worsened"] for c in ch)
             if worse and round_ > 0:
                 continue  # a later step never trades one channel for another
-            # practical significance: a real share of the original gap, most of a remainder
-            # that is still above the noise (a small second effect behind a large first
-            # one), or a quarter of one channel's remaining gap (an effect the pooled gap,
-            # dominated by another channel, cannot see)
-            g_new = gap(t.hold_resid)
-            practical = (
-                g_cur - g_new >= MIN_CLOSED * (g_hold - 1.0)
-                or (g_cur > NOISE_LEVEL and g_cur - g_new >= 0.5 * (g_cur - 1.0))
-                or any(c["better"] and c["closed_fraction"] >= 0.25 for c in ch)
+            ok = (
+                cmp_["p_no_improvement"] < 0.025
+                and _practical(g_cur, gap(t.hold_resid), g_hold, ch)
+                and not worse
             )
-            ok = cmp_["p_no_improvement"] < 0.025 and practical and not worse
             # round 1: the first acceptable single in the (parsimony) ranking; later rounds: the
             # largest held-out closure
             key = (ok, -trials.index(t) if round_ == 0 else cmp_["closed_fraction"])
@@ -449,4 +472,51 @@ def forward_select(
         current_fit = best
         if gap(current.hold_resid) < NOISE_LEVEL:
             break
+    return Forward(chosen, steps, current)
+
+
+def backward_eliminate(
+    prep: Prepared, sel: Forward, base: CandidateFit, opts: Options, rng: np.random.Generator
+) -> Forward:
+    """Drop a selected effect the others have made superfluous. Forward selection never revisits
+    an early pick: a first effect that imitated two others alone (a Dahl element closing a lag +
+    friction gap) stays when the two are added after it. Each selected effect is left out in turn
+    and the rest refitted from the current parameters; an effect goes when forward selection
+    would not add it back to the rest (no significant, practical held-out improvement, and no
+    channel that its removal makes worse) — the one whose removal costs least first, until every
+    remaining effect earns its place."""
+    dt = prep.fit_runs[0].dt
+    g_hold = gap(base.hold_resid)
+    chosen, current, steps = list(sel.chosen), sel.current, list(sel.steps)
+    while len(chosen) >= 2:
+        jobs = []
+        for k in chosen:
+            rest = [e for e in chosen if e != k]
+            jobs.append((rest, warm_start(prep, current, rest, current)))
+        trials = fit_many(prep, jobs, opts, "  backward", opts.max_iter)
+        drop: CandidateFit | None = None
+        for t in trials:
+            if t.error:
+                continue
+            ch = channel_changes(prep, t.hold_resid, current.hold_resid, dt, opts, rng)
+            earns = compare(t.hold_resid, current.hold_resid, dt, opts, rng)["p_no_improvement"] < 0.025 and (
+                _practical(gap(t.hold_resid), gap(current.hold_resid), g_hold, ch)
+            )
+            back = channel_changes(prep, current.hold_resid, t.hold_resid, dt, opts, rng)
+            if earns or any(c["worsened"] for c in back):
+                continue
+            if drop is None or gap(t.hold_resid) < gap(drop.hold_resid):
+                drop = t
+        if drop is None:
+            break
+        gone = next(e for e in chosen if e not in drop.effects)
+        steps.append(
+            {
+                "added": [],
+                "held_out": compare(current.hold_resid, drop.hold_resid, dt, opts, rng),
+                "worsened_channels": [],
+                "removed": gone,
+            }
+        )
+        chosen, current = list(drop.effects), drop
     return Forward(chosen, steps, current)
