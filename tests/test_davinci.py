@@ -153,3 +153,28 @@ def test_any_malformed_bench_file_is_a_data_error_or_a_finite_run(
         assert str(path) in str(exc)
         return
     assert all(np.isfinite(v).all() for v in run.columns.values())
+
+
+def test_a_split_named_by_any_stems_finds_its_folder(tmp_path):
+    """Issue #37: a folder whose runs all have three-digit names (a wrist posture's ZXY), or other
+    stems, is found when the split names them; the upstream README.txt alone is no bench folder."""
+    from cablekit.diagnose.davinci import BenchSplit, bench_directory
+
+    rows = "\n".join(f"{i * 1e-3},{i},{i},0.1,{i},{i}" for i in range(20))
+    (tmp_path / "README.txt").write_text("Tool 4 at pitch +60\n")
+    with pytest.raises(ck.DataError, match="no bench files found"):
+        bench_directory(tmp_path)
+    for stem in ("100", "111", "122", "143"):
+        (tmp_path / f"{stem}.TXT").write_text(rows)
+    assert bench_directory(tmp_path) == tmp_path
+    split = BenchSplit(("100",), ("111", "122"), ("143",))
+    assert bench_directory(tmp_path, split.calibration + split.fit + split.held_out) == tmp_path
+    other = tmp_path / "other"
+    other.mkdir()
+    for stem in ("cal", "a", "b"):
+        (other / f"{stem}.txt").write_text(rows)
+    with pytest.raises(ck.DataError, match="no bench files found"):
+        bench_directory(other)
+    assert bench_directory(other, ("cal", "a", "b")) == other
+    with pytest.raises(ck.DataError, match=r"no bench run 'z' \(have a, b, cal\)"):
+        prepare_bench(other, BenchSplit(("cal",), ("a",), ("z",)))

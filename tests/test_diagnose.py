@@ -1260,3 +1260,26 @@ def test_refit_interval_of_a_parameter_no_refit_moves_is_none(monkeypatch):
         prep, cur, Options(progress=False, interval_refits=4), np.random.default_rng(0)
     )
     assert out == [None] * len(cur.params)
+
+
+def test_an_unchanged_channel_is_not_significantly_worse():
+    """Issue #37: a channel whose held-out gap is exactly unchanged was marked
+    ``significantly_worse`` (a tie counted as "not better"); a channel that grew in every
+    resample still is."""
+    from types import SimpleNamespace
+
+    from cablekit.diagnose.prepare import Options
+    from cablekit.diagnose.select import channel_changes
+
+    rng = np.random.default_rng(4)
+    before = [rng.normal(size=(20000, 2)) * [3.0, 1.0]]
+    after = [before[0] * [1.0, 1.0]]
+    after[0][:, 0] *= 0.5  # channel a improved; channel b exactly unchanged
+    prep = SimpleNamespace(channel_names=["a", "b"])
+    opts = Options(progress=False)
+    ch = {c["channel"]: c for c in channel_changes(prep, before, after, 1e-3, opts, rng)}  # type: ignore[arg-type]
+    assert not ch["b"]["significantly_worse"] and not ch["b"]["worsened"] and ch["b"]["change"] == 0.0
+    assert not ch["a"]["significantly_worse"] and ch["a"]["better"]
+    grown = [before[0] * [1.0, 1.5]]
+    ch = {c["channel"]: c for c in channel_changes(prep, before, grown, 1e-3, opts, rng)}  # type: ignore[arg-type]
+    assert ch["b"]["significantly_worse"] and ch["b"]["worsened"]

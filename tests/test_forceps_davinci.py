@@ -149,3 +149,63 @@ def test_the_new_instrument_path_runs_from_the_cli(tmp_path):
     text = (tmp_path / "davinci.md").read_text(encoding="utf-8")
     assert "calibrated on 00, scored on 19 runs" in text
     assert "O'Neill" in text
+
+
+def test_a_folder_copied_with_its_upstream_readme_and_serial_log_reads_only_the_runs(tmp_path):
+    """Upstream bench folders keep ``README.txt`` and ``SerialLog.txt`` beside the runs (issue #37):
+    a folder read whole takes the runs named by their condition digits (XY, ZXY) and nothing else;
+    a run with another stem is read when it is named."""
+    header = "% Tool 4\n% columns ...\n"
+    rows = "".join(GOOD_ROW.replace("0.001", f"{0.001 * (i + 1):.3f}", 1) for i in range(20))
+    for stem in ("00", "13", "101"):
+        _write(tmp_path / f"{stem}.TXT.gz", header + rows)
+    (tmp_path / "README.txt").write_text("Tool 4, Maryland bipolar forceps\n")
+    _write(tmp_path / "SerialLog.txt.gz", "COM3 opened\n")
+    _write(tmp_path / "extra.TXT.gz", header + rows)
+    runs = dv.read_bench_folder(tmp_path)
+    assert sorted(r.path.name for r in runs) == ["00.TXT.gz", "101.TXT.gz", "13.TXT.gz"]
+    named = dv.read_bench_folder(tmp_path, names=["extra", "00"])
+    assert [r.path.name for r in named] == ["extra.TXT.gz", "00.TXT.gz"]
+    with pytest.raises(DataError, match=r"README\.txt"):
+        dv.read_bench_folder(tmp_path, names=["README"])
+    (tmp_path / "notes").mkdir()
+    only_text = tmp_path / "notes"
+    (only_text / "README.txt").write_text("x\n")
+    with pytest.raises(DataError, match="no bench runs"):
+        dv.read_bench_folder(only_text)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.text(alphabet="0123456789abcXY_-. ", min_size=1, max_size=6),
+            st.sampled_from([".TXT", ".TXT.gz", ".txt", ".txt.GZ", ".csv", "", ".TXT.bak"]),
+        ),
+        max_size=8,
+        unique_by=lambda t: t[0] + t[1],
+    )
+)
+def test_a_folder_of_any_file_names_yields_exactly_its_digit_named_runs(tmp_path_factory, names):
+    """Whatever a folder holds, the bench runs are its ``.TXT``/``.TXT.gz`` files (any case) whose
+    stem is all digits; every text run is found by its stem."""
+    from cablekit._files import bench_runs, text_runs
+
+    d = tmp_path_factory.mktemp("bench")
+    made = set()
+    for stem, suffix in names:
+        name = stem + suffix
+        if name in (".", "..") or "/" in name:
+            continue
+        (d / name).write_text("x")
+        made.add(name)
+    text = text_runs(d)
+    for stem, p in text.items():
+        assert p.name in made and p.name[len(stem) :].lower() in (".txt", ".txt.gz")
+    for name in made:
+        low = name.lower()
+        for suffix in (".txt.gz", ".txt"):
+            if low.endswith(suffix):
+                assert name[: -len(suffix)] in text
+                break
+    assert set(bench_runs(d)) == {k for k in text if k.isascii() and k.isdigit()}

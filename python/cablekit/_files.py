@@ -3,6 +3,7 @@ file: missing, a folder, unreadable, not UTF-8, not TOML, or nested too deeply f
 
 from __future__ import annotations
 
+import re
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -38,3 +39,24 @@ def parse_toml(text: str, source: str) -> dict[str, Any]:
 def load_toml(path: str | Path, what: str) -> dict[str, Any]:
     """The document of the TOML file ``path``."""
     return parse_toml(read_text(path, what), str(path))
+
+
+#: a bench recording's file ending (MRDLab format: ``XY.TXT``, gzip-compressed or not, any case)
+_TEXT_RUN = re.compile(r"\.txt(\.gz)?$", re.IGNORECASE)
+
+
+def text_runs(folder: Path) -> dict[str, Path]:
+    """Every ``*.TXT`` / ``*.TXT.gz`` file (any case) of ``folder`` by stem; empty for no folder."""
+    out: dict[str, Path] = {}
+    for f in sorted(folder.iterdir()) if folder.is_dir() else []:
+        m = _TEXT_RUN.search(f.name)
+        if m and f.is_file():
+            out.setdefault(f.name[: m.start()], f)
+    return out
+
+
+def bench_runs(folder: Path) -> dict[str, Path]:
+    """The run files of a bench folder by stem: those whose stem is a condition code (digits:
+    ``XY``, ``ZXY``) — not the upstream ``README.txt`` or ``SerialLog.txt`` a copied folder keeps
+    beside its runs. A run with another stem is read when it is named (:func:`text_runs`)."""
+    return {k: v for k, v in text_runs(folder).items() if k.isascii() and k.isdigit()}

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from cablekit._files import bench_runs, text_runs
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.spec import ModelSpec, model_spec_from_dict
 from cablekit.errors import DataError
@@ -192,26 +193,17 @@ SPLITS = {
 }
 
 
-def _stems(folder: Path) -> dict[str, Path]:
-    out = {}
-    for f in sorted(folder.iterdir()) if folder.is_dir() else []:
-        for suffix in (".TXT.gz", ".TXT", ".txt.gz", ".txt"):
-            if f.name.endswith(suffix) and f.is_file():
-                out.setdefault(f.name[: -len(suffix)], f)
-                break
-    return out
-
-
-def bench_directory(directory: str | Path) -> Path:
+def bench_directory(directory: str | Path, names: tuple[str, ...] = ()) -> Path:
     """The folder that holds the bench files: ``directory`` itself, or its ``tool4_load_sweep``
-    (the shared layout), or its only sub-folder with bench files. A clear error names the
-    expected file pattern otherwise."""
+    (the shared layout), or its only sub-folder with bench files — files named by their
+    condition digits, or any of the stems ``names`` a split asks for (a missing one is then named
+    by :func:`bench_file`). A clear error names the expected file pattern otherwise."""
     directory = Path(directory)
     if not directory.is_dir():
         raise DataError(f"{directory}: not a folder (expected a bench folder with {BENCH_PATTERN})")
     candidates = [directory / "tool4_load_sweep", directory]
     candidates += [d for d in sorted(directory.iterdir()) if d.is_dir() and d.name != "tool4_load_sweep"]
-    with_files = [d for d in candidates if any(len(k) == 2 and k.isdigit() for k in _stems(d))]
+    with_files = [d for d in candidates if bench_runs(d) or any(n in text_runs(d) for n in names)]
     if not with_files:
         raise DataError(f"{directory}: no bench files found; expected {BENCH_PATTERN}")
     if with_files[0] in candidates[:2] or len(with_files) == 1:
@@ -224,7 +216,7 @@ def bench_directory(directory: str | Path) -> Path:
 
 def bench_file(folder: Path, stem: str) -> Path:
     """The file of run ``stem`` in a bench folder (``.TXT.gz`` or ``.TXT``)."""
-    stems = _stems(folder)
+    stems = text_runs(folder)
     if stem not in stems:
         have = ", ".join(sorted(stems)) or "none"
         raise DataError(f"{folder}: no bench run {stem!r} (have {have}); expected {BENCH_PATTERN}")
@@ -248,7 +240,7 @@ def prepare_bench(
     directory: str | Path, split: BenchSplit = DEFAULT_SPLIT, decimate: int = 1
 ) -> tuple[ModelSpec, list[Run], list[Run]]:
     """Load the split, calibrate the nominal on its calibration runs, return (spec, fit, held-out)."""
-    sub = bench_directory(directory)
+    sub = bench_directory(directory, split.calibration + split.fit + split.held_out)
     first = load_bench_run(bench_file(sub, split.calibration[0]))
     jaw_ref = float(first.column("jaw_angle")[0])
 

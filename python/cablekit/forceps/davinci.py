@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cablekit._cablekit import DriveModel
+from cablekit._files import bench_runs, text_runs
 from cablekit.errors import DataError
 
 F64 = NDArray[np.float64]
@@ -166,12 +167,14 @@ def bench_folder(directory: str | Path) -> Path:
 
 
 def read_bench_folder(directory: str | Path, names: Sequence[str] | None = None) -> list[BenchRun]:
-    """The runs of a folder (``*.TXT`` / ``*.TXT.gz``), all or the stems ``names``."""
+    """The runs of a folder (``XY.TXT`` / ``XY.TXT.gz``, :func:`cablekit._files.bench_runs`), all
+    or the stems ``names`` (any stem)."""
     folder = bench_folder(directory)
-    pattern = re.compile(r"\.txt(\.gz)?$", re.IGNORECASE)
-    files = {p.name.split(".")[0]: p for p in sorted(folder.iterdir()) if pattern.search(p.name)}
+    files = bench_runs(folder) if names is None else text_runs(folder)
     if not files:
-        raise DataError(f"{folder}: no bench runs (*.TXT or *.TXT.gz)")
+        raise DataError(
+            f"{folder}: no bench runs (files named by their condition digits, XY.TXT or XY.TXT.gz)"
+        )
     if names is not None:
         missing = [n for n in names if n not in files]
         if missing:
