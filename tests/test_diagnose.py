@@ -1262,6 +1262,25 @@ def test_refit_interval_of_a_parameter_no_refit_moves_is_none(monkeypatch):
     assert out == [None] * len(cur.params)
 
 
+def test_refit_intervals_are_the_same_on_one_thread_or_several():
+    """The replicates are refitted in parallel threads; the resamples are drawn before, in order,
+    so the intervals do not depend on the number of threads or the order the refits finish in."""
+    from cablekit.diagnose import intervals
+    from cablekit.diagnose.fit import fit_candidate
+    from cablekit.diagnose.prepare import prepare
+
+    case = make_case(("sensor_lag",), seed=5, duration=5.0)
+    prep = prepare(case.spec, case.fit, case.hold)
+    cur = fit_candidate(prep, ["sensor_lag"], None, 10)
+    got = [
+        intervals.refit_intervals(
+            prep, cur, Options(progress=False, interval_refits=5, workers=w), np.random.default_rng(3)
+        )
+        for w in (1, 3)
+    ]
+    assert got[0] == got[1] and got[0][0] is not None
+
+
 def test_an_unchanged_channel_is_not_significantly_worse():
     """Issue #37: a channel whose held-out gap is exactly unchanged was marked
     ``significantly_worse`` (a tie counted as "not better"); a channel that grew in every

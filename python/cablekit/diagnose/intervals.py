@@ -11,6 +11,9 @@ refitted values are ``ci95_refit``. No linearisation; the price is one short fit
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor, as_completed
+
 import numpy as np
 
 from cablekit.diagnose.data import Run
@@ -45,19 +48,28 @@ def refit_intervals(
     replicate moved it (a flat direction of the cost: a zero-width interval would read as
     certainty where the data say nothing)."""
     pieces = blocks(prep.fit_runs, prep.spec.warmup)
-    draws = []
-    with Progress(opts.interval_refits, "intervals", enabled=opts.progress) as bar:
-        for _ in range(opts.interval_refits):
-            pick = rng.integers(0, len(pieces), size=len(pieces))
-            runs = [pieces[i] for i in pick]
-            try:
-                rep = prepare(prep.spec, runs, prep.hold_runs[:1])
-                c = fit_candidate(rep, current.effects, current.params, REFIT_ITER)
-            except CablekitError:
-                c = None
-            if c is not None and not c.error:
-                draws.append(c.params)
+    # the resamples are drawn first, in order, so the intervals do not depend on the threads
+    picks = [rng.integers(0, len(pieces), size=len(pieces)) for _ in range(opts.interval_refits)]
+
+    def refit(pick: np.ndarray) -> np.ndarray | None:
+        try:
+            rep = prepare(prep.spec, [pieces[i] for i in pick], prep.hold_runs[:1])
+            c = fit_candidate(rep, current.effects, current.params, REFIT_ITER)
+        except CablekitError:
+            return None
+        return None if c.error else c.params
+
+    workers = opts.workers or min(len(picks), os.cpu_count() or 1)
+    got: list[np.ndarray | None] = [None] * len(picks)
+    with (
+        Progress(opts.interval_refits, "intervals", enabled=opts.progress) as bar,
+        ThreadPoolExecutor(max_workers=max(1, workers)) as ex,
+    ):
+        futs = {ex.submit(refit, pick): i for i, pick in enumerate(picks)}
+        for f in as_completed(futs):
+            got[futs[f]] = f.result()
             bar.advance()
+    draws = [d for d in got if d is not None]
     out: list[list[float] | None] = []
     p = np.array(draws)
     for j, s in enumerate(current.specs):
