@@ -507,3 +507,38 @@ def test_a_richer_law_worse_than_the_law_it_contains_is_refitted_from_it(control
     better = [singles[0], fake(lugre, [0.05, 0.01, 0.4, floor], 9.0)]
     out, full = screen_mod._nest(prep, better, {stick, lugre}, opts)
     assert jobs_seen == [] and out is better
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from(["a", "b"]),
+            st.sampled_from(["F_c", "v_s", "tau", "eps"]),
+            st.floats(-1e6, 1e6),
+            st.floats(0.0, 1e3),
+        ),
+        max_size=6,
+    ),
+    st.lists(st.tuples(st.sampled_from(["F_c", "v_s", "x"]), st.floats(allow_nan=False)), max_size=4),
+)
+def test_carried_sets_exactly_the_shared_names_within_their_bounds(target, source):
+    """``carried`` changes only ``effect``'s parameters whose name the source effect has, to that
+    value clipped to the bounds; every other entry of the start stays as it was."""
+    from types import SimpleNamespace
+
+    from cablekit.diagnose.fit import carried
+
+    specs = [SimpleNamespace(effect=e, name=n, lower=lo, upper=lo + w) for e, n, lo, w in target]
+    start = np.arange(len(specs), dtype=float) * 0.5
+    src_specs = [SimpleNamespace(effect="s", name=n) for n, _ in source]
+    src = SimpleNamespace(specs=src_specs, params=np.array([v for _, v in source], dtype=float))
+    out = carried(specs, start, src, "s", "a")  # type: ignore[arg-type]
+    have = {n: v for n, v in source}
+    assert out.shape == start.shape and np.all(np.isfinite(out))
+    for i, s in enumerate(specs):
+        if s.effect == "a" and s.name in have:
+            assert s.lower <= out[i] <= s.upper
+            assert out[i] == min(max(have[s.name], s.lower), s.upper)
+        else:
+            assert out[i] == start[i]

@@ -22,6 +22,7 @@ __all__ = [
     "NESTED",
     "CandidateFit",
     "baseline",
+    "carried",
     "combinable",
     "fit_candidate",
     "fit_many",
@@ -315,6 +316,18 @@ def combinable(prep: Prepared, effects: list[str]) -> bool:
     except ParameterError:
         return False
     return True
+
+
+def carried(specs: list[ParamSpec], start: _F, source: CandidateFit, source_effect: str, effect: str) -> _F:
+    """``start`` (for ``specs``) with ``effect``'s parameters set to the values ``source`` has
+    for ``source_effect``'s parameters of the same name, clipped to the bounds: a law replacing
+    or containing another starts where that one left what they share (``F_c``)."""
+    have = {s.name: v for s, v in zip(source.specs, source.params, strict=False) if s.effect == source_effect}
+    out = np.array(start, dtype=float)
+    for i, s in enumerate(specs):
+        if s.effect == effect and s.name in have:
+            out[i] = min(max(have[s.name], s.lower), s.upper)
+    return out
 
 
 def warm_start(prep: Prepared, current: CandidateFit, effects: list[str], single: CandidateFit) -> _F | None:

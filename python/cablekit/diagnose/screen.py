@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from cablekit.diagnose.fit import CandidateFit, fit_many
+from cablekit.diagnose.fit import CandidateFit, carried, fit_many
 from cablekit.diagnose.prepare import Options, Prepared
 
 __all__ = ["Screening", "channel_cost", "screen", "shortlist"]
@@ -72,13 +72,7 @@ def _nest(
     for c, r in _contained_pairs(prep):
         if c not in full or c not in by_id or r not in by_id or by_id[r].cost <= by_id[c].cost:
             continue
-        have = {sp.name: v for sp, v in zip(by_id[c].specs, by_id[c].params, strict=False)}
-        rc = by_id[r]
-        start = [
-            min(max(have.get(sp.name, v), sp.lower), sp.upper)
-            for sp, v in zip(rc.specs, rc.params, strict=False)
-        ]
-        jobs.append(([r], np.array(start)))
+        jobs.append(([r], carried(by_id[r].specs, by_id[r].params, by_id[c], c, r)))
     if not jobs:
         return singles, full
     again = {t.effects[0]: t for t in fit_many(prep, jobs, opts, "nested") if not t.error}

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from cablekit.diagnose.fit import NESTED, CandidateFit, combinable, fit_many, n_free, warm_start
+from cablekit.diagnose.fit import NESTED, CandidateFit, carried, combinable, fit_many, n_free, warm_start
 from cablekit.diagnose.prepare import MIN_CLOSED, NOISE_LEVEL, Options, Prepared
 from cablekit.diagnose.screen import Screening, shortlist
 
@@ -236,13 +236,7 @@ def _carry_over(
     Coulomb level to start from, not the Coulomb single fit's (which may have absorbed the lag)."""
     if start is None:
         return None
-    have = {s.name: v for s, v in zip(current.specs, current.params, strict=False) if s.effect == k}
-    specs = prep.fit0.with_effects(effects, prep.substeps).param_specs()
-    out = np.array(start, dtype=float)
-    for i, s in enumerate(specs):
-        if s.effect == a and s.name in have:
-            out[i] = min(max(have[s.name], s.lower), s.upper)
-    return out
+    return carried(prep.fit0.with_effects(effects, prep.substeps).param_specs(), start, current, k, a)
 
 
 def refine_forms(
