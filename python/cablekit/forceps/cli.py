@@ -233,6 +233,49 @@ def _davinci(args: argparse.Namespace) -> int:
     return 0
 
 
+def _protocols(args: argparse.Namespace) -> int:
+    from cablekit.diagnose.progress import Progress
+    from cablekit.forceps import davinci as dv
+    from cablekit.forceps import protocols as pr
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    fitters = dv.estimator_fitters(networks=not args.no_networks)
+    pairs = pr.protocols_present(args.directory, args.only)
+    with Progress(len(pairs), "protocols", enabled=not args.quiet) as bar:
+        rows = pr.protocols(args.directory, fitters, args.only, bar.advance)
+    notes = [w for r in rows for w in r.warnings]
+    text = "\n\n".join(
+        [
+            "# Jaw torque across sessions, spindles and wrist postures (real bench)",
+            f"Bench folder `{args.directory}`. Each cell: pooled RMSE / worst run, mN·m, after a 1 s "
+            f"warm-up per run (✗: a run above the published {dv.PUBLISHED_RMSE} mN·m). Calibrations on "
+            "the scored folder's own runs 00 (offset, offset + friction) and 00 + 03 (refit); those runs "
+            "are not scored.",
+            pr.markdown(rows),
+            ("Warnings:\n" + "\n".join(f"- {w}" for w in notes)) if notes else "No input left the ranges.",
+            "Data: O'Neill, Stephens, Kowalewski, RA-L 3(4):3027-3034, 2018 (ODbL 1.0 / DbCL 1.0).",
+        ]
+    )
+    (out / "protocols.md").write_text(text + "\n", encoding="utf-8")
+    data = [
+        {
+            "protocol": r.protocol,
+            "train": r.train,
+            "test": r.test,
+            "estimator": r.estimator,
+            "n_scored": r.n_scored,
+            "scores": {c: (vars(s) if s is not None else None) for c, s in r.scores.items()},
+        }
+        for r in rows
+    ]
+    (out / "protocols.json").write_text(json.dumps(data, indent=2), encoding="utf-8")
+    if not args.quiet:
+        print(text)
+    print(f"wrote {out / 'protocols.md'}")
+    return 0
+
+
 def add_parser(sub: Any) -> None:
     """``cablekit forceps experiments`` and ``cablekit forceps davinci``."""
     p = sub.add_parser("forceps", help="cable-driven forceps: clamping-force estimation (seed 000)")
@@ -273,3 +316,19 @@ def add_parser(sub: Any) -> None:
     d.add_argument("--out", default="out/forceps-davinci", help="output folder")
     d.add_argument("--quiet", action="store_true", help="no progress bar, no table on stdout")
     d.set_defaults(func=_davinci)
+    q = fs.add_parser(
+        "protocols",
+        help="jaw torque across sessions, spindles and wrist postures of the da Vinci bench (issue #37)",
+        description="Every estimator trained on one folder of the bench and scored on another: another "
+        "session (tool4_load_sweep <-> tool4_L4_paper_sweep), the other spindle (tool4_load_sweep <-> "
+        "tool4_right_spindle), every wrist posture (tool4_load_sweep -> tool4_wrist/*); uncalibrated, "
+        "offset and offset + friction on the new folder's run 00, and refitted on its load step 00 + 03.",
+    )
+    q.add_argument("directory", help="the bench folder (../shared/data/davinci-maryland-bench)")
+    q.add_argument(
+        "--only", nargs="+", choices=["session", "spindle", "posture"], help="only these protocols"
+    )
+    q.add_argument("--no-networks", action="store_true", help="skip the network estimators (no torch needed)")
+    q.add_argument("--out", default="out/forceps-protocols", help="output folder")
+    q.add_argument("--quiet", action="store_true", help="no progress bar, no table on stdout")
+    q.set_defaults(func=_protocols)
