@@ -18,7 +18,6 @@ scored runs, and the worst run's; the goal of issue #37 is every held-out run â‰
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +31,7 @@ from cablekit.forceps.davinci import (
     Estimator,
     Physics,
     Score,
+    _skip,
     read_bench_folder,
     score,
 )
@@ -115,7 +115,7 @@ def transfer(
         _check_runs(pair[1], what)
         if not pair[1]:
             raise DataError(f"{what} ({pair[0]}): no runs")
-        short = [r.name for r in pair[1] if len(r.jaw_torque) <= math.ceil(WARMUP_S / r.dt) + 10]
+        short = [r.name for r in pair[1] if len(r.jaw_torque) <= _skip(r) + 10]
         if short:
             raise DataError(f"{what} ({pair[0]}): runs {short} end within the {WARMUP_S:g} s warm-up")
     cal = calibration_runs(test[1])
