@@ -810,9 +810,15 @@ class DriveModel:
 
     @staticmethod
     def fit(
-        runs: list[_F], travels: list[float], *, dt: float = 1e-3, window: int = 20, warmup: float = 1.0
+        runs: list[_F],
+        travels: list[float],
+        *,
+        dt: float = 1e-3,
+        window: int = 20,
+        warmup: float = 1.0,
+        weights: list[_F] | None = None,
     ) -> DriveModel: ...
-    def recalibrated(self, run: _F, *, dt: float = 1e-3, friction: bool = False) -> DriveModel: ...
+    def recalibrated(self, run: _F | list[_F], *, dt: float = 1e-3, friction: bool = False) -> DriveModel: ...
     def estimate(self, run: _F, *, dt: float = 1e-3) -> JawEstimate: ...
     def observer(self, *, dt: float = 1e-3) -> JawObserver: ...
     @property

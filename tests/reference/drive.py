@@ -28,19 +28,21 @@ def velocity(angle, dt, window):
     return w
 
 
-def fit(runs, travels, dt, window, warmup):
-    """``(coefficients, angle coefficients)`` from ``(T, 5)`` runs."""
+def fit(runs, travels, dt, window, warmup, weights=None):
+    """``(coefficients, angle coefficients)`` from ``(T, 5)`` runs; ``weights``: per run an array
+    of sample weights (weighted least squares: each row scaled by the weight's square root)."""
     rows, ys, arows, ays = [], [], [], []
-    for r in runs:
+    for i, r in enumerate(runs):
+        sw = np.ones(len(r)) if weights is None else np.sqrt(np.asarray(weights[i], dtype=float))
         th, ts, motor, tj, ja = r.T
         s = states(motor, travels)
         w = velocity(th, dt, window)
         k = int(np.ceil(warmup / dt))
         a = np.column_stack([np.ones_like(th), th, w, s, tj, s * tj[:, None]])
-        rows.append(a[k:])
-        ys.append(ts[k:])
-        arows.append(np.column_stack([np.ones_like(th), th, ts])[k:])
-        ays.append(ja[k:])
+        rows.append((a * sw[:, None])[k:])
+        ys.append((ts * sw)[k:])
+        arows.append((np.column_stack([np.ones_like(th), th, ts]) * sw[:, None])[k:])
+        ays.append((ja * sw)[k:])
     c = np.linalg.lstsq(np.vstack(rows), np.concatenate(ys), rcond=None)[0]
     p = np.linalg.lstsq(np.vstack(arows), np.concatenate(ays), rcond=None)[0]
     return c, p

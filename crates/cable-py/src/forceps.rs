@@ -531,9 +531,11 @@ fn drive_array(
 #[pymethods]
 impl DriveModel {
     /// Fits on `runs` (a list of `(T, 5)` arrays) with Maxwell-slip element `travels` (rad
-    /// of motor angle), a causal velocity over `window` samples, skipping `warmup` s per run.
+    /// of motor angle), a causal velocity over `window` samples, skipping `warmup` s per run;
+    /// `weights` (optional): one `(T,)` array of sample weights ≥ 0 per run (0 leaves a sample
+    /// out of the fit, 2 counts it twice).
     #[staticmethod]
-    #[pyo3(signature = (runs, travels, *, dt = 1e-3, window = 20, warmup = 1.0))]
+    #[pyo3(signature = (runs, travels, *, dt = 1e-3, window = 20, warmup = 1.0, weights = None))]
     fn fit(
         py: Python<'_>,
         runs: Vec<Bound<'_, PyAny>>,
@@ -541,29 +543,75 @@ impl DriveModel {
         dt: f64,
         window: usize,
         warmup: f64,
+        weights: Option<Vec<Bound<'_, PyAny>>>,
     ) -> PyResult<Self> {
         let data = runs
             .iter()
             .enumerate()
             .map(|(i, r)| drive_array(r, &format!("runs[{i}]"), true))
             .collect::<PyResult<Vec<_>>>()?;
+        let weights = match weights {
+            None => None,
+            Some(ws) => {
+                if ws.len() != data.len() {
+                    return Err(core_error(cable_core::CableError::Shape {
+                        what: "weights".into(),
+                        expected: format!("one array per run ({})", data.len()),
+                        got: ws.len().to_string(),
+                    }));
+                }
+                Some(
+                    ws.iter()
+                        .zip(&data)
+                        .enumerate()
+                        .map(|(i, (w, (a, _)))| vector(w, &format!("weights[{i}]"), a.ncols()))
+                        .collect::<PyResult<Vec<_>>>()?,
+                )
+            }
+        };
         let inner = py.detach(|| {
-            guarded(|| drive::DriveModel::fit(&drive_runs(&data, dt), &travels, window, warmup))
+            let views: Option<Vec<&[f64]>> = weights
+                .as_ref()
+                .map(|ws| ws.iter().map(Vec::as_slice).collect());
+            guarded(|| {
+                drive::DriveModel::fit_weighted(
+                    &drive_runs(&data, dt),
+                    views.as_deref(),
+                    &travels,
+                    window,
+                    warmup,
+                )
+            })
         })?;
         Ok(Self { inner })
     }
 
-    /// The model adapted to a new instrument from one `(T, 5)` run: the offsets, and with
-    /// `friction=True` also a common scale of the friction torques.
+    /// The model adapted to a new instrument from one `(T, 5)` run or a list of them (their
+    /// samples pooled): the offsets, and with `friction=True` also a common scale of the
+    /// friction torques.
     #[pyo3(signature = (run, *, dt = 1e-3, friction = false))]
     fn recalibrated(&self, run: &Bound<'_, PyAny>, dt: f64, friction: bool) -> PyResult<Self> {
-        let data = [drive_array(run, "run", true)?];
+        let data = if let Ok(list) = run.cast::<pyo3::types::PyList>() {
+            if list.is_empty() {
+                return Err(core_error(cable_core::CableError::Shape {
+                    what: "calibration runs".into(),
+                    expected: "at least one run".into(),
+                    got: "an empty list".into(),
+                }));
+            }
+            list.iter()
+                .enumerate()
+                .map(|(i, r)| drive_array(&r, &format!("run[{i}]"), true))
+                .collect::<PyResult<Vec<_>>>()?
+        } else {
+            vec![drive_array(run, "run", true)?]
+        };
         let what = if friction {
             drive::Recalibrate::OffsetAndFriction
         } else {
             drive::Recalibrate::Offset
         };
-        let inner = guarded(|| self.inner.recalibrated(&drive_runs(&data, dt)[0], what))?;
+        let inner = guarded(|| self.inner.recalibrated_on(&drive_runs(&data, dt), what))?;
         Ok(Self { inner })
     }
 

@@ -183,6 +183,41 @@ impl DriveModel {
     /// that does not determine the coefficients (e.g. a jaw torque that never varies: the
     /// transmission ratio needs it to vary independently of the friction).
     pub fn fit(runs: &[DriveRun<'_>], travels: &[f64], window: usize, warmup: f64) -> Result<Self> {
+        Self::fit_weighted(runs, None, travels, window, warmup)
+    }
+
+    /// [`DriveModel::fit`] with a weight per sample of every run (`weights[r][k]` ≥ 0, finite;
+    /// 0 leaves a sample out of the fit but not out of the direction states): the runs of a new
+    /// instrument weighted against the training instrument's (in effect a prior toward the
+    /// training coefficients with the training design as its precision), or a sample-wise split
+    /// of the runs (a weight of 0 or 1 per sample). The
+    /// training ranges are those of the samples with a positive weight.
+    pub fn fit_weighted(
+        runs: &[DriveRun<'_>],
+        weights: Option<&[&[f64]]>,
+        travels: &[f64],
+        window: usize,
+        warmup: f64,
+    ) -> Result<Self> {
+        if let Some(ws) = weights {
+            if ws.len() != runs.len() {
+                return Err(CableError::Shape {
+                    what: "weights".into(),
+                    expected: format!("one array per run ({})", runs.len()),
+                    got: ws.len().to_string(),
+                });
+            }
+            for (r, (w, run)) in ws.iter().zip(runs).enumerate() {
+                check::len(&format!("weights[{r}]"), w, run.len())?;
+                if let Some(k) = w.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+                    return Err(CableError::InvalidParameter {
+                        name: format!("weights[{r}][{k}]"),
+                        value: w[k],
+                        requirement: "a finite weight >= 0",
+                    });
+                }
+            }
+        }
         if travels.is_empty() || travels.len() > MAX_ELEMENTS {
             return Err(CableError::InvalidParameter {
                 name: "travels".into(),
@@ -217,10 +252,12 @@ impl DriveModel {
             let (tj, ja) = (run.jaw_torque.unwrap_or(&[]), run.jaw_angle.unwrap_or(&[]));
             let mut f = Features::new(travels, window, run.dt);
             let skip = (warmup / run.dt).ceil() as usize;
+            let weight = weights.map(|ws| ws[r]);
             for k in 0..run.len() {
                 let (th, ts) = (run.spindle_angle[k], run.spindle_torque[k]);
                 let w = f.push(th, run.motor_angle[k]);
-                if k < skip {
+                let wk = weight.map_or(1.0, |ws| ws[k]);
+                if k < skip || wk == 0.0 {
                     continue;
                 }
                 regressors(th, w, &f.states, &mut rest, &mut gain);
@@ -229,11 +266,11 @@ impl DriveModel {
                     row[rest.len() + j] = g * tj[k];
                 }
                 v.copy_from_slice(&row);
-                ata.ger(1.0, &v, &v, 1.0);
-                aty.axpy(ts, &v, 1.0);
+                ata.ger(wk, &v, &v, 1.0);
+                aty.axpy(wk * ts, &v, 1.0);
                 av.copy_from_slice(&[1.0, th, ts]);
-                angle_ata.ger(1.0, &av, &av, 1.0);
-                angle_aty.axpy(ja[k], &av, 1.0);
+                angle_ata.ger(wk, &av, &av, 1.0);
+                angle_aty.axpy(wk * ja[k], &av, 1.0);
                 for (rg, v) in ranges.iter_mut().zip([th, ts, w]) {
                     rg[0] = rg[0].min(v);
                     rg[1] = rg[1].max(v);
@@ -311,32 +348,45 @@ impl DriveModel {
     /// The same model adapted to a new instrument from one run with its jaw torque and angle
     /// (see [`Recalibrate`]); the samples after the warm-up are used.
     pub fn recalibrated(&self, run: &DriveRun<'_>, what: Recalibrate) -> Result<Self> {
-        run.check("calibration run", true)?;
+        self.recalibrated_on(std::slice::from_ref(run), what)
+    }
+
+    /// [`DriveModel::recalibrated`] on several runs of the new instrument at once (their
+    /// samples after the warm-up pooled).
+    pub fn recalibrated_on(&self, runs: &[DriveRun<'_>], what: Recalibrate) -> Result<Self> {
         let m = self.travels.len();
-        let (tj, ja) = (run.jaw_torque.unwrap_or(&[]), run.jaw_angle.unwrap_or(&[]));
-        let mut f = Features::new(&self.travels, self.window, run.dt);
-        let skip = (self.warmup / run.dt).ceil() as usize;
         let (c, g) = self.coef.split_at(3 + m);
         // residual of the drive torque without c₀ and with the friction split out:
         // τ_s − (c_θθ + c_ωω + gain·τ_j) = c₀ + α·Σaᵢσᵢ
         let (mut s00, mut s01, mut s11, mut y0, mut y1, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0usize);
         let mut angle_offset = 0.0;
-        for k in 0..run.len() {
-            let (th, ts) = (run.spindle_angle[k], run.spindle_torque[k]);
-            let w = f.push(th, run.motor_angle[k]);
-            if k < skip {
-                continue;
+        for (r, run) in runs.iter().enumerate() {
+            let what_run = if runs.len() == 1 {
+                "calibration run".to_owned()
+            } else {
+                format!("calibration runs[{r}]")
+            };
+            run.check(&what_run, true)?;
+            let (tj, ja) = (run.jaw_torque.unwrap_or(&[]), run.jaw_angle.unwrap_or(&[]));
+            let mut f = Features::new(&self.travels, self.window, run.dt);
+            let skip = (self.warmup / run.dt).ceil() as usize;
+            for k in 0..run.len() {
+                let (th, ts) = (run.spindle_angle[k], run.spindle_torque[k]);
+                let w = f.push(th, run.motor_angle[k]);
+                if k < skip {
+                    continue;
+                }
+                let s = &f.states;
+                let fric = dot(&c[3..], s);
+                let y = ts - c[1] * th - c[2] * w - (g[0] + dot(&g[1..], s)) * tj[k];
+                s00 += 1.0;
+                s01 += fric;
+                s11 += fric * fric;
+                y0 += y;
+                y1 += y * fric;
+                angle_offset += ja[k] - self.angle[1] * th - self.angle[2] * ts;
+                n += 1;
             }
-            let s = &f.states;
-            let fric = dot(&c[3..], s);
-            let y = ts - c[1] * th - c[2] * w - (g[0] + dot(&g[1..], s)) * tj[k];
-            s00 += 1.0;
-            s01 += fric;
-            s11 += fric * fric;
-            y0 += y;
-            y1 += y * fric;
-            angle_offset += ja[k] - self.angle[1] * th - self.angle[2] * ts;
-            n += 1;
         }
         if n < 10 {
             return Err(CableError::Shape {
@@ -518,11 +568,11 @@ mod tests {
 
     /// A synthetic instrument that follows the model exactly: the fit recovers it and the
     /// estimate inverts it.
-    #[test]
-    fn the_fit_recovers_a_model_that_generated_the_data() {
-        let travels = [0.002, 0.03];
-        let truth = [0.01, -0.02, 0.001, -0.04, -0.01, -1.05, 0.2, 0.05];
-        let dt = 1e-3;
+    type Signals = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+    /// Runs of a synthetic instrument that follows the model with coefficients `truth`, plus
+    /// `ripple` N·m of a deterministic disturbance on the drive torque.
+    fn synthetic(travels: &[f64], truth: &[f64; 8], dt: f64, ripple: f64) -> Vec<Signals> {
         let mut runs = Vec::new();
         for (freq, load) in [(0.2, 0.01), (0.4, 0.03), (0.3, 0.05)] {
             let n = 6000;
@@ -538,7 +588,7 @@ mod tests {
                 .zip(&tj)
                 .map(|(a, j)| 0.3 + 0.9 * a + 0.5 * j)
                 .collect();
-            let mut f = Features::new(&travels, 20, dt);
+            let mut f = Features::new(travels, 20, dt);
             let mut ts = Vec::with_capacity(n);
             for k in 0..n {
                 let w = f.push(th[k], motor[k]);
@@ -546,7 +596,7 @@ mod tests {
                 let rest =
                     truth[0] + truth[1] * th[k] + truth[2] * w + truth[3] * s[0] + truth[4] * s[1];
                 let gain = truth[5] + truth[6] * s[0] + truth[7] * s[1];
-                ts.push(rest + gain * tj[k]);
+                ts.push(rest + gain * tj[k] + ripple * (37.0 * k as f64 * dt + freq).sin());
             }
             let ja = ja
                 .iter()
@@ -556,8 +606,11 @@ mod tests {
                 .collect::<Vec<_>>();
             runs.push((th, ts, motor, tj, ja));
         }
-        let views: Vec<DriveRun<'_>> = runs
-            .iter()
+        runs
+    }
+
+    fn views(runs: &[Signals], dt: f64) -> Vec<DriveRun<'_>> {
+        runs.iter()
             .map(|(th, ts, m, tj, ja)| DriveRun {
                 spindle_angle: th,
                 spindle_torque: ts,
@@ -566,7 +619,16 @@ mod tests {
                 jaw_angle: Some(ja),
                 dt,
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn the_fit_recovers_a_model_that_generated_the_data() {
+        let travels = [0.002, 0.03];
+        let truth = [0.01, -0.02, 0.001, -0.04, -0.01, -1.05, 0.2, 0.05];
+        let dt = 1e-3;
+        let runs = synthetic(&travels, &truth, dt, 0.0);
+        let views = views(&runs, dt);
         let model = DriveModel::fit(&views, &travels, 20, 0.5).unwrap();
         for (a, b) in model.coefficients().iter().zip(truth) {
             assert_relative_eq!(*a, b, epsilon = 1e-8, max_relative = 1e-6);
@@ -600,6 +662,66 @@ mod tests {
             .recalibrated(&cal, Recalibrate::OffsetAndFriction)
             .unwrap();
         assert_relative_eq!(re2.coefficients()[3], truth[3], epsilon = 1e-6);
+    }
+
+    #[test]
+    fn weights_act_as_repeated_or_left_out_samples() {
+        // with a disturbance the runs disagree, so every subset and weighting fits differently
+        let travels = [0.002, 0.03];
+        let truth = [0.01, -0.02, 0.001, -0.04, -0.01, -1.05, 0.2, 0.05];
+        let dt = 1e-3;
+        let runs = synthetic(&travels, &truth, dt, 2e-3);
+        let v = views(&runs, dt);
+        let n = |r: usize| runs[r].0.len();
+        let close = |a: &DriveModel, b: &DriveModel| {
+            for (x, y) in a.coefficients().iter().zip(b.coefficients()) {
+                assert_relative_eq!(*x, *y, epsilon = 1e-10, max_relative = 1e-7);
+            }
+            for (x, y) in a.angle_coefficients().iter().zip(b.angle_coefficients()) {
+                assert_relative_eq!(*x, y, epsilon = 1e-10, max_relative = 1e-7);
+            }
+        };
+        // a weight of 2 is the run twice; a weight of 0 leaves the run out
+        let (two, one, zero) = (vec![2.0; n(0)], vec![1.0; n(1)], vec![0.0; n(2)]);
+        let weighted =
+            DriveModel::fit_weighted(&v, Some(&[&two, &one, &zero]), &travels, 20, 0.5).unwrap();
+        let repeated = DriveModel::fit(&[v[0], v[0], v[1]], &travels, 20, 0.5).unwrap();
+        close(&weighted, &repeated);
+        let plain = DriveModel::fit(&v, &travels, 20, 0.5).unwrap();
+        assert!((plain.coefficients()[0] - weighted.coefficients()[0]).abs() > 1e-9);
+        // a sample-wise mask: the first half of a run only (beside a whole run: one load level
+        // alone cannot identify the transmission)
+        let mut half = vec![1.0; n(1)];
+        half[n(1) / 2..].fill(0.0);
+        let all = vec![1.0; n(2)];
+        let masked =
+            DriveModel::fit_weighted(&v[1..3], Some(&[&half, &all]), &travels, 20, 0.5).unwrap();
+        let (th, ts, m, tj, ja) = &runs[1];
+        let h = n(1) / 2;
+        let first = DriveRun {
+            spindle_angle: &th[..h],
+            spindle_torque: &ts[..h],
+            motor_angle: &m[..h],
+            jaw_torque: Some(&tj[..h]),
+            jaw_angle: Some(&ja[..h]),
+            dt,
+        };
+        close(
+            &masked,
+            &DriveModel::fit(&[first, v[2]], &travels, 20, 0.5).unwrap(),
+        );
+        // bad weights are refused
+        let mut neg = one.clone();
+        neg[7] = -1.0;
+        let mut nan = one.clone();
+        nan[3] = f64::NAN;
+        for bad in [&neg, &nan, &vec![1.0; 3]] {
+            assert!(DriveModel::fit_weighted(&v[1..2], Some(&[bad]), &travels, 20, 0.5).is_err());
+        }
+        assert!(DriveModel::fit_weighted(&v, Some(&[&one]), &travels, 20, 0.5).is_err());
+        // all weights zero: no samples
+        let none = vec![0.0; n(1)];
+        assert!(DriveModel::fit_weighted(&v[1..2], Some(&[&none]), &travels, 20, 0.5).is_err());
     }
 
     #[test]
