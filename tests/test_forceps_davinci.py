@@ -143,12 +143,21 @@ def test_the_new_instrument_path_runs_from_the_cli(tmp_path):
     from cablekit.cli import main
 
     bench = davinci_dir()
-    cal = bench / "tool4_load_sweep" / "00.TXT.gz"
-    args = ["forceps", "davinci", str(bench), "--calibrate-on", str(cal), "--no-networks", "--quiet"]
+    folder = bench / "tool4_load_sweep"
+    cal = [str(folder / f"{n}.TXT.gz") for n in ("00", "03", "40", "43")]
+    args = ["forceps", "davinci", str(bench), "--calibrate-on", *cal, "--no-networks", "--quiet"]
     assert main([*args, "--out", str(tmp_path)]) == 0
     text = (tmp_path / "davinci.md").read_text(encoding="utf-8")
-    assert "calibrated on 00, scored on 19 runs" in text
-    assert "O'Neill" in text
+    assert "calibrated on 00 + 03 + 40 + 43 (prior), scored on 16 runs" in text
+    assert "O'Neill" in text and "passes" in text
+    # one run at one load level: the calibration is flagged and the command exits 3 (issue #37 §2)
+    one = ["forceps", "davinci", str(bench), "--calibrate-on", cal[0], "--no-networks", "--quiet"]
+    with pytest.warns(UserWarning, match="FLAGGED"):
+        assert main([*one, "--out", str(tmp_path / "one")]) == 3
+    flagged = (tmp_path / "one" / "davinci.md").read_text(encoding="utf-8")
+    assert "FLAGGED" in flagged and "one load level" in flagged and "record the load step" in flagged
+    with pytest.warns(UserWarning, match="FLAGGED"):
+        assert main([*one, "--accept-flagged", "--out", str(tmp_path / "one")]) == 0
 
 
 def test_a_folder_copied_with_its_upstream_readme_and_serial_log_reads_only_the_runs(tmp_path):
@@ -209,3 +218,92 @@ def test_a_folder_of_any_file_names_yields_exactly_its_digit_named_runs(tmp_path
                 assert name[: -len(suffix)] in text
                 break
     assert set(bench_runs(d)) == {k for k in text if k.isascii() and k.isdigit()}
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), data=st.data())
+def test_sample_weights_equal_the_weighted_numpy_reference(seed, data):
+    """Weighted least squares per sample (issue #37 §2: a calibration's runs weighted against the
+    training runs, the paper's sample-wise split as 0/1 weights): the Rust fit equals NumPy's
+    lstsq on rows scaled by the weights' square roots."""
+    runs = _synthetic(seed)
+    n = len(runs[0])
+    kinds = data.draw(
+        st.lists(st.sampled_from(["ones", "zeros-half", "random", "heavy"]), min_size=3, max_size=3)
+    )
+    rng = np.random.default_rng(seed)
+    weights = []
+    for kind in kinds:
+        w = {
+            "ones": np.ones(n),
+            "zeros-half": np.r_[np.ones(n // 2), np.zeros(n - n // 2)],
+            "random": rng.uniform(0.0, 3.0, n),
+            "heavy": np.full(n, 40.0),
+        }[kind]
+        weights.append(w)
+    model = DriveModel.fit(runs, TRAVELS, dt=1e-3, window=20, warmup=0.2, weights=weights)
+    c, p = ref.fit(runs, TRAVELS, 1e-3, 20, 0.2, weights)
+    np.testing.assert_allclose(model.coefficients, c, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(model.angle_coefficients, p, rtol=1e-6, atol=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    bad=st.one_of(
+        st.just("nan"),
+        st.just("negative"),
+        st.just("inf"),
+        st.just("short"),
+        st.just("2d"),
+        st.just("strings"),
+        st.just("count"),
+        st.floats(min_value=1e300, max_value=1e308),
+    )
+)
+def test_bad_sample_weights_are_typed_errors(bad):
+    from cablekit.errors import CablekitError
+
+    runs = _synthetic(3)
+    n = len(runs[0])
+    w = [np.ones(n) for _ in runs]
+    if bad == "nan":
+        w[1][5] = np.nan
+    elif bad == "negative":
+        w[2][9] = -1e-3
+    elif bad == "inf":
+        w[0][0] = np.inf
+    elif bad == "short":
+        w[1] = np.ones(n - 1)
+    elif bad == "2d":
+        w[1] = np.ones((n, 1))
+    elif bad == "strings":
+        w[1] = ["a"] * n  # type: ignore[call-overload]
+    elif bad == "count":
+        w = w[:2]
+    else:
+        # huge but finite weights: a result or a typed error, never NaN coefficients
+        w[0] = np.full(n, float(bad))
+        try:
+            m = DriveModel.fit(runs, TRAVELS, warmup=0.2, weights=w)
+        except CablekitError:
+            return
+        assert np.isfinite(m.coefficients).all()
+        return
+    with pytest.raises((CablekitError, TypeError)):
+        DriveModel.fit(runs, TRAVELS, warmup=0.2, weights=w)
+
+
+def test_recalibration_on_several_runs_pools_them():
+    runs = _synthetic(2)
+    model = DriveModel.fit(runs, TRAVELS, warmup=0.2)
+    a, b = runs[0].copy(), runs[2].copy()
+    a[:, 1] += 0.002
+    b[:, 1] += 0.004
+    both = model.recalibrated([a, b], friction=False)
+    one_a, one_b = model.recalibrated(a), model.recalibrated(b)
+    # the pooled offset lies between the two runs' own (the runs have equal length)
+    lo, hi = sorted([one_a.coefficients[0], one_b.coefficients[0]])
+    assert lo < both.coefficients[0] < hi
+    assert both.coefficients[0] == pytest.approx(0.5 * (lo + hi), abs=1e-9)
+    with pytest.raises(ShapeError):
+        model.recalibrated([])

@@ -200,6 +200,10 @@ def _calls() -> dict[str, Call]:
     drive = DriveModel.fit(drive_runs, [0.01, 0.1], warmup=0.05)
     fit_kw = dict(dt=1e-3, window=20, warmup=0.05)
     out["DriveModel.fit"] = Call(DriveModel.fit, (drive_runs[:2], [0.01, 0.1]), fit_kw)
+    weights = [np.ones(len(t)), np.linspace(0.0, 2.0, len(t))]
+    out["DriveModel.fit(weights)"] = Call(
+        DriveModel.fit, (drive_runs[:2], [0.01, 0.1]), {**fit_kw, "weights": weights}
+    )
     out["DriveModel.estimate"] = Call(drive.estimate, (drive_runs[0][:, :3].copy(),), dict(dt=1e-3))
     from cablekit.cdpr import Winch
 
@@ -234,6 +238,7 @@ def _calls() -> dict[str, Call]:
     out["SignalChain.apply"] = Call(SignalChain(0.05, 0.02).apply, (t_chain, np.sin(t_chain)))
     out["JawObserver.step"] = Call(drive.observer().step, (0.1, -0.02, 0.1))
     out["DriveModel.recalibrated"] = Call(drive.recalibrated, (drive_runs[1],), dict(dt=1e-3, friction=True))
+    out["DriveModel.recalibrated(list)"] = Call(drive.recalibrated, (drive_runs[1:],), dict(dt=1e-3))
     out["PhysicsObserver.calibrated"] = Call(
         physics.calibrated, (motors, np.repeat(tensions, 12, axis=0), np.zeros((24, 2)))
     )

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -190,25 +191,34 @@ def _davinci(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     train = dv.read_bench_folder(args.directory)
     fitters = dv.estimator_fitters(networks=not args.no_networks, friction=args.friction)
+    if args.friction and args.calibration is None:
+        args.calibration = "offset + friction"
     results = []
     if args.calibrate_on:
-        cal = dv.read_bench_file(args.calibrate_on)
-        test_dir = args.test or str(Path(args.calibrate_on).parent)
-        test = [r for r in dv.read_bench_folder(test_dir) if r.path.resolve() != cal.path.resolve()]
+        cal = [dv.read_bench_file(p) for p in args.calibrate_on]
+        test_dir = args.test or str(Path(args.calibrate_on[0]).parent)
+        own = {c.path.resolve() for c in cal}
+        test = [r for r in dv.read_bench_folder(test_dir) if r.path.resolve() not in own]
         if not test:
-            raise dv.DataError(f"{test_dir}: no runs to score besides the calibration run")
-        results.append(dv.new_instrument(train, cal, test, fitters))
+            raise dv.DataError(f"{test_dir}: no runs to score besides the calibration runs")
+        results.append(dv.new_instrument(train, cal, test, fitters, args.calibration, args.share))
     else:
         folds = len({r.frequency for r in train}) + len({r.load for r in train})
         with Progress(folds + 1, "da Vinci folds", enabled=not args.quiet) as bar:
             for key in ("frequency", "load"):
                 results.append(dv.leave_one_out(train, key, fitters, bar.advance))
-            cal = next((r for r in train if r.name == "00"), train[0])
-            rest = [r for r in train if r is not cal]
-            results.append(dv.new_instrument(train, cal, rest, fitters))
+            from cablekit.forceps.protocols import calibration_runs
+
+            cal = calibration_runs(train)
+            rest = [r for r in train if all(r is not c for c in cal)]
+            results.append(dv.new_instrument(train, cal, rest, fitters, args.calibration, args.share))
             bar.advance("new-instrument path")
     table = _davinci_table(results)
     notes = [w for r in results for w in r.warnings]
+    checks = [f"- {name}: {c.message()}" for r in results for name, c in r.checks.items()]
+    # the exit status follows the recommended estimator's check (the calibration is
+    # cross-validated for it); the baselines' flags are warnings in the report
+    flagged = [c for r in results for name, c in r.checks.items() if not c.ok and name == dv.Physics.name]
     figure = None if args.no_plots else plot_davinci(train, fitters, out / "davinci_held_out_load.png")
     text = "\n\n".join(
         [
@@ -217,6 +227,7 @@ def _davinci(args: argparse.Namespace) -> int:
             f"per run (✗: above the published {dv.PUBLISHED_RMSE} mN·m); jaw angle RMSE about each "
             "run's mean (the bench does not zero the jaw encoder).",
             table,
+            ("Calibration checks:\n" + "\n".join(checks)) if checks else "",
             ("Warnings:\n" + "\n".join(f"- {w}" for w in notes)) if notes else "No input left the ranges.",
             "Data: O'Neill, Stephens, Kowalewski, RA-L 3(4):3027-3034, 2018 (ODbL 1.0 / DbCL 1.0).",
             f"![held-out load edge]({figure.name})" if figure else "",
@@ -226,49 +237,129 @@ def _davinci(args: argparse.Namespace) -> int:
     rows = {
         r.protocol: {f: {n: vars(sc) for n, sc in s.items()} for f, s in r.folds.items()} for r in results
     }
+    rows["calibration_checks"] = {
+        name: {**vars(c), "ok": c.ok} for r in results for name, c in r.checks.items()
+    }
     (out / "davinci.json").write_text(json.dumps(rows, indent=2), encoding="utf-8")
     if not args.quiet:
         print(text)
     print(f"wrote {out / 'davinci.md'}")
+    if flagged and not args.accept_flagged:
+        print(
+            "CALIBRATION FLAGGED (exit 3): the physics estimator's calibration does not fit its own "
+            f"runs; see {out / 'davinci.md'} for what to record, or pass --accept-flagged",
+            file=sys.stderr,
+        )
+        return 3
     return 0
+
+
+def _paper_table(rows: list[Any]) -> str:
+    from cablekit.forceps.davinci import PUBLISHED_RMSE
+
+    lines = [
+        "| protocol | estimator | pooled RMSE | worst run | scored on |",
+        "|---|---|---|---|---|",
+        f"| paper (RA-L 2018) | O'Neill et al.'s network, as published | {PUBLISHED_RMSE} | — "
+        "| their test samples |",
+    ]
+    for r in rows:
+        mark = "" if r.worst_run_mnm <= PUBLISHED_RMSE else " ✗"
+        note = f" ({'; '.join(r.notes)})" if r.notes else ""
+        lines.append(
+            f"| {r.protocol} | {r.estimator}{note} | {r.rmse_mnm:.2f} | {r.worst_run_mnm:.2f}{mark} "
+            f"| {r.scored} |"
+        )
+    return "\n".join(lines)
 
 
 def _protocols(args: argparse.Namespace) -> int:
     from cablekit.diagnose.progress import Progress
     from cablekit.forceps import davinci as dv
+    from cablekit.forceps import paper as pp
     from cablekit.forceps import protocols as pr
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     fitters = dv.estimator_fitters(networks=not args.no_networks)
-    pairs = pr.protocols_present(args.directory, args.only)
-    with Progress(len(pairs), "protocols", enabled=not args.quiet) as bar:
-        rows = pr.protocols(args.directory, fitters, args.only, bar.advance)
-    notes = [w for r in rows for w in r.warnings]
-    text = "\n\n".join(
-        [
-            "# Jaw torque across sessions, spindles and wrist postures (real bench)",
-            f"Bench folder `{args.directory}`. Each cell: pooled RMSE / worst run, mN·m, after a 1 s "
-            f"warm-up per run (✗: a run above the published {dv.PUBLISHED_RMSE} mN·m). Calibrations on "
-            "the scored folder's own runs 00 (offset, offset + friction) and 00 + 03 (refit); those runs "
-            "are not scored.",
+    only = args.only
+    paper = only is None or "paper" in only
+    folder_only = None if only is None else [p for p in only if p != "paper"]
+    pairs = pr.protocols_present(args.directory, folder_only) if folder_only != [] else []
+    sections = [
+        "# Jaw torque across sessions, spindles and wrist postures (real bench)",
+        f"Bench folder `{args.directory}`. RMSE in mN·m (✗: a run above the published "
+        f"{dv.PUBLISHED_RMSE} mN·m).",
+    ]
+    data: dict[str, Any] = {}
+    if paper:
+        folder = Path(args.directory) / "tool4_L4_paper_sweep"
+        runs = dv.read_bench_folder(folder)
+        with Progress(2, "paper protocol", enabled=not args.quiet) as bar:
+            within = pp.paper_protocol(runs, seed=args.seed, networks=not args.no_networks)
+            bar.advance("their random split")
+            within += pp.strict_folds(runs, fitters)
+            bar.advance("leave one frequency / load out")
+        sections += [
+            "## Within the paper's folder (`tool4_L4_paper_sweep`): their protocol and the strict folds",
+            "Their protocol (their MATLAB code, `RAL-2018/`): every signal low-passed (3rd-order "
+            "Butterworth, 50 Hz, forwards and backwards), the spindle velocity by an 11-point smooth "
+            "differentiator, each run cut to its closing portions (velocity ≤ −0.25 rad/s, 1 s trimmed "
+            "at both ends), the samples of all runs split at random 70/15/15, scored on the test "
+            "samples against the filtered jaw torque. The strict folds leave whole runs out and score "
+            "the raw jaw torque after the warm-up.",
+            _paper_table(within),
+        ]
+        data["paper"] = [vars(r) for r in within]
+    rows: list[Any] = []
+    if pairs:
+        with Progress(len(pairs), "protocols", enabled=not args.quiet) as bar:
+            rows = pr.protocols(args.directory, fitters, folder_only, bar.advance)
+        notes = [w for r in rows for w in r.warnings]
+        sections += [
+            "## Across folders: another session, the other spindle, other postures",
+            "Each cell: pooled RMSE / worst run after a 1 s warm-up per run. Calibrations on the scored "
+            "folder's calibration recording (its load step 00 + 03 and, where recorded, 40 + 43), never "
+            f"scored; prior: share {pr.DEFAULT_SHARE:g}.",
             pr.markdown(rows),
             ("Warnings:\n" + "\n".join(f"- {w}" for w in notes)) if notes else "No input left the ranges.",
-            "Data: O'Neill, Stephens, Kowalewski, RA-L 3(4):3027-3034, 2018 (ODbL 1.0 / DbCL 1.0).",
         ]
-    )
+        data["folders"] = [
+            {
+                "protocol": r.protocol,
+                "train": r.train,
+                "test": r.test,
+                "estimator": r.estimator,
+                "n_scored": r.n_scored,
+                "scores": {c: (vars(s) if s is not None else None) for c, s in r.scores.items()},
+            }
+            for r in rows
+        ]
+    if args.calibration_cv:
+        n = len(pr.CV_INSTRUMENTS) * (len(pr.CV_INSTRUMENTS) - 1 + 8)
+        with Progress(n, "calibration cross-validation", enabled=not args.quiet) as bar:
+            cv = pr.calibration_cv(args.directory, advance=bar.advance)
+        sections += [
+            "## Choosing the calibration: cross-validation over every pair of folders",
+            "Physics estimator; each of " + ", ".join(pr.CV_INSTRUMENTS) + " trained on, and every other "
+            "of them and every posture folder calibrated and scored (gmean: geometric mean of the pairs' "
+            "pooled RMSE).",
+            pr.cv_markdown(cv),
+        ]
+        data["calibration_cv"] = [
+            {
+                "method": r.method,
+                "share": r.share,
+                "recording": r.recording,
+                "instrument": vars(r.instrument),
+                "posture": vars(r.posture),
+                "overall": r.overall,
+            }
+            for r in cv
+        ]
+    sections.append("Data: O'Neill, Stephens, Kowalewski, RA-L 3(4):3027-3034, 2018 (ODbL 1.0 / DbCL 1.0).")
+    text = "\n\n".join(x for x in sections if x)
     (out / "protocols.md").write_text(text + "\n", encoding="utf-8")
-    data = [
-        {
-            "protocol": r.protocol,
-            "train": r.train,
-            "test": r.test,
-            "estimator": r.estimator,
-            "n_scored": r.n_scored,
-            "scores": {c: (vars(s) if s is not None else None) for c, s in r.scores.items()},
-        }
-        for r in rows
-    ]
     (out / "protocols.json").write_text(json.dumps(data, indent=2), encoding="utf-8")
     if not args.quiet:
         print(text)
@@ -304,12 +395,38 @@ def add_parser(sub: Any) -> None:
     d.add_argument(
         "directory", help="bench folder of the training instrument (../shared/data/davinci-maryland-bench)"
     )
-    d.add_argument("--calibrate-on", help="one run of the new instrument to recalibrate on")
+    d.add_argument(
+        "--calibrate-on",
+        nargs="+",
+        metavar="RUN",
+        help="runs of the new instrument to calibrate on: its load step (00 and 03: the slowest motion at "
+        "the lightest and the fourth load level) and, if recorded, the same at the fastest motion (40, 43)",
+    )
+    d.add_argument(
+        "--calibration",
+        choices=["prior", "refit", "offset", "offset + friction"],
+        default=None,
+        help="how the calibration runs adapt the trained estimators (default: prior, chosen by "
+        "cross-validation over the bench's transmissions, sessions and postures; docs/forceps.md)",
+    )
+    d.add_argument(
+        "--share",
+        type=float,
+        default=None,
+        help="prior: the calibration runs' weight as a multiple of the training runs' (default 64)",
+    )
+    d.add_argument(
+        "--accept-flagged",
+        action="store_true",
+        help="exit 0 even when the physics estimator's calibration check flags it (the report says why)",
+    )
     d.add_argument(
         "--test", help="folder of the new instrument's runs to score (default: --calibrate-on's folder)"
     )
     d.add_argument(
-        "--friction", action="store_true", help="recalibrate the friction's scale too, not only the offsets"
+        "--friction",
+        action="store_true",
+        help="the earlier flag for --calibration 'offset + friction' (the offsets and the friction's scale)",
     )
     d.add_argument("--no-networks", action="store_true", help="skip the network estimators (no torch needed)")
     d.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
@@ -326,8 +443,18 @@ def add_parser(sub: Any) -> None:
     )
     q.add_argument("directory", help="the bench folder (../shared/data/davinci-maryland-bench)")
     q.add_argument(
-        "--only", nargs="+", choices=["session", "spindle", "posture"], help="only these protocols"
+        "--only",
+        nargs="+",
+        choices=["paper", "session", "spindle", "posture"],
+        help="only these protocols (paper: O'Neill et al.'s own protocol and the leave-frequency/load-out "
+        "folds on tool4_L4_paper_sweep)",
     )
+    q.add_argument(
+        "--calibration-cv",
+        action="store_true",
+        help="also cross-validate the calibration (method, prior share, recording) over every folder pair",
+    )
+    q.add_argument("--seed", type=int, default=0, help="seed of the paper protocol's random split")
     q.add_argument("--no-networks", action="store_true", help="skip the network estimators (no torch needed)")
     q.add_argument("--out", default="out/forceps-protocols", help="output folder")
     q.add_argument("--quiet", action="store_true", help="no progress bar, no table on stdout")

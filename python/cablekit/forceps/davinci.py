@@ -28,6 +28,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -209,9 +210,12 @@ class Estimator:
 
     def recalibrated(self, run: BenchRun) -> Estimator:
         """The default: remove the mean torque error on the calibration run (an offset)."""
-        torque, _, _ = self.predict(run)
-        k = _skip(run)
-        return _Shifted(self, float(np.mean(run.jaw_torque[k:] - torque[k:])))
+        return self.recalibrated_on([run])
+
+    def recalibrated_on(self, runs: Sequence[BenchRun]) -> Estimator:
+        """:meth:`recalibrated` on several runs of the new instrument, their samples pooled."""
+        err = [r.jaw_torque[_skip(r) :] - self.predict(r)[0][_skip(r) :] for r in runs]
+        return _Shifted(self, float(np.mean(np.concatenate(err))))
 
 
 @dataclass
@@ -236,16 +240,29 @@ class Physics(Estimator):
     name: str = "physics (drive model, Rust)"
 
     @classmethod
-    def fit(cls, runs: Sequence[BenchRun], friction: bool = False) -> Physics:
+    def fit(
+        cls, runs: Sequence[BenchRun], friction: bool = False, weights: Sequence[F64 | float] | None = None
+    ) -> Physics:
+        """Fitted on ``runs``; ``weights``: per run a weight or an array of sample weights (≥ 0;
+        0 leaves a sample out of the fit)."""
         dts = {round(r.dt, 9) for r in runs}
         if len(dts) != 1:
             raise DataError(f"training runs have different sample periods {sorted(dts)}")
+        per_sample = None
+        if weights is not None:
+            if len(weights) != len(runs):
+                raise DataError(f"{len(weights)} weights for {len(runs)} runs")
+            per_sample = [
+                np.full(len(r.jaw_torque), float(w)) if np.ndim(w) == 0 else np.asarray(w, dtype=np.float64)
+                for r, w in zip(runs, weights, strict=True)
+            ]
         model = DriveModel.fit(
             [r.signals for r in runs],
             [math.radians(d) for d in TRAVELS_DEG],
             dt=runs[0].dt,
             window=VELOCITY_WINDOW,
             warmup=WARMUP_S,
+            weights=per_sample,
         )
         return cls(model, friction)
 
@@ -253,8 +270,13 @@ class Physics(Estimator):
         e = self.model.estimate(run.signals[:, :3].copy(), dt=run.dt)
         return e.torque, e.angle, e.outside_share
 
-    def recalibrated(self, run: BenchRun) -> Estimator:
-        return Physics(self.model.recalibrated(run.signals, dt=run.dt, friction=self.friction), self.friction)
+    def recalibrated_on(self, runs: Sequence[BenchRun]) -> Estimator:
+        dts = {round(r.dt, 9) for r in runs}
+        if len(dts) != 1:
+            raise DataError(f"calibration runs need one sample period, got {sorted(dts)}")
+        dt = runs[0].dt
+        model = self.model.recalibrated([r.signals for r in runs], dt=dt, friction=self.friction)
+        return Physics(model, self.friction)
 
 
 def _outside(x: F64, lo: F64, hi: F64) -> float:
@@ -413,6 +435,8 @@ class FoldResult:
     protocol: str
     folds: dict[str, dict[str, Score]] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    #: per estimator, the calibration's check (new-instrument protocol only)
+    checks: dict[str, Any] = field(default_factory=dict)
 
 
 def _folds(runs: Sequence[BenchRun], key: str) -> dict[str, list[BenchRun]]:
@@ -452,18 +476,30 @@ def leave_one_out(
 
 def new_instrument(
     train: Sequence[BenchRun],
-    calibration: BenchRun,
+    calibration: BenchRun | Sequence[BenchRun],
     test: Sequence[BenchRun],
     fitters: dict[str, Callable[[Sequence[BenchRun]], Estimator]],
+    method: str | None = None,
+    share: float | None = None,
 ) -> FoldResult:
-    """Train on ``train`` (one instrument), recalibrate on ``calibration`` (one run of the new
-    instrument), score on ``test`` (its other runs). Warns when the new runs leave the
-    training ranges."""
+    """Train on ``train`` (one instrument), calibrate on ``calibration`` (one or more runs of
+    the new instrument, :func:`cablekit.forceps.calibrate.calibrate` with ``method`` and
+    ``share``, by default the cross-validated ones), score on ``test`` (its other runs). Every
+    estimator's calibration check goes into ``checks``; a flagged one and new runs outside the
+    training ranges are warnings."""
+    from cablekit.forceps.calibrate import DEFAULT_METHOD, DEFAULT_SHARE, calibrate
+
+    cal = [calibration] if isinstance(calibration, BenchRun) else list(calibration)
     res = FoldResult("new instrument")
     scores = {}
     for name, fit in fitters.items():
-        est = fit(train)
-        s = score(est.recalibrated(calibration), test)
+        c = calibrate(fit, train, cal, method or DEFAULT_METHOD, DEFAULT_SHARE if share is None else share)
+        res.checks[name] = c.check
+        if not c.check.ok:
+            msg = f"{name}: {c.check.message()}"
+            res.warnings.append(msg)
+            warnings.warn(msg, stacklevel=2)
+        s = score(c.estimator, test)
         scores[name] = s
         if s.outside_share > OUTSIDE_WARN:
             msg = (
@@ -472,5 +508,6 @@ def new_instrument(
             )
             res.warnings.append(msg)
             warnings.warn(msg, stacklevel=2)
-    res.folds[f"calibrated on {calibration.name}, scored on {len(test)} runs"] = scores
+    names = " + ".join(r.name for r in cal)
+    res.folds[f"calibrated on {names} ({method or DEFAULT_METHOD}), scored on {len(test)} runs"] = scores
     return res

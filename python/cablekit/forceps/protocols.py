@@ -1,15 +1,21 @@
 """The strict protocols a user meets with a real instrument (issue #37 §1): every estimator of
 :mod:`cablekit.forceps.davinci` trained on one bench folder and scored on another — another
 recording session of the same instrument, the other input spindle (a second cable transmission),
-another wrist posture — under four calibrations on the new folder's own calibration runs.
+another wrist posture — under five calibrations on the new folder's calibration recording
+(:func:`calibration_runs`: the load step ``00`` + ``03`` — ``000`` + ``003`` in a wrist folder's
+``ZXY`` names — and, where the folder has it, the same step at the fastest motion):
 
 * **none** — the trained estimator as it is;
-* **offset** — the torque offset re-identified on the slowest run at the lightest load (``00``;
-  ``000`` in a wrist folder's ``ZXY`` names), the documented new-instrument default;
+* **offset** — the torque offset re-identified on the calibration runs (the default before
+  issue #37);
 * **offset + friction** — the offset and a common scale of the friction (physics model only);
-* **refit** — the estimator fitted again on a load step of the new folder alone: ``00`` and
-  ``03`` (``000`` and ``003``), the slowest motion at the lightest and the heaviest of the first
-  four load levels.
+* **refit** — the estimator fitted on the calibration runs alone;
+* **prior** — fitted on the training runs and the calibration runs, these weighted to
+  :data:`~cablekit.forceps.calibrate.DEFAULT_SHARE` times the training runs' weight: the
+  default, chosen by :func:`calibration_cv` over every pair of folders.
+
+**leave-posture-out** (with ``posture``): trained on the straight wrist and every posture folder
+but the scored one.
 
 The calibration runs are never scored. RMSE in mN·m after the 1 s warm-up, pooled over the
 scored runs, and the worst run's; the goal of issue #37 is every held-out run ≤ 4.42 mN·m.
@@ -18,11 +24,13 @@ scored runs, and the worst run's; the goal of issue #37 is every held-out run �
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from cablekit.errors import DataError
+from cablekit.forceps.calibrate import DEFAULT_SHARE, _calibrated
 from cablekit.forceps.davinci import (
     OUTSIDE_WARN,
     PUBLISHED_RMSE,
@@ -38,17 +46,26 @@ from cablekit.forceps.davinci import (
 
 __all__ = [
     "CALIBRATIONS",
+    "CV_INSTRUMENTS",
+    "CV_SHARES",
     "FOLDERS",
+    "CvGroup",
+    "CvRow",
     "Transfer",
+    "calibration_cv",
     "calibration_runs",
+    "cv_markdown",
     "markdown",
     "protocols",
     "protocols_present",
     "transfer",
 ]
 
+#: the protocol that trains on the straight wrist and every posture but the scored one
+LEAVE_POSTURE_OUT = "leave-posture-out"
+
 #: the calibrations compared, in the table's order
-CALIBRATIONS = ("none", "offset", "offset + friction", "refit")
+CALIBRATIONS = ("none", "offset", "offset + friction", "refit", "prior")
 
 #: (protocol, trained on, scored on) folder pairs of the da Vinci bench, relative to its root;
 #: ``tool4_wrist/*`` stands for every posture folder present
@@ -85,15 +102,25 @@ def _check_runs(runs: object, what: str) -> None:
         raise DataError(f"{what} needs a sequence of bench runs, got {type(runs).__name__}")
 
 
-def calibration_runs(runs: Sequence[BenchRun]) -> tuple[BenchRun, BenchRun]:
-    """The load step a folder is calibrated on: the runs named all zeros (``00``, ``000``) and
-    the same with a last digit 3 (``03``, ``003``)."""
+def calibration_runs(runs: Sequence[BenchRun]) -> list[BenchRun]:
+    """The calibration recording among a folder's runs: the load step — the runs named all zeros
+    (``00``, ``000``) and the same with a last digit 3 (``03``, ``003``) — and, where the folder
+    has them, the same two loads at its fastest motion (``40`` + ``43``; in ``ZXY`` names the
+    largest ``X`` at ``Z = 0``)."""
     _check_runs(runs, "calibration_runs")
     by_name = {r.name: r for r in runs}
     for width in sorted({len(r.name) for r in runs if r.name.isdigit()}):
         light, heavy = "0" * width, "0" * (width - 1) + "3"
         if light in by_name and heavy in by_name:
-            return by_name[light], by_name[heavy]
+            out = [by_name[light], by_name[heavy]]
+            if width < 2:
+                return out
+            head = "0" * (width - 2)
+            fast = [n[-2] for n in by_name if len(n) == width and n.isdigit() and n.startswith(head)]
+            top = max(fast)
+            if top != "0" and head + top + "0" in by_name and head + top + "3" in by_name:
+                out += [by_name[head + top + "0"], by_name[head + top + "3"]]
+            return out
     raise DataError(
         "no calibration load step among the runs: need the runs 00 and 03 (or 000 and 003: the "
         f"slowest motion at the lightest and the fourth load level); present: {sorted(by_name)}"
@@ -125,16 +152,13 @@ def transfer(
     out = []
     for name, fit in fitters.items():
         est = fit(train[1])
-        scores: dict[str, Score | None] = {
-            "none": score(est, scored),
-            "offset": score(est.recalibrated(cal[0]), scored),
-            "offset + friction": (
-                score(Physics(est.model, friction=True).recalibrated(cal[0]), scored)
-                if isinstance(est, Physics)
-                else None
-            ),
-            "refit": score(fit(list(cal)), scored),
-        }
+        scores: dict[str, Score | None] = {"none": score(est, scored)}
+        for method in CALIBRATIONS[1:]:
+            if method == "offset + friction" and not isinstance(est, Physics):
+                scores[method] = None
+                continue
+            calibrated = _calibrated(method, fit, est, train[1], cal, DEFAULT_SHARE)
+            scores[method] = score(calibrated, scored)
         notes = [
             f"{protocol} {train[0]} → {test[0]}, {name}, {c}: up to {100 * s.outside_share:.0f} % of a run "
             "outside the training ranges"
@@ -153,6 +177,9 @@ def _pairs(root: Path) -> list[tuple[str, Path, Path]]:
         else:
             tests = [root / b]
         pairs += [(protocol, root / a, t) for t in tests if (root / a).is_dir() and t.is_dir()]
+        if protocol == "posture" and len(tests) > 1:
+            # leave one posture out: trained on the straight wrist and every other posture
+            pairs += [(LEAVE_POSTURE_OUT, root / a, t) for t in tests if (root / a).is_dir() and t.is_dir()]
     return pairs
 
 
@@ -169,7 +196,11 @@ def protocols_present(root: str | Path, only: Sequence[str] | None = None) -> li
     bad = sorted(set(only or ()) - known)
     if bad:
         raise DataError(f"unknown protocol(s) {bad}; known: {sorted(known)}")
-    pairs = [p for p in _pairs(base) if only is None or p[0] in only]
+    pairs = [
+        p
+        for p in _pairs(base)
+        if only is None or p[0] in only or (p[0] == LEAVE_POSTURE_OUT and "posture" in only)
+    ]
     if not pairs:
         raise DataError(
             f"{base}: none of the folder pairs of the protocols is present "
@@ -199,7 +230,14 @@ def protocols(
     out = []
     for protocol, a, b in pairs:
         label = str(b.relative_to(base))
-        out += transfer(protocol, (str(a.relative_to(base)), runs(a)), (label, runs(b)), fitters)
+        train = (str(a.relative_to(base)), runs(a))
+        if protocol == LEAVE_POSTURE_OUT:
+            others = [t for k, _, t in pairs if k == LEAVE_POSTURE_OUT and t != b]
+            train = (
+                f"{train[0]} + {len(others)} other postures",
+                [*runs(a), *(r for t in others for r in runs(t))],
+            )
+        out += transfer(protocol, train, (label, runs(b)), fitters)
         advance(f"{protocol}: {a.name} → {label}")
     return out
 
@@ -220,4 +258,115 @@ def markdown(rows: Sequence[Transfer]) -> str:
                 cells.append(f"{s.rmse_mnm:.2f} / {s.worst_run_mnm:.2f}{mark}")
         row = f"| {t.protocol} | {t.train} | {t.test} ({t.n_scored}) | {t.estimator} | "
         lines.append(row + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+#: the folders each taken as "a new instrument" for the others in :func:`calibration_cv`:
+#: two sessions of the left spindle and the right spindle; every posture folder is scored from
+#: each of them
+CV_INSTRUMENTS = ("tool4_load_sweep", "tool4_L4_paper_sweep", "tool4_right_spindle")
+#: the prior's weights tried (the calibration runs' total weight over the training runs')
+CV_SHARES = (1.0, 4.0, 16.0, 64.0, 256.0)
+
+
+@dataclass(frozen=True)
+class CvGroup:
+    """Scores of one calibration over a group of folder pairs (mN·m)."""
+
+    #: geometric mean of the pairs' pooled RMSE
+    gmean: float
+    #: the worst run of any pair
+    worst: float
+    #: pairs with every scored run ≤ 4.42 mN·m, and pairs
+    passed: int
+    pairs: int
+
+
+@dataclass(frozen=True)
+class CvRow:
+    """One calibration (method, share, recording) over the pairs of :func:`calibration_cv`,
+    separately over the instrument/session pairs and the posture pairs."""
+
+    method: str
+    share: float | None
+    recording: str
+    instrument: CvGroup
+    posture: CvGroup
+
+    @property
+    def overall(self) -> float:
+        """The selection criterion: the geometric mean of the pooled RMSE over every pair."""
+        groups = [g for g in (self.instrument, self.posture) if g.pairs]
+        n = sum(g.pairs for g in groups)
+        return math.exp(sum(g.pairs * math.log(g.gmean) for g in groups) / n) if n else math.nan
+
+
+def calibration_cv(
+    root: str | Path,
+    shares: Sequence[float] = CV_SHARES,
+    advance: Callable[[str], None] = lambda _: None,
+) -> list[CvRow]:
+    """Cross-validate the calibration of the physics estimator over every pair of folders under
+    ``root``: each of :data:`CV_INSTRUMENTS` trained on and every other one of them and every
+    ``tool4_wrist/*`` folder calibrated on and scored. Two recordings: the documented one
+    (:func:`calibration_runs`) and the minimal load step (its first two runs); the scored runs
+    are the same for both (the folder without the documented recording)."""
+    if not isinstance(root, (str, Path)) or not Path(root).is_dir():
+        raise DataError(f"the bench folder must be an existing folder, got {root!r}")
+    base = Path(root)
+    trains = [base / n for n in CV_INSTRUMENTS if (base / n).is_dir()]
+    wrists = sorted(p for p in (base / "tool4_wrist").glob("*") if p.is_dir())
+    if len(trains) < 2:
+        raise DataError(f"{base}: calibration_cv needs at least two of {CV_INSTRUMENTS}")
+    runs = {p: read_bench_folder(p) for p in [*trains, *wrists]}
+    fit = Physics.fit
+    methods = [("offset", None), ("offset + friction", None), ("refit", None)] + [
+        ("prior", s) for s in shares
+    ]
+    got: dict[tuple[str, float | None, str, str], list[Score]] = {}
+    for a in trains:
+        est = fit(runs[a])
+        for b in [t for t in trains if t != a] + wrists:
+            group = "posture" if b in wrists else "instrument"
+            documented = calibration_runs(runs[b])
+            scored = [r for r in runs[b] if all(r is not c for c in documented)]
+            for recording, cal in (("documented", documented), ("load step", documented[:2])):
+                for method, share in methods:
+                    c = _calibrated(method, fit, est, runs[a], cal, share or DEFAULT_SHARE)
+                    got.setdefault((method, share, recording, group), []).append(score(c, scored))
+            advance(f"{a.name} → {b.relative_to(base)}")
+    out = []
+    for recording in ("documented", "load step"):
+        for method, share in methods:
+            groups = []
+            for group in ("instrument", "posture"):
+                s = got.get((method, share, recording, group), [])
+                if not s:
+                    groups.append(CvGroup(math.nan, math.nan, 0, 0))
+                    continue
+                g = math.exp(sum(math.log(x.rmse_mnm) for x in s) / len(s))
+                ok = sum(x.worst_run_mnm <= PUBLISHED_RMSE for x in s)
+                groups.append(CvGroup(g, max(x.worst_run_mnm for x in s), ok, len(s)))
+            out.append(CvRow(method, share, recording, *groups))
+    return out
+
+
+def cv_markdown(rows: Sequence[CvRow]) -> str:
+    """The cross-validation table, the chosen calibration marked."""
+    best = min(rows, key=lambda r: r.overall)
+    lines = [
+        "| recording | method | share | instrument pairs: gmean / worst / all runs ≤ 4.42 "
+        "| posture pairs: gmean / worst / all runs ≤ 4.42 | all pairs gmean |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        mark = " **(chosen)**" if r is best else ""
+        share = "—" if r.share is None else f"{r.share:g}"
+        cells = [
+            f"{g.gmean:.2f} / {g.worst:.2f} / {g.passed} of {g.pairs}" if g.pairs else "—"
+            for g in (r.instrument, r.posture)
+        ]
+        lines.append(
+            f"| {r.recording} | {r.method}{mark} | {share} | {cells[0]} | {cells[1]} | {r.overall:.2f} |"
+        )
     return "\n".join(lines)
