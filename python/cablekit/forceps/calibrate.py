@@ -60,6 +60,9 @@ DEFAULT_SHARE = 64.0
 MIN_CORRELATION = 0.8
 MAX_RMSE_FACTOR = 3.0
 
+#: the most times a calibration run is repeated for an estimator without sample weights
+MAX_REPEAT = 8
+
 RECORD = (
     "record the load step on the new instrument — the slowest motion at the lightest load and at "
     "the fourth load level (the bench's runs 00 and 03) — and, if the bench allows, the same at the "
@@ -129,8 +132,9 @@ def _weighted(
     w = share * n_train / max(n_cal, 1)
     if isinstance(base, Physics):
         return Physics.fit([*train, *cal], base.friction, weights=[1.0] * len(train) + [w] * len(cal))
-    # estimators without sample weights: the calibration runs repeated (at most 64 times)
-    return fit([*train, *list(cal) * max(1, min(64, round(w)))])
+    # estimators without sample weights (the baselines): the calibration runs repeated, at most
+    # MAX_REPEAT times (a network's training time grows with the rows)
+    return fit([*train, *list(cal) * max(1, min(MAX_REPEAT, round(w)))])
 
 
 def _calibrated(
