@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from cablekit.errors import DataError, ParameterError
+from cablekit.errors import CablekitError, DataError, ParameterError
 from cablekit.forceps.davinci import PUBLISHED_RMSE, BenchRun, Estimator, Physics, _skip, score
 
 __all__ = [
@@ -209,7 +209,7 @@ def paper_protocol(
             est = Physics.fit(runs, weights=[weight(lab) for lab in labels])
             r, w = errors(lambda i, f, est=est: est.predict(f.run)[0])
             rows.append(PaperRow("paper (RA-L 2018)", label, r, w, scored))
-        except Exception as exc:
+        except CablekitError as exc:  # a degenerate design: a row with its reason, not a crash
             rows.append(PaperRow("paper (RA-L 2018)", label, math.nan, math.nan, scored, [str(exc)]))
     # the best linear map of their inputs
     x = np.vstack([_their_inputs(f)[labels[i] == 1] for i, f in enumerate(filt)])
