@@ -108,12 +108,15 @@ class Calibrated:
     check: CalibrationCheck
 
 
-def _correlation(est: Estimator, runs: Sequence[BenchRun]) -> float:
-    """Correlation of the estimated and the measured jaw torque over ``runs`` after the warm-up
-    (0 when either is constant)."""
+def _fit(est: Estimator, runs: Sequence[BenchRun]) -> tuple[float, float]:
+    """Pooled RMSE (mN·m) and correlation of the estimated and the measured jaw torque over
+    ``runs`` after the warm-up, from one prediction per run (correlation 0 when either is
+    constant)."""
     pred = np.concatenate([est.predict(r)[0][_skip(r) :] for r in runs])
     meas = np.concatenate([r.jaw_torque[_skip(r) :] for r in runs])
-    return float(np.corrcoef(pred, meas)[0, 1]) if pred.std() > 0 and meas.std() > 0 else 0.0
+    rmse = float(np.sqrt(np.mean((pred - meas) ** 2))) * 1e3
+    corr = float(np.corrcoef(pred, meas)[0, 1]) if pred.std() > 0 and meas.std() > 0 else 0.0
+    return rmse, corr
 
 
 def _loads(runs: Sequence[BenchRun]) -> set[str]:
@@ -182,9 +185,8 @@ def calibrate(
             raise DataError(f"{what} runs: need a non-empty sequence of bench runs")
     base = fit(train)
     est = _calibrated(method, fit, base, train, cal, share)
-    own = score(est, cal)
-    corr = _correlation(est, cal)
-    trained_corr = _correlation(base, train)
+    own, corr = _fit(est, cal)
+    trained, trained_corr = _fit(base, train)
     cross = None
     if len(cal) >= 2 and (
         method != "refit" or all(len(_loads([c for c in cal if c is not r])) >= 2 for r in cal)
@@ -197,7 +199,6 @@ def calibrate(
             sq += s.rmse_mnm**2 * m
             n += m
         cross = math.sqrt(sq / n)
-    trained = score(base, train).rmse_mnm
     problems = []
     if not (corr > 0 and corr >= MIN_CORRELATION * trained_corr):
         problems.append(
@@ -205,10 +206,8 @@ def calibrate(
             f"{trained_corr:.2f} on the training runs)"
         )
     limit = MAX_RMSE_FACTOR * trained
-    if own.rmse_mnm > limit:
-        problems.append(
-            f"its error on its own calibration runs is {own.rmse_mnm / trained:.1f}x the training fit's"
-        )
+    if own > limit:
+        problems.append(f"its error on its own calibration runs is {own / trained:.1f}x the training fit's")
     if cross is not None and cross > limit:
         problems.append(
             f"each calibration run predicted from the others is off by {cross / trained:.1f}x "
@@ -216,5 +215,5 @@ def calibrate(
         )
     if len(_loads(cal)) < 2:
         problems.append("the calibration holds one load level only")
-    check = CalibrationCheck([r.name for r in cal], own.rmse_mnm, corr, cross, trained, problems)
+    check = CalibrationCheck([r.name for r in cal], own, corr, cross, trained, problems)
     return Calibrated(est, method, float(share), check)
