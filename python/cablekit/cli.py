@@ -155,7 +155,17 @@ def _diagnose(args: argparse.Namespace) -> int:
         print(f"  done in {time.perf_counter() - t0:.1f} s")
         return 0 if all(r.error is None for r in results) else 1
     if args.davinci:
-        from cablekit.diagnose.davinci import CITATION, SPLITS, BenchSplit, describe, prepare_bench
+        from cablekit._files import text_runs
+        from cablekit.diagnose.davinci import (
+            CITATION,
+            SPLITS,
+            BenchSplit,
+            bench_directory,
+            describe,
+            prepare_bench,
+            split_for,
+        )
+        from cablekit.forceps.posture import parse_posture
 
         preset = SPLITS[args.bench_split]
         sp = BenchSplit(
@@ -163,10 +173,15 @@ def _diagnose(args: argparse.Namespace) -> int:
             fit=tuple(args.bench_fit or preset.fit),
             held_out=tuple(args.bench_holdout or preset.held_out),
         )
-        spec, fit, hold = prepare_bench(args.davinci, sp)
+        posture = parse_posture(args.posture) if args.posture is not None else None
+        sp = split_for(sp, text_runs(bench_directory(args.davinci, sp.calibration + sp.fit + sp.held_out)))
+        spec, fit, hold = prepare_bench(args.davinci, sp, posture=posture)
         print(f"cablekit: da Vinci Maryland bench ({CITATION})")
         print(f"  calibration runs {sp.calibration}, fit runs {sp.fit}, held out {sp.held_out}")
         print(f"  {describe(spec)}")
+        if spec.conditions:
+            built = ", ".join(f"{k} {'/'.join(f'{v:g}' for v in vs)}" for k, vs in spec.conditions.items())
+            print(f"  nominal calibrated at {built}")
         return _run_diagnosis(spec, fit, hold, out, args, "da Vinci bench")
     if args.example:
         fit_paths, hold_paths, model_path = _write_example(out / "example")
@@ -344,9 +359,11 @@ def build_parser() -> argparse.ArgumentParser:
     b = d.add_argument_group(
         "bench data (--davinci)",
         "A folder in the da Vinci Maryland bench's format (any instrument): files FL.TXT[.gz], F = "
-        "frequency index 0-4 (0.1-0.5 Hz), L = load index 0-3 (10-40 % resistive torque); run names are "
-        "the file stems. The nominal model is calibrated on the calibration runs, fitted on the fit runs "
-        "and scored on the held-out runs.",
+        "frequency index 0-4 (0.1-0.5 Hz), L = load index (10-40 % resistive torque), or ZFL.TXT[.gz] in "
+        "a wrist-posture folder (Z = jaw stopping position); run names are the file stems. The nominal "
+        "model is calibrated on the calibration runs, fitted on the fit runs and scored on the held-out "
+        "runs. The wrist posture (pitch, roll) is read from the folder's README or given by --posture; "
+        "runs at a posture or stopping position the nominal was not calibrated at get a warning.",
     )
     b.add_argument(
         "--davinci", metavar="DIR", help="diagnose the da Vinci Maryland bench data in DIR (real data)"
@@ -355,7 +372,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--bench-split",
         choices=["default", "frequency", "load"],
         default="default",
-        help="preset split: default (calibrate 00; fit 11 22; hold out 43 40: new frequency at new loads), "
+        help="preset split: default (calibrate 00; fit 11 22; hold out 43 40: new frequency at new loads; "
+        "in a folder without these runs the same design on the conditions it has), "
         "frequency (hold out 41 42: 0.5 Hz at the fit loads), load (hold out 13 23: 40 %% at the fit "
         "frequencies)",
     )
@@ -364,6 +382,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     b.add_argument("--bench-fit", nargs="+", metavar="RUN", help="fit runs (override the split)")
     b.add_argument("--bench-holdout", nargs="+", metavar="RUN", help="held-out runs (override the split)")
+    b.add_argument(
+        "--posture",
+        metavar="pitch=DEG,roll=DEG",
+        help="the wrist posture of the folder's runs, if its README does not state it (overrides the README)",
+    )
     d.add_argument(
         "--duration", type=float, default=8.0, help="self-test run length, s (independent: 20 s unless given)"
     )

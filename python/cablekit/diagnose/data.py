@@ -52,6 +52,10 @@ class Run:
     t: NDArray[np.float64]
     columns: dict[str, NDArray[np.float64]]
     notes: list[str] = field(default_factory=list)
+    #: conditions of the run the model may or may not know, by name (e.g. the wrist posture of a
+    #: bench run: ``pitch_deg``, ``roll_deg``, ``yaw_index``); compared with the nominal's
+    #: :attr:`~cablekit.diagnose.spec.ModelSpec.conditions`
+    attributes: dict[str, float] = field(default_factory=dict)
 
     @property
     def dt(self) -> float:
@@ -80,7 +84,7 @@ class Run:
         values = _interpolate(self.t - self.t[0], np.column_stack([self.columns[n] for n in names]), grid)
         note = f"resampled from {self.dt:g} s to {dt:g} s by linear interpolation, the other runs' interval"
         cols = {n: np.ascontiguousarray(values[:, j]) for j, n in enumerate(names)}
-        return Run(self.name, grid, cols, [*self.notes, note])
+        return Run(self.name, grid, cols, [*self.notes, note], dict(self.attributes))
 
     def segment(self, start: float, stop: float, name: str | None = None) -> Run:
         """The samples with ``start <= t < stop`` (s), as a new run."""
@@ -92,6 +96,7 @@ class Run:
             self.t[keep] - self.t[keep][0],
             {k: v[keep] for k, v in self.columns.items()},
             list(self.notes),
+            dict(self.attributes),
         )
 
 

@@ -36,6 +36,7 @@ from cablekit._files import bench_runs, text_runs
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.spec import ModelSpec, model_spec_from_dict
 from cablekit.errors import DataError
+from cablekit.forceps.posture import Posture, folder_posture, run_posture
 
 __all__ = [
     "BENCH_PATTERN",
@@ -46,6 +47,7 @@ __all__ = [
     "bench_directory",
     "calibrate",
     "load_bench_run",
+    "split_for",
 ]
 
 CITATION = (
@@ -69,13 +71,17 @@ BENCH_PATTERN = (
 )
 
 
-def load_bench_run(path: str | Path, jaw_reference: float | None = None) -> Run:
+def load_bench_run(
+    path: str | Path, jaw_reference: float | None = None, posture: Posture | None = None
+) -> Run:
     """One ``XY.TXT.gz`` file → a run with ``t``, ``x_m`` (m), ``theta`` (rad), ``net_motor_force``
     (N), ``tau_load`` (N·m) and the raw SI signals ``spindle_angle``, ``spindle_torque``,
     ``jaw_angle``, ``jaw_torque``, ``motor_current`` (back-end, A). ``jaw_reference`` (rad, raw
     encoder angle) is the jaw angle taken as ``theta = 0``; by default the run's first sample.
     The spindle encoder is zeroed at the start of every run by the bench; the jaw encoder is
-    not, so one reference for all runs keeps their jaw angles comparable."""
+    not, so one reference for all runs keeps their jaw angles comparable. ``posture`` (the
+    folder's, :func:`cablekit.forceps.posture.folder_posture`) becomes the run's attributes, with
+    the jaw stopping position of a ``ZXY`` name."""
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: no such bench file")
@@ -111,9 +117,17 @@ def load_bench_run(path: str | Path, jaw_reference: float | None = None) -> Run:
     }
     name = path.name.split(".")[0]
     notes = [] if keep.all() else [f"removed {int((~keep).sum())} rows with non-increasing time"]
-    if len(name) == 2 and name.isdigit() and int(name[0]) < len(FREQS) and int(name[1]) < len(LOADS):
-        notes.append(f"{FREQS[int(name[0])]} Hz, {LOADS[int(name[1])]} % resistive torque")
-    return Run(name, t, {k: np.ascontiguousarray(v) for k, v in cols.items()}, notes)
+    code = name[-2:] if len(name) in (2, 3) and name.isascii() and name.isdigit() else ""
+    if code and int(code[0]) < len(FREQS):
+        load = f"{LOADS[int(code[1])]} %" if int(code[1]) < len(LOADS) else f"level {code[1]}"
+        notes.append(f"{FREQS[int(code[0])]} Hz, {load} resistive torque")
+    attributes: dict[str, float] = {}
+    if posture is not None:
+        here = run_posture(posture, name)
+        attributes = here.attributes()
+        if attributes:
+            notes.append(f"wrist: {here.describe()}")
+    return Run(name, t, {k: np.ascontiguousarray(v) for k, v in cols.items()}, notes, attributes)
 
 
 def calibrate(runs: list[Run], warmup: float = 1.0) -> dict[str, Any]:
@@ -193,6 +207,57 @@ SPLITS = {
 }
 
 
+def _code(stem: str) -> tuple[str, int, int] | None:
+    """``(prefix, frequency index, load index)`` of a run named ``XY`` or ``ZXY``."""
+    if len(stem) in (2, 3) and stem.isascii() and stem.isdigit():
+        return stem[:-2], int(stem[-2]), int(stem[-1])
+    return None
+
+
+def split_for(split: BenchSplit, stems: set[str] | dict[str, Path]) -> BenchSplit:
+    """``split`` as it applies to a folder whose runs are ``stems``: as named when they all exist;
+    in a wrist folder (``ZXY`` names) the same conditions at its first jaw stopping position
+    (``Z = 0``) when they all exist there; otherwise — for the default split only — the same
+    design on the conditions the folder has: calibrated at its slowest, lightest run, held out
+    at its fastest motion under the heaviest and the lightest load (the heaviest alone when
+    there is one frequency), fitted on up to two runs between them. Other splits whose runs are
+    missing are returned as named (:func:`bench_file` then names what is missing)."""
+    names = split.calibration + split.fit + split.held_out
+    have = set(stems)
+    if all(n in have for n in names):
+        return split
+    codes = {st: c for st in have if (c := _code(st)) is not None}
+    prefixes = sorted({c[0] for c in codes.values()})
+    if not prefixes:
+        return split
+    z = prefixes[0]
+    if all(z + n in have for n in names):
+        return BenchSplit(
+            *(tuple(z + n for n in part) for part in (split.calibration, split.fit, split.held_out))
+        )
+    if split != DEFAULT_SPLIT:
+        return split
+    grid = {(c[1], c[2]): st for st, c in codes.items() if c[0] == z}
+    xs, ys = sorted({x for x, _ in grid}), sorted({y for _, y in grid})
+    cal = min(grid, key=lambda k: (k[0], k[1]))
+    hold = [k for k in ((xs[-1], ys[-1]), (xs[-1], ys[0])) if k in grid and k != cal]
+    hold = list(dict.fromkeys(hold))
+    mid = 0.5 * (ys[0] + ys[-1])
+    rest = sorted(
+        (k for k in grid if k != cal and k not in hold), key=lambda k: (abs(k[1] - mid), -k[0], k[1])
+    )
+    fit: list[tuple[int, int]] = []
+    for k in rest:
+        if len(fit) < 2 and all(k[1] != f[1] for f in fit):
+            fit.append(k)
+    if not hold or not fit:
+        raise DataError(
+            f"bench folder with runs {sorted(have)}: too few conditions for a split (calibration, fit "
+            "and held-out runs); name them with --bench-calibration, --bench-fit and --bench-holdout"
+        )
+    return BenchSplit((grid[cal],), tuple(grid[k] for k in fit), tuple(grid[k] for k in hold))
+
+
 def bench_directory(directory: str | Path, names: tuple[str, ...] = ()) -> Path:
     """The folder that holds the bench files: ``directory`` itself, or its ``tool4_load_sweep``
     (the shared layout), or its only sub-folder with bench files — files named by their
@@ -237,21 +302,31 @@ def bench_spec(params: dict[str, Any], warmup: float = 1.0) -> ModelSpec:
 
 
 def prepare_bench(
-    directory: str | Path, split: BenchSplit = DEFAULT_SPLIT, decimate: int = 1
+    directory: str | Path,
+    split: BenchSplit = DEFAULT_SPLIT,
+    decimate: int = 1,
+    posture: Posture | None = None,
 ) -> tuple[ModelSpec, list[Run], list[Run]]:
-    """Load the split, calibrate the nominal on its calibration runs, return (spec, fit, held-out)."""
+    """Load the split (:func:`split_for` the folder's runs), calibrate the nominal on its
+    calibration runs, return (spec, fit, held-out). Every run carries the wrist posture — the
+    folder README's (:func:`~cablekit.forceps.posture.folder_posture`) or ``posture`` — and its
+    jaw stopping position as attributes; the nominal's ``conditions`` are its calibration runs',
+    so the diagnosis warns about a run at a posture the nominal was not calibrated at."""
     sub = bench_directory(directory, split.calibration + split.fit + split.held_out)
+    split = split_for(split, text_runs(sub))
+    where = posture if posture is not None else folder_posture(sub)
     first = load_bench_run(bench_file(sub, split.calibration[0]))
     jaw_ref = float(first.column("jaw_angle")[0])
 
     def load(name: str) -> Run:
-        run = load_bench_run(bench_file(sub, name), jaw_reference=jaw_ref)
+        run = load_bench_run(bench_file(sub, name), jaw_reference=jaw_ref, posture=where)
         if decimate > 1:
             run = Run(
                 run.name,
                 run.t[::decimate],
                 {k: v[::decimate].copy() for k, v in run.columns.items()},
                 run.notes,
+                dict(run.attributes),
             )
         return run
 
@@ -259,6 +334,11 @@ def prepare_bench(
     fit = [load(n) for n in split.fit]
     hold = [load(n) for n in split.held_out]
     spec = bench_spec(calibrate(cal))
+    conditions: dict[str, set[float]] = {}
+    for r in cal:
+        for k, v in r.attributes.items():
+            conditions.setdefault(k, set()).add(v)
+    spec.conditions = {k: tuple(sorted(v)) for k, v in conditions.items()}
     return spec, fit, hold
 
 

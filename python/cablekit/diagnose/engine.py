@@ -58,6 +58,11 @@ __all__ = ["Diagnosis", "Options", "diagnose"]
 _F = NDArray[np.float64]
 
 
+def _run_info(r: Run) -> dict[str, Any]:
+    info: dict[str, Any] = {"name": r.name, "samples": len(r), "dt": r.dt, "notes": r.notes}
+    return info | ({"attributes": dict(r.attributes)} if r.attributes else {})
+
+
 def _per_channel(prep: Prepared, resid: list[_F]) -> dict[str, Any]:
     out = {}
     for c, name in enumerate(prep.channel_names):
@@ -315,10 +320,8 @@ def diagnose(
         "vetoed": vetoed,
         "meta": {
             "model": spec.to_dict(),
-            "fit_runs": [{"name": r.name, "samples": len(r), "dt": r.dt, "notes": r.notes} for r in fit_runs],
-            "held_out_runs": [
-                {"name": r.name, "samples": len(r), "dt": r.dt, "notes": r.notes} for r in hold_runs
-            ],
+            "fit_runs": [_run_info(r) for r in fit_runs],
+            "held_out_runs": [_run_info(r) for r in hold_runs],
             "channels": [
                 {"output": o, "column": c, "noise_sigma": float(s), "interference_hz": hz}
                 for o, c, s, hz in zip(

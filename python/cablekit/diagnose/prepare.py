@@ -211,6 +211,7 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
             skipped[e] = "no site of this plant where it can act on the measured channels"
     candidates = list(info)
     warnings = _servo_saturation(spec, model, fit_runs + hold_runs, fit_core + hold_core, substeps)
+    warnings += unknown_conditions(spec, fit_runs, hold_runs)
     return Prepared(
         spec,
         fit_runs,
@@ -231,6 +232,58 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
 
 #: share of a run's samples at the servo's torque limit above which the replay is flagged
 SATURATION_WARN = 0.02
+
+
+def _values(values: set[float] | tuple[float, ...]) -> str:
+    return ", ".join(f"{v:g}" for v in sorted(values)) or "none"
+
+
+def unknown_conditions(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> list[str]:
+    """A warning for each run attribute (a wrist posture, ...) at a value the model does not know:
+    one the nominal was not built at (``spec.conditions``), one a run does not state although the
+    nominal's is stated, and one a held-out run has and no fit run does. The model has no input
+    for such a condition, so the part of the run's gap it causes would otherwise be read as an
+    unmodelled effect; the warning says so, once per attribute and value."""
+    out: list[str] = []
+    runs = fit_runs + hold_runs
+
+    def known(value: float, among: set[float] | tuple[float, ...]) -> bool:
+        return any(math.isclose(value, k, rel_tol=1e-9, abs_tol=1e-9) for k in among)
+
+    for name, built in sorted(spec.conditions.items()):
+        missing = [r.name for r in runs if name not in r.attributes]
+        if missing:
+            out.append(
+                f"run(s) {', '.join(missing)} state no {name}; the nominal was built at {name} = "
+                f"{_values(built)}: if it differs, part of their gap is that change, not an unmodelled effect"
+            )
+        other: dict[float, list[str]] = {}
+        for r in runs:
+            v = r.attributes.get(name)
+            if v is not None and not known(v, built):
+                other.setdefault(v, []).append(r.name)
+        for v, names in sorted(other.items()):
+            out.append(
+                f"run(s) {', '.join(names)} at {name} = {v:g}, the nominal was built at "
+                f"{_values(built)}: the model has no input for {name}, so part of their gap is that "
+                "change, not an unmodelled effect"
+            )
+    fitted: dict[str, set[float]] = {}
+    for r in fit_runs:
+        for name, v in r.attributes.items():
+            fitted.setdefault(name, set()).add(v)
+    new: dict[tuple[str, float], list[str]] = {}
+    for r in hold_runs:
+        for name, v in r.attributes.items():
+            if name not in spec.conditions and not known(v, fitted.get(name, set())):
+                new.setdefault((name, v), []).append(r.name)
+    for (name, v), names in sorted(new.items()):
+        out.append(
+            f"held-out run(s) {', '.join(names)} at {name} = {v:g}, which no fit run has "
+            f"({_values(fitted.get(name, set()))}): the fitted effects never saw it, and the model has no "
+            f"input for it"
+        )
+    return out
 
 
 def _servo_saturation(

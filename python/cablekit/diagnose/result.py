@@ -240,12 +240,14 @@ class GapSummary:
 
 @dataclass(frozen=True)
 class RunInfo:
-    """A run's name, length, sample interval and loader notes."""
+    """A run's name, length, sample interval, loader notes and attributes (conditions such as a
+    wrist posture; :attr:`cablekit.diagnose.Run.attributes`)."""
 
     name: str
     samples: int
     dt: float
     notes: list[str]
+    attributes: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

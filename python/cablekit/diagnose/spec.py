@@ -125,6 +125,9 @@ class ModelSpec:
     extra: dict[str, Any] = field(default_factory=dict)
     #: ``[units]``: run column → ``(scale, offset, as declared)``, SI = scale·value + offset
     column_units: dict[str, tuple[float, float, Any]] = field(default_factory=dict)
+    #: run attributes at which the nominal was built (e.g. the wrist posture of the calibration
+    #: runs), name → values; a run with another value, or without one, gets a warning
+    conditions: dict[str, tuple[float, ...]] = field(default_factory=dict)
 
     @property
     def x_m(self) -> str:
@@ -170,7 +173,13 @@ class ModelSpec:
                 raise DataError(f"run {run.name!r}: column {col!r} overflows when converted from {declared}")
             how = f"from {declared}" if isinstance(declared, str) else f"×{scale:g} + {offset:g}"
             done.append(f"{col} {how}")
-        return Run(run.name, run.t, cols, [*run.notes, "converted to SI units: " + ", ".join(done)])
+        return Run(
+            run.name,
+            run.t,
+            cols,
+            [*run.notes, "converted to SI units: " + ", ".join(done)],
+            dict(run.attributes),
+        )
 
     def columns(self) -> dict[str, str | None]:
         """Every run column the model reads → the SI unit it must be in (``None``: any, or an
@@ -226,19 +235,23 @@ class ModelSpec:
             inputs = {"tau_m": list(self.inputs)}
             if self.external:
                 inputs["external"] = list(self.external)
-        return {
-            "model": self.kind,
-            "parameters": dict(self.parameters),
-            "inputs": inputs,
-            "outputs": dict(self.outputs),
-            "diagnosis": {"warmup": self.warmup, "substeps": self.substeps}
-            | ({"effects": self.effects} if self.effects else {}),
-        } | ({"units": {c: d for c, (_, _, d) in self.column_units.items()}} if self.column_units else {})
+        return (
+            {
+                "model": self.kind,
+                "parameters": dict(self.parameters),
+                "inputs": inputs,
+                "outputs": dict(self.outputs),
+                "diagnosis": {"warmup": self.warmup, "substeps": self.substeps}
+                | ({"effects": self.effects} if self.effects else {}),
+            }
+            | ({"units": {c: d for c, (_, _, d) in self.column_units.items()}} if self.column_units else {})
+            | ({"conditions": {k: list(v) for k, v in self.conditions.items()}} if self.conditions else {})
+        )
 
 
 #: the tables and keys a model file may hold (anything else is a DataError: a misspelt key
 #: must not be silently ignored)
-TOP_LEVEL = {"model", "parameters", "inputs", "outputs", "diagnosis", "servo", "units"}
+TOP_LEVEL = {"model", "parameters", "inputs", "outputs", "diagnosis", "servo", "units", "conditions"}
 DIAGNOSIS_KEYS = {"warmup", "substeps", "effects"}
 SERVO_KEYS = {"preset", "kp", "kd", "torque_limit"}
 #: the most RK4 substeps per sample the core accepts (cable_core::integrate::MAX_SUBSTEPS)
@@ -256,6 +269,19 @@ def _number(value: Any, what: str, source: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         raise DataError(f"{source}: {what} must be a finite number, got {value!r}")
     return float(value)
+
+
+def _conditions(table: Any, source: str) -> dict[str, tuple[float, ...]]:
+    """``[conditions]``: run attribute → the value (or list of values) the nominal was built at."""
+    if not isinstance(table, dict):
+        raise DataError(f"{source}: conditions must be a table [conditions] of attribute = value(s)")
+    out: dict[str, tuple[float, ...]] = {}
+    for name, value in table.items():
+        values = value if isinstance(value, list) else [value]
+        if not values:
+            raise DataError(f"{source}: [conditions] {name} lists no value")
+        out[name] = tuple(_number(v, f"[conditions] {name}", source) for v in values)
+    return out
 
 
 def _column(value: Any, what: str, source: str) -> str:
@@ -412,6 +438,7 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
     if spec.warmup < 0 or spec.substeps < 0:
         raise DataError(f"{source}: [diagnosis] warmup and substeps must be >= 0")
     spec.column_units = _column_units(doc.get("units", {}), spec.columns(), source)
+    spec.conditions = _conditions(doc.get("conditions", {}), source)
     for key, value in spec.parameters.items():
         _parameter(value, f"[parameters] {key}", source)
     try:
