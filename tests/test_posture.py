@@ -223,3 +223,57 @@ def test_the_cli_refuses_a_malformed_posture_before_it_reads_anything(tmp_path, 
     code = main(["diagnose", "--davinci", str(tmp_path), "--posture", "yaw=3", "--out", str(tmp_path / "o")])
     assert code == 2
     assert "posture: 'yaw=3' is not pitch=DEG or roll=DEG" in capsys.readouterr().err
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.sets(
+        st.one_of(st.from_regex(r"[0-9]{2,3}", fullmatch=True), st.text(max_size=4)),
+        max_size=30,
+    ),
+    st.sampled_from(sorted(SPLITS)),
+)
+def test_any_folder_gets_a_valid_split_or_a_data_error(stems, preset):
+    try:
+        sp = split_for(SPLITS[preset], stems)
+    except ck.DataError:
+        return
+    every = sp.calibration + sp.fit + sp.held_out
+    if sp is SPLITS[preset]:
+        return  # as named: bench_file then names what is missing
+    assert set(every) <= stems and len(set(every)) == len(every)
+    assert not set(sp.held_out) & (set(sp.fit) | set(sp.calibration))
+
+
+_value = st.one_of(st.floats(allow_nan=False, allow_infinity=False, width=64), st.integers(-3, 3).map(float))
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.dictionaries(
+        st.sampled_from(["pitch_deg", "roll_deg", "yaw_index"]), st.lists(_value, min_size=1, max_size=3)
+    ),
+    st.lists(
+        st.dictionaries(st.sampled_from(["pitch_deg", "roll_deg", "yaw_index", "x"]), _value), min_size=2
+    ),
+)
+def test_condition_warnings_are_one_per_attribute_and_value(conditions, attributes):
+    spec = model_spec_from_dict(
+        {
+            "model": "antagonistic_joint",
+            "parameters": PARAMS,
+            "inputs": {"x_m": "x"},
+            "outputs": {"theta": "x"},
+        }
+    )
+    spec.conditions = {k: tuple(v) for k, v in conditions.items()}
+    runs = [_run(f"r{i}", a) for i, a in enumerate(attributes)]
+    fit, hold = runs[:1], runs[1:]
+    w = unknown_conditions(spec, fit, hold)
+    assert len(w) == len(set(w))
+    # a run at a value outside the conditions is always named
+    for r in runs:
+        for k, v in r.attributes.items():
+            built = spec.conditions.get(k)
+            if built and not any(math.isclose(v, c, rel_tol=1e-9, abs_tol=1e-9) for c in built):
+                assert any(f"{r.name}" in x and f"{k} = {v:g}" in x for x in w)
