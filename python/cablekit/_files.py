@@ -8,7 +8,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from cablekit.errors import DataError
+from cablekit.errors import DataError, DTypeError
 
 
 def read_text(path: str | Path, what: str) -> str:
@@ -28,6 +28,8 @@ def read_text(path: str | Path, what: str) -> str:
 
 def parse_toml(text: str, source: str) -> dict[str, Any]:
     """The document of TOML ``text``; ``source`` names it in the error."""
+    if not isinstance(text, str):
+        raise DTypeError(f"{source}: TOML text must be a string, got {type(text).__name__}")
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -60,3 +62,24 @@ def bench_runs(folder: Path) -> dict[str, Path]:
     ``XY``, ``ZXY``) — not the upstream ``README.txt`` or ``SerialLog.txt`` a copied folder keeps
     beside its runs. A run with another stem is read when it is named (:func:`text_runs`)."""
     return {k: v for k, v in text_runs(folder).items() if k.isascii() and k.isdigit()}
+
+
+#: the largest magnitude an encoder or converter count can have in a bench file: every integer
+#: up to 2⁵³ is exact in a double, and no real counter goes beyond it
+COUNT_LIMIT = 2.0**53
+
+
+def check_counts(path: Path, d: Any, columns: tuple[int, ...], rows: Any = None) -> None:
+    """A :class:`DataError` naming the first cell of ``d``'s count ``columns`` (0-based) beyond
+    :data:`COUNT_LIMIT`; ``rows`` maps row indices to file lines when given."""
+    import numpy as np
+
+    block = np.abs(np.asarray(d)[:, list(columns)])
+    bad = np.argwhere(block > COUNT_LIMIT)
+    if bad.size:
+        r, c = bad[0]
+        line = rows[r] if rows is not None else r + 1
+        raise DataError(
+            f"{path}:{line}: column {columns[c] + 1} holds {d[r, columns[c]]:g}, beyond any encoder's or "
+            f"converter's count (|count| <= 2^53)"
+        )

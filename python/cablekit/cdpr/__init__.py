@@ -217,8 +217,10 @@ class Robot(_Robot):
         """A robot from CASPR's XML files (``*_bodies.xml``, ``*_cables.xml``): a single
         rigid platform, ideal cables (rigid: their E·A is ``ea``); see
         :mod:`cablekit.cdpr.caspr` for what is mapped and what is refused."""
+        from cablekit._args import real
         from cablekit.cdpr.caspr import caspr_document
 
+        ea = real(ea, "ea", lo=0.0, lo_open=True)
         return cls.from_dict(caspr_document(bodies, cables, cable_set, ea), str(cables))
 
     def workspace(

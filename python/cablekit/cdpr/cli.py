@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cablekit._args import choice
 from cablekit.cdpr import Robot, Winch, shipped, shipped_names
 from cablekit.cdpr.workspace import DEFAULT_COUNTS, Requirement, plot_workspace, workspace
 from cablekit.errors import DataError
@@ -51,6 +52,7 @@ def read_trajectory(path: str | Path, motion: str) -> Trajectory:
     columns, missing ones and cells that are not finite numbers are ``DataError``s naming them."""
     from cablekit.diagnose.data import read_table, require_finite_cells
 
+    choice(motion, "motion", sorted(POSE_COLUMNS))
     p = Path(path)
     header, data = read_table(p)
     pose_cols, wrench_cols = POSE_COLUMNS[motion], WRENCH_COLUMNS[motion]

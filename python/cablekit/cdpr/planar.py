@@ -22,9 +22,13 @@ from typing import Any
 
 import numpy as np
 
+from cablekit._args import float_array, real
 from cablekit._cablekit import CdprPlant, LoopRun
 from cablekit.cdpr import Robot, Winch, shipped
 from cablekit.errors import ParameterError
+
+#: the most samples one closed-loop run of this module takes (about 30 min at 1 kHz)
+MAX_SAMPLES = 2_000_000
 
 #: the home pose of the shipped planar robot (m, m, rad): the frame's centre
 HOME = np.array([0.6, 0.5, 0.0])
@@ -48,28 +52,43 @@ class StepResponse:
     size: float
     t: np.ndarray
     run: LoopRun
-    rise_time: float
-    settling_time: float
+    #: 10–90 % rise time (s); None: the response did not reach 90 % of the step by the run's end
+    rise_time: float | None
+    #: 2 % settling time after the step (s); None: still outside the band at the run's end
+    settling_time: float | None
     overshoot: float
     final_error: float
     tension_range: tuple[float, float]
 
 
-def _step_figures(t: np.ndarray, y: np.ndarray, t0: float, size: float) -> tuple[float, float, float, float]:
-    """10–90 % rise time, 2 % settling time (s after the step), overshoot (fraction), final
-    error (fraction of the step)."""
+def _step_figures(
+    t: np.ndarray, y: np.ndarray, t0: float, size: float
+) -> tuple[float | None, float | None, float, float]:
+    """10–90 % rise time, 2 % settling time (s after the step; None where not reached by the
+    end), overshoot (fraction), final error (fraction of the step)."""
     after = t >= t0
     ts, r = t[after] - t0, (y[after] - y[after][0]) / size
-    rise = np.nan
+    rise = None
     if (r >= 0.9).any() and (r >= 0.1).any():
         rise = float(ts[np.argmax(r >= 0.9)] - ts[np.argmax(r >= 0.1)])
     outside = np.nonzero(np.abs(r - 1.0) > 0.02)[0]
     settle = (
         float(ts[outside[-1] + 1])
         if outside.size and outside[-1] + 1 < ts.size
-        else (0.0 if not outside.size else np.nan)
+        else (0.0 if not outside.size else None)
     )
     return rise, settle, float(max(r.max() - 1.0, 0.0)), float(r[-1] - 1.0)
+
+
+def _samples(t_end: float, dt: float, what: str) -> int:
+    dt = real(dt, "dt", lo=0.0, lo_open=True, hi=1.0)
+    ratio = real(t_end, what, lo=0.0, lo_open=True) / dt
+    k = round(ratio) if ratio <= MAX_SAMPLES else MAX_SAMPLES + 1
+    if k < 2 or k > MAX_SAMPLES:
+        raise ParameterError(
+            f"{what} / dt = {t_end:g} / {dt:g} gives {k} samples; a run takes 2 to {MAX_SAMPLES:,}"
+        )
+    return k
 
 
 def step_response(
@@ -78,7 +97,14 @@ def step_response(
     """Step the reference pose by ``size`` along ``axis`` at 0.2 s, PID only (no feed-forward, no
     tension distribution in the reference: the desired tensions are recorded for comparison)."""
     plant = plant or planar_plant()
-    k = round(t_end / dt)
+    if axis not in (0, 1, 2) or isinstance(axis, bool):
+        raise ParameterError(f"axis must be 0 (x), 1 (y) or 2 (θ), got {axis!r}")
+    size = real(size, "size")
+    if size == 0.0:
+        raise ParameterError("size must be a non-zero step")
+    k = _samples(t_end, dt, "t_end")
+    if k * dt <= 0.2:
+        raise ParameterError(f"t_end must be past the step at 0.2 s, got {t_end:g}")
     poses = np.tile(np.asarray(plant.home), (k, 1))
     t = np.arange(k) * dt
     poses[t >= 0.2, axis] += size
@@ -108,7 +134,16 @@ def circle(
 ) -> np.ndarray:
     """A circle of ``radius`` through ``home`` in the robot's plane, the radius eased in over one
     period (smoothstep), at rest at both ends: poses ``(T, 3)``."""
-    t = np.arange(round((turns + 1) * period / dt)) * dt
+    home = float_array(home, "home", 1)
+    if home.shape != (3,) or not np.isfinite(home).all():
+        raise ParameterError(f"home must be a finite planar pose [x, y, θ], got {home.tolist()}")
+    radius = real(radius, "radius", lo=-1e3, hi=1e3)
+    period = real(period, "period", lo=0.0, lo_open=True)
+    turns = real(turns, "turns", lo=0.0, lo_open=True)
+    n = _samples((turns + 1) * period, dt, "(turns + 1)·period")
+    if period < 2 * dt:
+        raise ParameterError(f"period must span at least two samples of dt = {dt:g} s, got {period:g}")
+    t = np.arange(n) * dt
     s = np.clip(t / period, 0.0, 1.0)
     ease = s * s * (3 - 2 * s)
     fade = np.clip((t[-1] - t) / period, 0.0, 1.0)
@@ -157,8 +192,8 @@ def markdown(steps: list[StepResponse], tr: TrajectoryResponse) -> str:
     for s in steps:
         unit = "rad" if s.axis == 2 else "m"
         late = f"not within {s.t[-1]:.0f} s"
-        rise = late if np.isnan(s.rise_time) else f"{1e3 * s.rise_time:.0f}"
-        settle = late if np.isnan(s.settling_time) else f"{s.settling_time:.2f}"
+        rise = late if s.rise_time is None else f"{1e3 * s.rise_time:.0f}"
+        settle = late if s.settling_time is None else f"{s.settling_time:.2f}"
         lines.append(
             f"| {s.size:g} {unit} in {names[s.axis]} | {rise} | {settle} | "
             f"{100 * s.overshoot:.1f} % | {100 * s.final_error:.2f} % | "
@@ -267,7 +302,8 @@ class PlanarRobot:
     def follow(self, poses: np.ndarray, dt: float = 1e-3, **loop_options: Any) -> LoopRun:
         """Desired ``poses`` ``(T, 3)`` every ``dt`` s through the trajectory controller with the
         tension distribution in the loop (:meth:`CdprPlant.closed_loop` and its options)."""
-        return self.plant.closed_loop(np.ascontiguousarray(poses, dtype=float), dt, **loop_options)
+        dt = real(dt, "dt", lo=0.0, lo_open=True, hi=1.0)
+        return self.plant.closed_loop(float_array(poses, "poses", 2), dt, **loop_options)
 
     def __repr__(self) -> str:
         return f"PlanarRobot(robot={self.robot.name!r}, home={self.home.tolist()})"

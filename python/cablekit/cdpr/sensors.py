@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from cablekit._args import count, float_array, real
 from cablekit._cablekit import Calibration, CalibrationFit, LoadCellPulley, SignalChain, Winch, WinchDrive
+from cablekit.errors import DTypeError, ParameterError
 from cablekit.simulation import simulate
 
 #: seed 003 §4.3: seven probe masses from 0.10 to 6.70 kg (the intermediate values are a choice)
@@ -53,8 +55,21 @@ def calibrate(
     down (``e^(−μφ)``) and raises it while the cable is unloaded (``e^(+μφ)``); the sensor reads
     ``gain·T + offset`` plus ``noise`` (reading units, Gaussian), five readings averaged per
     mass; fit eq. 33."""
-    rng = np.random.default_rng(seed)
-    up = np.asarray(masses, dtype=np.float64) * GRAVITY
+    if not isinstance(name, str):
+        raise DTypeError(f"name must be a string, got {type(name).__name__}")
+    # readings in the sensor's units: any converter's range is far inside ±1e12
+    gain = real(gain, "gain", lo=-1e12, hi=1e12)
+    if gain == 0.0:
+        raise ParameterError("gain must be non-zero (a sensor that reads nothing cannot be calibrated)")
+    offset = real(offset, "offset", lo=-1e12, hi=1e12)
+    capstan = real(capstan, "capstan", lo=0.0, hi=10.0)
+    noise = real(noise, "noise", lo=0.0, hi=1e12)
+    readings_per_mass = count(readings_per_mass, "readings_per_mass", lo=1, hi=10_000)
+    m = float_array(masses, "masses", 1)
+    if m.size < 2 or m.size > 10_000 or not np.all(np.isfinite(m)) or np.any(m <= 0.0) or np.any(m > 1e6):
+        raise ParameterError(f"masses must be 2 to 10,000 masses in (0, 1e6] kg, got {m.size} values")
+    rng = np.random.default_rng(count(seed, "seed"))
+    up = m * GRAVITY
     down = up[::-1].copy()
     t_up, t_down = up * np.exp(-capstan), down * np.exp(capstan)
 
@@ -145,6 +160,12 @@ def current_sweep(
     reached by a ``ramp`` s smoothstep, a choice, then held ``hold`` s); at each level's end the
     estimate of eq. 35 and the tension read through ``chain`` (HX711 + BLE by default) and
     ``calibration`` (the sensor's own line, so that only the chain's sampling stands between)."""
+    position = real(position, "position", lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    total_length = real(total_length, "total_length", lo=0.0, lo_open=True, hi=1e4)
+    hold = real(hold, "hold", lo=1e-3, hi=60.0)
+    ramp = real(ramp, "ramp", lo=0.0, hi=hold)
+    if winch is not None and not isinstance(winch, Winch):
+        raise DTypeError(f"winch must be a Winch, got {type(winch).__name__}")
     w = winch or Winch.seed003()
     v = w.values.copy()
     names = list(Winch.NAMES)
@@ -152,9 +173,9 @@ def current_sweep(
     v[names.index("stiffness_a")] = ea / (position * total_length)
     v[names.index("stiffness_b")] = ea / ((1.0 - position) * total_length)
     model = WinchDrive(Winch(v), control="current", friction_smoothing=1e-4, cable_damping=20.0)
-    lv = np.asarray(
-        levels if levels is not None else np.r_[np.arange(0.0, 1.75, 0.25), 1.7], dtype=np.float64
-    )
+    lv = np.r_[np.arange(0.0, 1.75, 0.25), 1.7] if levels is None else float_array(levels, "levels", 1)
+    if lv.size < 1 or lv.size > 1000 or not np.all(np.isfinite(lv)):
+        raise ParameterError(f"levels must be 1 to 1,000 finite currents (A), got {lv.size} values")
     sweep = np.concatenate([lv, lv[::-1][1:]])
     up = np.r_[np.ones(lv.size, dtype=bool), np.zeros(lv.size - 1, dtype=bool)]
     dt = 1e-3

@@ -7,6 +7,7 @@ grid, keeps the result with its axes, summarises it and plots slices and a 3-D v
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,13 +15,17 @@ from typing import Any
 
 import numpy as np
 
+from cablekit._args import count, float_array
 from cablekit._cablekit import Robot
-from cablekit.errors import ParameterError, ShapeError
+from cablekit.errors import DTypeError, ParameterError, ShapeError
 
 __all__ = ["Requirement", "Workspace", "plot_workspace", "workspace"]
 
 #: grid points per axis by default (50³ = 125,000 poses for a spatial robot)
 DEFAULT_COUNTS = 50
+#: the most grid points one call evaluates (a 1000³ grid would need 1e9 poses and ~50 GB):
+#: 1e6 poses take a few seconds and ~100 MB; finer grids are several calls over sub-boxes
+MAX_POSES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -130,15 +135,22 @@ def workspace(
     """The workspace of ``robot`` on a grid of ``counts`` points per position axis between
     ``lower`` and ``upper`` (default: the box of the frame anchors), at the fixed ``orientation``
     (``[θ]`` planar, ``[roll, pitch, yaw]`` spatial; default 0), for the ``requirement`` (default:
-    static)."""
+    static). At most :data:`MAX_POSES` grid points per call (a :class:`ParameterError` says so)."""
+    if not isinstance(robot, Robot):
+        raise DTypeError(f"robot must be a cablekit.cdpr.Robot, got {type(robot).__name__}")
+    if requirement is not None and not isinstance(requirement, Requirement):
+        raise DTypeError(f"requirement must be a Requirement, got {type(requirement).__name__}")
     req = requirement or Requirement()
     planar = robot.motion == "planar"
     k = 2 if planar else 3
     anchors, _ = robot.points()
-    lo = np.asarray(anchors.min(axis=0)[:k] if lower is None else lower, dtype=np.float64)
-    hi = np.asarray(anchors.max(axis=0)[:k] if upper is None else upper, dtype=np.float64)
-    rot = np.zeros(robot.dof - k) if orientation is None else np.asarray(orientation, dtype=np.float64)
-    cnt = (counts,) * k if isinstance(counts, int) else tuple(counts)
+    lo = anchors.min(axis=0)[:k] if lower is None else float_array(lower, "lower", 1)
+    hi = anchors.max(axis=0)[:k] if upper is None else float_array(upper, "upper", 1)
+    rot = np.zeros(robot.dof - k) if orientation is None else float_array(orientation, "orientation", 1)
+    if isinstance(counts, list | tuple):
+        cnt = tuple(count(c, "counts", lo=1, hi=MAX_POSES) for c in counts)
+    else:
+        cnt = (count(counts, "counts", lo=1, hi=MAX_POSES),) * k
     if lo.shape != (k,) or hi.shape != (k,) or rot.shape != (robot.dof - k,) or len(cnt) != k:
         raise ShapeError(
             f"a {robot.motion} grid needs lower/upper of {k} values, counts of {k} and an orientation "
@@ -146,8 +158,13 @@ def workspace(
         )
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo <= hi)):
         raise ParameterError(f"the grid needs finite lower <= upper, got {lo} and {hi}")
-    if any(not isinstance(c, int | np.integer) or c < 1 or c > 1000 for c in cnt):
-        raise ParameterError(f"counts must be integers in 1..1000 per axis, got {cnt}")
+    if not np.all(np.isfinite(rot)):
+        raise ParameterError(f"the orientation must be finite, got {rot}")
+    if math.prod(cnt) > MAX_POSES:
+        raise ParameterError(
+            f"counts {cnt} ask for {math.prod(cnt):,} poses; one call evaluates at most {MAX_POSES:,} "
+            "(split the box into sub-boxes for a finer grid)"
+        )
     axes = tuple(_axis(a, b, c) for a, b, c in zip(lo, hi, cnt, strict=True))
     mesh = np.meshgrid(*axes, indexing="ij")
     poses = np.empty((mesh[0].size, robot.dof))

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from cablekit._files import bench_runs, text_runs
+from cablekit._files import bench_runs, check_counts, text_runs
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.spec import ModelSpec, model_spec_from_dict
 from cablekit.errors import DataError
@@ -97,24 +97,30 @@ def load_bench_run(
     if not np.all(np.isfinite(d[:, :6])):
         bad = np.argwhere(~np.isfinite(d[:, :6]))[0]
         raise DataError(f"{path}: non-finite value at row {bad[0] + 1}, column {bad[1] + 1}")
+    check_counts(path, d, (1, 2, 4, 5))
     t = d[:, 0] - d[0, 0]
     keep = np.concatenate([[True], np.diff(t) > 0])
     d, t = d[keep], t[keep]
-    th_s = d[:, 1] * 2 * np.pi / CUI_COUNTS
+    th_s = d[:, 1] * (2 * np.pi / CUI_COUNTS)
     tau_s = d[:, 2] * FUTEK_NM
-    th_j = d[:, 4] * 2 * np.pi / MAXON_COUNTS
+    th_j = d[:, 4] * (2 * np.pi / MAXON_COUNTS)
     tau_j = d[:, 5] * FUTEK_NM
-    cols = {
-        "x_m": SPINDLE_RADIUS * (th_s - th_s[0]),
-        "theta": -(th_j - (th_j[0] if jaw_reference is None else jaw_reference)),
-        "net_motor_force": -tau_s / SPINDLE_RADIUS,
-        "tau_load": -tau_j,
-        "spindle_angle": th_s,
-        "spindle_torque": tau_s,
-        "jaw_angle": th_j,
-        "jaw_torque": tau_j,
-        "motor_current": d[:, 3],
-    }
+    with np.errstate(over="ignore", invalid="ignore"):  # refused below
+        cols = {
+            "x_m": SPINDLE_RADIUS * (th_s - th_s[0]),
+            "theta": -(th_j - (th_j[0] if jaw_reference is None else jaw_reference)),
+            "net_motor_force": -tau_s / SPINDLE_RADIUS,
+            "tau_load": -tau_j,
+            "spindle_angle": th_s,
+            "spindle_torque": tau_s,
+            "jaw_angle": th_j,
+            "jaw_torque": tau_j,
+            "motor_current": d[:, 3],
+        }
+    for key, col in cols.items():
+        if not np.isfinite(col).all():
+            row = int(np.argmax(~np.isfinite(col)))
+            raise DataError(f"{path}: row {row + 1} converts to a non-finite {key} (a count out of range)")
     name = path.name.split(".")[0]
     notes = [] if keep.all() else [f"removed {int((~keep).sum())} rows with non-increasing time"]
     code = name[-2:] if len(name) in (2, 3) and name.isascii() and name.isdigit() else ""

@@ -9,13 +9,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cablekit._arrays import float_array
-from cablekit.errors import ParameterError, ShapeError
+from cablekit._cablekit import CableTransmission
+from cablekit.errors import DTypeError, ParameterError, ShapeError
 from cablekit.simulation import propose_step, state_indices
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
-
-    from cablekit._cablekit import CableTransmission
 
 
 @dataclass(frozen=True)
@@ -97,6 +96,12 @@ def _setup(
     (cable stretch unknown, ~1 mrad); the process noise of white random accelerations (velocity
     variance a²·dt; the angles follow through the dynamics). ``extra`` zero rows and columns
     are appended for augmented states, for the caller to fill."""
+    if not isinstance(model, CableTransmission):
+        raise DTypeError(
+            f"model must be a cablekit.CableTransmission (the joint-state, parameter and force "
+            f"estimators run on a cable transmission), got {type(model).__name__}; for an "
+            "antagonistic joint use cablekit.SrUkf with its own process model"
+        )
     n_links = model.n_links
     q_m = float_array(q_m, "q_m")
     tau_m = float_array(tau_m, "tau_m")
