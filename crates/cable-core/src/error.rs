@@ -186,6 +186,16 @@ pub mod check {
         }
     }
 
+    /// `value` must lie in `[0, hi]` (a physical bound past which the model's numbers
+    /// overflow, stated in `requirement`).
+    pub fn at_most(name: &str, value: f64, hi: f64, requirement: &'static str) -> Result<f64> {
+        if value.is_finite() && (0.0..=hi).contains(&value) {
+            Ok(value)
+        } else {
+            Err(invalid(name, value, requirement))
+        }
+    }
+
     /// `value` must be finite (any sign).
     pub fn finite(name: &str, value: f64) -> Result<f64> {
         if value.is_finite() {

@@ -133,9 +133,15 @@ impl Creep {
             .collect()
     }
 
-    /// `ratio` finite and ≥ 0, `time_constant` finite and > 0.
+    /// `ratio` in `[0, 1e6]` (a creep a million times the elastic stretch is no cable; beyond
+    /// it the rest state overflows), `time_constant` finite and > 0.
     pub fn validate(&self) -> Result<()> {
-        check::non_negative("creep ratio", self.ratio)?;
+        check::at_most(
+            "creep ratio",
+            self.ratio,
+            1e6,
+            "in [0, 1e6]: the settled creep stretch per elastic stretch",
+        )?;
         check::positive("creep time_constant", self.time_constant)?;
         Ok(())
     }
@@ -1046,6 +1052,12 @@ mod tests {
     /// At rest at home the plant is in equilibrium (every derivative 0) and both sensors and
     /// the current estimate read the home tensions: planar, and spatial with pulleys and the
     /// centre of mass off the origin.
+    #[test]
+    fn a_creep_ratio_past_any_cable_is_refused() {
+        assert!(Creep::per_cable(&[1e308], &[1.0], 4).is_err());
+        assert!(Creep::per_cable(&[2.0], &[1.0], 4).is_ok());
+    }
+
     #[test]
     fn rest_is_an_equilibrium_holding_the_home_tensions() {
         for (robot, home) in [

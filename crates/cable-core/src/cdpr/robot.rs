@@ -184,6 +184,21 @@ impl Robot {
             check::non_negative(&format!("platform.inertia[{d}][{d}]"), j[4 * d])?;
         }
         check::all_finite("gravity", &gravity, 1)?;
+        // the weight and its moment about the platform origin must be numbers (a mass of 1e308
+        // kg passes every check above and overflows here)
+        let weight = gravity
+            .iter()
+            .map(|g| (g * platform.mass).abs())
+            .fold(0.0, f64::max);
+        let arm: f64 = platform.com.iter().map(|c| c.abs()).sum();
+        if !weight.is_finite() || !(weight * arm).is_finite() {
+            return Err(CableError::InvalidParameter {
+                name: "platform.mass".into(),
+                value: platform.mass,
+                requirement: "a weight m·g (and its moment about the platform origin) within the \
+                              floating-point range",
+            });
+        }
         Ok(Self {
             name: name.into(),
             motion,

@@ -267,6 +267,19 @@ fn degenerate_geometry_and_bad_bounds_are_named_errors() {
     let p = planar_robot().platform;
     let err = Robot::new("x", Motion::Planar, cables, p, [0.0; 3]).unwrap_err();
     assert!(err.to_string().contains("cables[1].f_min"), "{err}");
+    // a finite mass whose weight overflows (issue #38: gravity_wrench returned inf)
+    let r = planar_robot();
+    let mut heavy = r.platform;
+    heavy.mass = 1e308;
+    let err = Robot::new(
+        "x",
+        Motion::Planar,
+        r.cables.clone(),
+        heavy,
+        [0.0, -9.80665, 0.0],
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("platform.mass"), "{err}");
 }
 
 use crate::error::CableError;

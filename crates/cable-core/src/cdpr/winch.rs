@@ -386,6 +386,15 @@ pub fn roots(poly: &[f64]) -> Result<Vec<Complex>> {
             0.0
         }
     });
+    // a leading coefficient that vanishes beside the others (a parameter at 1e±300) makes the
+    // companion matrix overflow: say so rather than return infinite roots
+    check::result_finite(
+        "polynomial roots (companion matrix)",
+        companion.as_slice(),
+        n,
+        "the polynomial's coefficients span more than the floating-point range: a parameter is \
+         far outside its physical range",
+    )?;
     let schur =
         Schur::try_new(companion, f64::EPSILON, 100_000).ok_or(CableError::NotConverged {
             what: "polynomial roots (Schur)".into(),
@@ -398,6 +407,13 @@ pub fn roots(poly: &[f64]) -> Result<Vec<Complex>> {
             .total_cmp(&b.0.hypot(b.1))
             .then(a.1.total_cmp(&b.1))
     });
+    let flat: Vec<f64> = out.iter().flat_map(|z| [z.0, z.1]).collect();
+    check::result_finite(
+        "polynomial roots",
+        &flat,
+        2,
+        "a root overflows: a parameter is far outside its physical range",
+    )?;
     Ok(out)
 }
 
@@ -419,6 +435,34 @@ mod tests {
             vec![(0.0, 0.0), (0.0, 0.0)]
         );
         assert!(roots(&[1.0, f64::NAN]).is_err());
+        // a leading coefficient vanishing beside the others overflows the companion matrix
+        assert!(matches!(
+            roots(&[1e-300, 1e10, 1.0]),
+            Err(CableError::NonFiniteResult { .. })
+        ));
+    }
+
+    #[test]
+    fn parameters_far_outside_their_range_are_errors_not_infinite_poles() {
+        let mut slow = Winch::seed003();
+        slow.td = 1e300;
+        let mut light = Winch::seed003();
+        light.ee_mass = 1e-300;
+        for w in [slow, light] {
+            match w.root_locus(Setup::Synchronized, true, &[1.0]) {
+                Ok(poles) => assert!(poles
+                    .iter()
+                    .flatten()
+                    .all(|z| z.0.is_finite() && z.1.is_finite())),
+                Err(e) => assert!(matches!(
+                    e,
+                    CableError::NonFiniteResult { .. } | CableError::NotFinite { .. }
+                )),
+            }
+        }
+        assert!(Winch::seed003()
+            .root_locus(Setup::Synchronized, true, &[1e300])
+            .is_err());
     }
 
     #[test]

@@ -391,7 +391,12 @@ impl Jaw {
         check::non_negative(&p("joint_viscous"), self.joint_viscous)?;
         check::non_negative(&p("spring"), self.spring)?;
         check::non_negative(&p("spring_preload"), self.spring_preload)?;
-        check::non_negative(&p("capstan"), self.capstan)?;
+        check::at_most(
+            &p("capstan"),
+            self.capstan,
+            20.0,
+            "in [0, 20]: μ·φ of the routing (e^20 is a tension ratio of 5·10⁸)",
+        )?;
         check::positive(&p("capstan_travel"), self.capstan_travel)?;
         check::non_negative(&p("pulley_viscous"), self.pulley_viscous)?;
         Contact::new(
@@ -634,8 +639,13 @@ impl Twin {
     pub fn validate(&self) -> Result<()> {
         self.a.validate("a")?;
         self.b.validate("b")?;
-        check::non_negative("noise.tension", self.noise.tension)?;
-        check::non_negative("noise.pressure", self.noise.pressure)?;
+        // noise standard deviations whose samples stay numbers (a Gaussian draw reaches ~6σ)
+        for (name, v) in [
+            ("noise.tension", self.noise.tension),
+            ("noise.pressure", self.noise.pressure),
+        ] {
+            check::at_most(name, v, 1e300, "in [0, 1e300]")?;
+        }
         check::positive("sample_time", self.sample_time)?;
         check::substeps("substeps", self.substeps)?;
         Ok(())
@@ -889,6 +899,21 @@ mod tests {
         )
         .is_err());
         assert!(Profile::new(0.0, &[Segment::Hold { duration: f64::NAN }], 0.02, 0.0).is_err());
+    }
+
+    #[test]
+    fn a_capstan_or_noise_past_the_floating_point_range_is_refused() {
+        let mut twin = Twin::seed();
+        twin.a.capstan = 1e300;
+        let err = twin.validate().unwrap_err();
+        assert!(err.to_string().contains("a.capstan"), "{err}");
+        let mut twin = Twin::seed();
+        twin.noise.tension = 1e308;
+        let err = twin.validate().unwrap_err();
+        assert!(err.to_string().contains("noise.tension"), "{err}");
+        let mut twin = Twin::seed();
+        twin.a.capstan = 20.0;
+        twin.validate().unwrap();
     }
 
     #[test]

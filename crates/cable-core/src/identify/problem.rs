@@ -254,11 +254,11 @@ impl JointProblem {
                 });
             }
         }
-        if substeps == 0 {
+        if substeps == 0 || substeps > crate::integrate::MAX_SUBSTEPS {
             return Err(CableError::InvalidParameter {
                 name: "substeps".into(),
-                value: 0.0,
-                requirement: "an integer >= 1",
+                value: substeps as f64,
+                requirement: "an integer in 1..=100000 (MAX_SUBSTEPS)",
             });
         }
         let ctx = site_context(
@@ -817,6 +817,16 @@ mod tests {
             fit.cost < 1e-10 * fit.initial_cost.max(1e-30) + 1e-20,
             "{effect:?} {fit:?}"
         );
+    }
+
+    #[test]
+    fn substeps_beyond_the_integrators_cap_are_refused_up_front() {
+        let err = JointProblem::new(nominal(), channels(), vec![run(0.1)], vec![], 10_000_000)
+            .unwrap_err();
+        assert!(err.to_string().contains("substeps"), "{err}");
+        let p = JointProblem::new(nominal(), channels(), vec![run(0.1)], vec![], 1).unwrap();
+        assert!(p.with_candidates(vec![], 100_001).is_err());
+        assert!(p.with_candidates(vec![], 100_000).is_ok());
     }
 
     #[test]
