@@ -547,7 +547,7 @@ def test_cli_distribute_writes_the_batch_answer_and_rejects_bad_columns(tmp_path
         code = main(
             ["cdpr", "distribute", "seed003_planar", "--trajectory", str(path), "--out", str(tmp_path / "x")]
         )
-        assert code == 2 and needle in capsys.readouterr().err
+        assert code == 4 and needle in capsys.readouterr().err
 
 
 def test_cli_workspace_writes_the_map_table_and_plots(tmp_path):
@@ -558,7 +558,7 @@ def test_cli_workspace_writes_the_map_table_and_plots(tmp_path):
     back = np.load(out / "workspace.npz")
     assert back["margin"].shape == (12, 12, 12)
     assert {"workspace_slices.png", "workspace_3d.png", "workspace.md"} <= {p.name for p in out.iterdir()}
-    assert main(["cdpr", "workspace", "no_such_robot", "--out", str(out)]) == 2
+    assert main(["cdpr", "workspace", "no_such_robot", "--out", str(out)]) == 4
 
 
 # --- CASPR import ---------------------------------------------------------------------------

@@ -53,3 +53,35 @@ def test_unknown_example_is_a_clean_error(capsys):
         run_example("nope")
     with pytest.raises(ck.ParameterError, match="duration"):
         run_example("forceps", duration=-1.0)
+
+
+def test_version_and_exit_codes_tell_usage_from_bad_input_from_a_failed_run(capsys, tmp_path):
+    import cablekit
+    from cablekit.cli import EXIT_FAILED, EXIT_INPUT, EXIT_INTERNAL, EXIT_USAGE, exit_code
+
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0 and cablekit.__version__ in capsys.readouterr().out
+    with pytest.raises(SystemExit) as done:
+        main(["simulate", "--no-such-option"])
+    assert done.value.code == EXIT_USAGE
+    # bad input: a model file that does not exist
+    code = main(
+        ["diagnose", str(tmp_path / "fit.csv"), "--holdout", str(tmp_path / "h.csv"), "--model", "nope.toml"]
+    )
+    assert code == EXIT_INPUT
+    assert exit_code(cablekit.ParameterError("x")) == EXIT_INPUT
+    assert exit_code(cablekit.ConvergenceError("x")) == EXIT_FAILED
+    assert exit_code(cablekit.SimulationDivergedError("x")) == EXIT_FAILED
+    assert exit_code(cablekit.InternalError("x")) == EXIT_INTERNAL
+
+
+def test_the_package_carries_its_licence():
+    from importlib.metadata import metadata
+    from pathlib import Path
+
+    meta = metadata("cablekit")
+    assert meta["License"] == "Apache-2.0"
+    assert "License :: OSI Approved :: Apache Software License" in meta.get_all("Classifier")
+    text = (Path(__file__).resolve().parents[1] / "LICENSE").read_text()
+    assert "Apache License" in text and "Version 2.0, January 2004" in text

@@ -270,7 +270,7 @@ def test_columns_in_other_units_are_declared_and_diagnosed_as_in_si(tmp_path, ca
     declared = tmp_path / "raw_model.toml"
     declared.write_text(model.read_text() + units)
     raw = [str(tmp_path / ("raw_" + fit.name)), "--holdout", str(tmp_path / ("raw_" + hold.name))]
-    assert main(["diagnose", *raw, "--model", str(model), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert main(["diagnose", *raw, "--model", str(model), "--out", str(tmp_path / "o"), "--quiet"]) == 4
     assert "looks like millimetres" in capsys.readouterr().err
     out = tmp_path / "out_raw"
     assert main(["diagnose", *raw, "--model", str(declared), "--out", str(out), "--quiet", "--no-html"]) == 0

@@ -214,3 +214,60 @@ def test_a_bench_count_out_of_range_is_a_data_error_in_both_readers(tmp_path, co
     for read in (load_bench_run, read_bench_file):
         with pytest.raises(ck.DataError, match=r"00\.TXT"):
             read(path)
+
+
+def test_drawing_a_report_leaves_the_users_matplotlib_backend_and_figures_alone(tmp_path):
+    import matplotlib
+
+    matplotlib.use("svg")  # the user's choice (a notebook would have its inline backend)
+    import matplotlib.pyplot as plt
+
+    from cablekit.examples import run_example
+    from cablekit.plotting import plot_run
+
+    before = matplotlib.get_backend()
+    path = plot_run(run_example("forceps", duration=0.2), tmp_path / "run.png")
+    assert path.stat().st_size > 1000
+    assert matplotlib.get_backend() == before
+    assert plt.get_fignums() == []
+
+
+def test_progress_lines_go_through_logging_and_can_be_silenced(caplog, capsys):
+    import logging
+
+    from cablekit import _log
+
+    with caplog.at_level(logging.INFO, logger="cablekit"):
+        _log.info("a progress line")
+    assert [r.getMessage() for r in caplog.records] == ["a progress line"]
+    caplog.clear()
+    logging.getLogger("cablekit").setLevel(logging.WARNING)
+    try:
+        _log.info("silenced")
+        assert "silenced" not in capsys.readouterr().out
+        assert not caplog.records
+    finally:
+        logging.getLogger("cablekit").setLevel(logging.NOTSET)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(
+        st.lists(st.floats(allow_nan=False, allow_infinity=False, width=64), min_size=3, max_size=3),
+        min_size=1,
+        max_size=30,
+    ),
+    st.sampled_from([",", "\t", ";", " "]),
+    st.sampled_from(["{!r}", "{:.3e}", " {!r} "]),
+)
+def test_the_compiled_csv_parsers_read_what_the_careful_reader_reads(tmp_path_factory, rows, sep, fmt):
+    """The fast paths (pyarrow, NumPy) give exactly the numbers the cell-by-cell reader gives."""
+    from cablekit.diagnose import data as data_module
+
+    path = tmp_path_factory.mktemp("csv") / "run.csv"
+    lines = [sep.join(["t", "a", "b"])] + [sep.join(fmt.format(v) for v in r) for r in rows]
+    path.write_text("\n".join(lines) + "\n")
+    header, got = data_module.read_table(path)
+    assert header == ["t", "a", "b"]
+    want = np.array([[float(fmt.format(v)) for v in r] for r in rows])
+    np.testing.assert_array_equal(got, want)

@@ -221,7 +221,7 @@ def test_the_cli_refuses_a_malformed_posture_before_it_reads_anything(tmp_path, 
     from cablekit.cli import main
 
     code = main(["diagnose", "--davinci", str(tmp_path), "--posture", "yaw=3", "--out", str(tmp_path / "o")])
-    assert code == 2
+    assert code == 4
     assert "posture: 'yaw=3' is not pitch=DEG or roll=DEG" in capsys.readouterr().err
 
 

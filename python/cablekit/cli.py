@@ -11,7 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cablekit.errors import CablekitError, DataError
+from cablekit import __version__
+from cablekit.errors import CablekitError, DataError, InternalError
 
 if TYPE_CHECKING:
     from cablekit.diagnose import ModelSpec, Run
@@ -296,7 +297,15 @@ def _run_diagnosis(
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="cablekit", description="Cable-driven robot toolkit")
+    p = argparse.ArgumentParser(
+        prog="cablekit",
+        description="Cable-driven robot toolkit: simulate, estimate, distribute tensions and diagnose "
+        "why a model disagrees with the robot",
+        epilog="exit codes: 0 done; 1 a goal or check the run states failed; 2 usage; 3 a result "
+        "flagged unreliable by its own check; 4 bad input (data, array or parameter); 5 the "
+        "computation failed (diverged, not converged, overflow); 70 a bug in cablekit",
+    )
+    p.add_argument("--version", action="version", version=f"cablekit {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     s = sub.add_parser("simulate", help="simulate an embedded example, write CSV + PNG")
     s.add_argument("--example", choices=sorted(EXAMPLES), default="raven-link")
@@ -413,13 +422,38 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+#: exit codes of every ``cablekit`` command (README, "Exit codes")
+EXIT_OK = 0
+#: the run finished and a goal or check it states failed (a self-test or benchmark miss)
+EXIT_GOAL = 1
+#: usage: an unknown option or a value argparse refuses
+EXIT_USAGE = 2
+#: a result flagged as unreliable by its own check (a calibration that does not fit)
+EXIT_FLAGGED = 3
+#: bad input: a data file, an array or a parameter the command cannot use
+EXIT_INPUT = 4
+#: the computation failed: a simulation diverged, a fit did not converge, a result overflowed
+EXIT_FAILED = 5
+#: a bug inside cablekit (a Rust panic caught at the boundary)
+EXIT_INTERNAL = 70
+
+
+def exit_code(exc: CablekitError) -> int:
+    """The exit code a cablekit error ends a command with."""
+    if isinstance(exc, InternalError):
+        return EXIT_INTERNAL
+    if isinstance(exc, ArithmeticError | RuntimeError):
+        return EXIT_FAILED
+    return EXIT_INPUT
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
     except CablekitError as exc:
         print(f"cablekit: error: {type(exc).__name__}: {exc}", file=sys.stderr)
-        return 2
+        return exit_code(exc)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -7,28 +7,52 @@ from typing import Any
 
 import numpy as np
 
+from cablekit import _log
 from cablekit.errors import CablekitError
 from cablekit.simulation import SimulationResult
 
 
-def _pyplot() -> Any:
-    try:
-        import matplotlib
+class Figures:
+    """The part of ``matplotlib.pyplot`` cablekit draws with — ``subplots``, ``figure``,
+    ``close`` — on bare :class:`matplotlib.figure.Figure` objects: they are never registered
+    with pyplot, so drawing a report neither switches the user's backend (a notebook's inline
+    or a GUI backend stays as it was) nor opens a window, and saving needs no display."""
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+    @staticmethod
+    def figure(figsize: tuple[float, float] | None = None, **kwargs: Any) -> Any:
+        from matplotlib.figure import Figure
+
+        return Figure(figsize=figsize, **kwargs)
+
+    @classmethod
+    def subplots(
+        cls, nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float] | None = None, **kwargs: Any
+    ) -> tuple[Any, Any]:
+        fig = cls.figure(figsize=figsize)
+        return fig, fig.subplots(nrows, ncols, **kwargs)
+
+    @staticmethod
+    def close(fig: Any = None) -> None:
+        """Nothing to release: the figure is not in pyplot's registry (kept so that code
+        written against pyplot reads the same)."""
+
+
+def _pyplot() -> Figures:
+    try:
+        import matplotlib.figure  # noqa: F401  (the report extra)
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise CablekitError("plots need matplotlib: pip install 'cablekit[report]'") from exc
-    return plt
+    return Figures()
 
 
-def pyplot_or_none() -> Any:
-    """``matplotlib.pyplot`` on the Agg backend, or None (with a note) without the report
-    extra: for scripts whose plots are optional."""
+def pyplot_or_none() -> Figures | None:
+    """A :class:`Figures` namespace (pyplot's ``subplots``/``figure``/``close`` on bare
+    figures, the user's backend untouched), or None (with a note) without the report extra: for
+    scripts whose plots are optional."""
     try:
         return _pyplot()
     except CablekitError:
-        print("matplotlib not installed (pip install 'cablekit[report]'): no plot")
+        _log.warning("matplotlib not installed (pip install 'cablekit[report]'): no plot")
         return None
 
 

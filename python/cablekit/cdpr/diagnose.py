@@ -70,6 +70,7 @@ from typing import Any
 
 import numpy as np
 
+from cablekit import _log
 from cablekit._cablekit import PulleyFriction, SignalChain
 from cablekit.cdpr import Robot, Winch
 from cablekit.errors import DataError, ParameterError, ShapeError
@@ -870,10 +871,9 @@ def self_test(*, cases: int = 2, seed: int = 0, progress: bool = False) -> list[
         d = twin_run(effect, cable, seed=seed + k).diagnose()
         out.append(SelfTestCase(effect, None if effect is None else cable, d))
         if progress:
-            print(
+            _log.info(
                 f"withheld {effect or 'nothing'}{'' if effect is None else f' at cable {cable + 1}'}: "
-                f"{d.summary()}",
-                flush=True,
+                f"{d.summary()}"
             )
     return out
 

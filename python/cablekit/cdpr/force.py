@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cablekit import _log
 from cablekit._cablekit import CdprPlant, LoopRun, Mlp, PulleyFriction
 from cablekit.cdpr import Robot, Winch, shipped
 from cablekit.cdpr.compensate import TWIN_FRICTION, first_test_trajectory, training_trajectories
@@ -140,7 +141,7 @@ def plant_network(
         xs.append(np.column_stack([tr.poses[:, :3], tr.velocity, run.sensor])[::every])
         ys.append(run.ee[::every])
         if progress:
-            print(f"plant run for the loop's network: {tr.name}, {tr.poses.shape[0]:,} periods", flush=True)
+            _log.info(f"plant run for the loop's network: {tr.name}, {tr.poses.shape[0]:,} periods")
     x, y = np.vstack(xs), np.vstack(ys)
     result = train_mlp(
         x, y, method="br", hidden=(hidden,), epochs=epochs, seed=seed, test_fraction=0.0, progress=progress
@@ -211,14 +212,14 @@ def force_control(
         run = loop("network", k)
         rmse.append(_tension_rmse(run))
         if progress:
-            print(f"force loop on NN-tension, k_p = {k:.2f}: RMSE {rmse[-1]:.3f} N", flush=True)
+            _log.info(f"force loop on NN-tension, k_p = {k:.2f}: RMSE {rmse[-1]:.3f} N")
         if abs(k - gain) < 1e-12:
             runs["NN"] = run
     delayed = {}
     for late in delays:
         delayed[late] = np.array([_tension_rmse(loop("network", k, late)) for k in gains])
         if progress:
-            print(f"force loop fed back {late} ms later: RMSE {np.round(delayed[late], 3)} N", flush=True)
+            _log.info(f"force loop fed back {late} ms later: RMSE {np.round(delayed[late], 3)} N")
     if "NN" not in runs:
         runs["NN"] = loop("network", gain)
     runs["open"] = loop("open", 0.0)

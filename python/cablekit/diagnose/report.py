@@ -101,9 +101,6 @@ def validate(doc: dict[str, Any]) -> None:
 def _png(fig: Any) -> str:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
     return base64.b64encode(buf.getvalue()).decode()
 
 
@@ -127,12 +124,10 @@ def _fmt(v: Any, digits: int = 3) -> str:
 
 def _figures(result: Diagnosis) -> dict[str, str]:
     """Plots from the internal objects of a fresh result (not available from JSON alone)."""
-    try:
-        import matplotlib
+    from cablekit.plotting import pyplot_or_none
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:  # pragma: no cover - depends on the environment
+    plt = pyplot_or_none()
+    if plt is None:  # pragma: no cover - depends on the environment
         return {}
     inner = result.internal
     if not inner:

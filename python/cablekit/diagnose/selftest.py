@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 import cablekit as ck
+from cablekit import _log
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.engine import Options, diagnose
 from cablekit.diagnose.spec import ModelSpec, model_spec_from_dict
@@ -452,12 +453,11 @@ def run_self_test(
         rows.append(row)
         if progress:
             mark = "ok " if row["correct"] else "MISS"
-            print(
+            _log.info(
                 f"[{i + 1:>2}/{len(cases)}] {mark} {case.label:<36} verdict={res.verdict:<20} "
                 f"top1={top!s:<20} "
                 f"selected={','.join(selected) or '-':<34} closed={row['held_out_closed']:.2f} "
-                f"({elapsed:.1f}s)",
-                flush=True,
+                f"({elapsed:.1f}s)"
             )
     singles = [r for r in rows if r["kind"] == "single"]
     pairs = [r for r in rows if r["kind"] == "pair"]

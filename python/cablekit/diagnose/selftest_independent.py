@@ -58,6 +58,7 @@ from typing import Any
 
 import numpy as np
 
+from cablekit import _log
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.selftest import MIN_VISIBLE_GAP, visible_runs
 from cablekit.diagnose.spec import ModelSpec, model_spec_from_dict
@@ -1349,13 +1350,12 @@ def run_independent(
                 smark = "" if kind == "control" else (" site-ok" if row["site_correct"] else " site-MISS")
                 if kind == "pair":
                     smark += " both" if row["both_found"] else " one"
-            print(
+            _log.info(
                 f"[{i + 1:>2}/{len(plan)}] {mark}{smark:<15} {label:<{label_width}} "
                 f"{case.truth['scale']:<12} "
                 f"verdict={res.verdict:<20} top1={row['top1_id']!s:<40} "
                 f"closed={row['held_out_closed']:.2f} "
-                f"({gen_s:.0f}+{elapsed:.0f}s)",
-                flush=True,
+                f"({gen_s:.0f}+{elapsed:.0f}s)"
             )
     singles = [r for r in rows if r["kind"] == "single" and r["visible"]]
     pairs = [r for r in rows if r["kind"] == "pair" and r["visible"]]

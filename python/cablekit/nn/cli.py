@@ -30,12 +30,10 @@ def _every(d: Dataset, k: int) -> Dataset:
 
 
 def _plot(comparisons: list, path: Path) -> Path | None:  # type: ignore[type-arg]
-    try:
-        import matplotlib
+    from cablekit.plotting import pyplot_or_none
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+    plt = pyplot_or_none()
+    if plt is None:
         return None
     fig, axes = plt.subplots(1, len(comparisons), figsize=(6 * len(comparisons), 4))
     for ax, c in zip(np.atleast_1d(axes), comparisons, strict=True):
@@ -57,12 +55,10 @@ def _plot_heldout(data: Dataset, predict: object, method: str, path: Path, n: in
     """The first output over the first ``n`` held-out samples: measured, network, baseline."""
     if data.x_test is None or data.y_test is None:
         return None
-    try:
-        import matplotlib
+    from cablekit.plotting import pyplot_or_none
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+    plt = pyplot_or_none()
+    if plt is None:
         return None
     k = np.arange(min(n, data.x_test.shape[0]))
     fig, ax = plt.subplots(figsize=(9, 3.5))

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cablekit import _log
 from cablekit.nn.datasets import Dataset
 from cablekit.nn.spec import METHODS, TrainConfig
 from cablekit.nn.train import train_mlp
@@ -112,10 +113,7 @@ def compare_trainers(
                 row.heldout_mse.append(float(np.mean((r.predict(data.x_test) - data.y_test) ** 2)))
             n_train, n_test = int(r.split["train"].size + r.split["val"].size), int(r.split["test"].size)
             if progress:
-                print(
-                    f"  {method:8s} seed {seed}: test MSE {r.test_mse:.4g}, {r.train_time_s:.2f} s",
-                    flush=True,
-                )
+                _log.info(f"  {method:8s} seed {seed}: test MSE {r.test_mse:.4g}, {r.train_time_s:.2f} s")
         rows.append(row)
     sizes = [data.x.shape[1], *cfg.hidden, data.y.shape[1]]
     n_held = 0 if data.x_test is None else int(data.x_test.shape[0])
