@@ -96,14 +96,18 @@ def test_every_feasible_answer_holds_the_wrench_within_the_bounds(name, method):
         at = kin.structure[i]
         f = res.f[i]
         if res.feasible[i]:
+            # one meaning for every method (issue #38): equilibrium and the bounds
             assert np.linalg.norm(at @ f + w) <= 1e-9 * (1 + np.abs(f).max())
-            if method != "minimum_norm":
-                assert np.all(f >= f_min) and np.all(f <= f_max)
+            assert np.all(f >= f_min) and np.all(f <= f_max)
         if method == "closed_form":
             np.testing.assert_allclose(f, ref.closed_form(at, w, f_min, f_max), rtol=1e-10, atol=1e-9)
         if method == "minimum_norm":
             np.testing.assert_allclose(f, ref.minimum_norm(at, w), rtol=1e-10, atol=1e-9)
-    assert res.feasible.mean() > 0.5, "the shipped robots hold their weight over most of the frame"
+            within = bool(np.all(f >= f_min) and np.all(f <= f_max))
+            held = np.linalg.norm(at @ f + w) <= 1e-9 * (1 + np.abs(w).max() + np.abs(f).max())
+            assert res.feasible[i] == (within and held)
+    if method != "minimum_norm":
+        assert res.feasible.mean() > 0.5, "the shipped robots hold their weight over most of the frame"
 
 
 def _lp_feasible(at, w, f_min, f_max) -> bool:
@@ -657,3 +661,39 @@ def test_caspr_files_outside_what_is_imported_are_data_errors(tmp_path):
     c.write_text(_caspr_cables(robot, "joint").replace("<force_max>", "<force_max>-", 1))
     with pytest.raises(ck.ParameterError):
         Robot.from_caspr(b, c)
+
+
+def test_the_least_wrench_error_is_the_optimum_an_independent_bounded_least_squares_finds():
+    """Issue #38: with no feasible tensions the QP's fallback answer is the optimum of
+    ½‖Aᵀf + w‖² + ½ε‖f − f_mid‖² within the bounds — checked against SciPy's BVLS on the
+    issue's reproducer and on random impossible wrenches."""
+    from scipy.optimize import lsq_linear
+
+    robot = shipped("seed003_planar")
+    f_min, f_max = robot.bounds
+    eps = 1e-6
+    rng = np.random.default_rng(7)
+    cases = [([0.451, 0.294, 0.234], [56.2024, -72.7657, 4.0646])]
+    cases += [
+        ([rng.uniform(0.3, 0.9), rng.uniform(0.3, 0.7), rng.uniform(-0.3, 0.3)], rng.normal(0, 150, 3))
+        for _ in range(20)
+    ]
+    for q, wrench in cases:
+        q, wrench = np.asarray(q), np.asarray(wrench)
+        res = robot.distribute(q[None, :], wrench[None, :], method="qp")
+        if res.feasible[0]:
+            continue
+        at = robot.inverse_kinematics(q[None, :]).structure[0]
+        w = robot.gravity_wrench(q) + wrench
+        mid = 0.5 * (f_min + f_max)
+        a = np.vstack([at, np.sqrt(eps) * np.eye(len(mid))])
+        b = np.concatenate([-w, np.sqrt(eps) * mid])
+        ref = lsq_linear(a, b, bounds=(f_min, f_max), method="bvls", tol=1e-14).x
+
+        def objective(f, at=at, w=w, mid=mid):
+            return 0.5 * np.sum((at @ f + w) ** 2) + 0.5 * eps * np.sum((f - mid) ** 2)
+
+        f = res.f[0]
+        assert np.all(f >= f_min) and np.all(f <= f_max)
+        assert objective(f) <= objective(ref) * (1 + 1e-9) + 1e-12, (q, wrench)
+        assert res.residual[0] <= np.linalg.norm(at @ ref + w) + 1e-6

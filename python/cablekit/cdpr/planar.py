@@ -97,7 +97,7 @@ def step_response(
     """Step the reference pose by ``size`` along ``axis`` at 0.2 s, PID only (no feed-forward, no
     tension distribution in the reference: the desired tensions are recorded for comparison)."""
     plant = plant or planar_plant()
-    if axis not in (0, 1, 2) or isinstance(axis, bool):
+    if isinstance(axis, bool) or not isinstance(axis, int | np.integer) or axis not in (0, 1, 2):
         raise ParameterError(f"axis must be 0 (x), 1 (y) or 2 (θ), got {axis!r}")
     size = real(size, "size")
     if size == 0.0:
@@ -290,7 +290,7 @@ class PlanarRobot:
     ) -> StepResponse:
         """A reference step of ``size`` along ``axis`` (0: x, 1: y, 2: θ) at 0.2 s, PID only; see
         :func:`step_response`."""
-        if axis not in (0, 1, 2):
+        if isinstance(axis, bool) or not isinstance(axis, int | np.integer) or axis not in (0, 1, 2):
             raise ParameterError(f"axis must be 0 (x), 1 (y) or 2 (θ), got {axis!r}")
         return step_response(self.plant, axis=axis, size=size, t_end=t_end, dt=dt)
 

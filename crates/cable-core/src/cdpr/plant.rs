@@ -140,7 +140,7 @@ impl Creep {
             "creep ratio",
             self.ratio,
             1e6,
-            "in [0, 1e6]: the settled creep stretch per elastic stretch",
+            "finite, in [0, 1e6]: the settled creep stretch per elastic stretch",
         )?;
         check::positive("creep time_constant", self.time_constant)?;
         Ok(())

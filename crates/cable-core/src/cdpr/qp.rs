@@ -176,7 +176,14 @@ impl Distributor {
     ) -> Result<Distribution> {
         let (n, m) = (self.n, self.m);
         match method {
-            Method::MinimumNorm => tension::minimum_norm(at, n, m, w),
+            Method::MinimumNorm => {
+                // `feasible` means one thing for every method: equilibrium *and* the bounds
+                // (the minimum-norm tensions ignore the bounds but are judged by them)
+                tension::bounds_checked(m, f_min, f_max)?;
+                let mut d = tension::minimum_norm(at, n, m, w)?;
+                d.feasible &= (0..m).all(|i| d.f[i] >= f_min[i] && d.f[i] <= f_max[i]);
+                Ok(d)
+            }
             Method::ClosedForm => tension::closed_form(at, n, m, w, f_min, f_max),
             Method::ImprovedClosedForm => tension::improved_closed_form(at, n, m, w, f_min, f_max),
             Method::Qp => self.qp(at, w, f_min, f_max),
@@ -328,6 +335,17 @@ impl Distributor {
         for i in 0..m {
             f[i] = (scale * solver.solution.x[i]).clamp(f_min[i], f_max[i]);
         }
+        // the interior point stops at its tolerance, up to ~0.5 N of wrench error above the
+        // optimum: the exact optimum on the face it found (then its neighbours) replaces it
+        // whenever it is at least as good
+        let objective =
+            |f: &[f64]| least_error_objective(at, n, m, w, f, (f_min, f_max), &self.weights, eps);
+        if let Some(exact) = polish_least_error(at, n, m, w, (f_min, f_max), &self.weights, eps, &f)
+        {
+            if objective(&exact[..m]) <= objective(&f[..m]) {
+                f = exact;
+            }
+        }
         let mut d = tension::finish(
             at,
             n,
@@ -340,6 +358,133 @@ impl Distributor {
         d.feasible = false;
         Ok(d)
     }
+}
+
+/// `½‖Aᵀf + w‖² + ½ε Σ wᵢ (fᵢ − f_mid,i)²`: the least-wrench-error objective (the
+/// regularisation picks one answer among equally good ones, towards the middle of the range).
+#[allow(clippy::too_many_arguments)]
+fn least_error_objective(
+    at: &[f64],
+    n: usize,
+    m: usize,
+    w: &[f64],
+    f: &[f64],
+    (f_min, f_max): (&[f64], &[f64]),
+    weights: &[f64],
+    eps: f64,
+) -> f64 {
+    let err: f64 = wrench_residual(at, n, m, w, f)[..n]
+        .iter()
+        .map(|r| r * r)
+        .sum();
+    let reg: f64 = (0..m)
+        .map(|i| weights[i] * (f[i] - 0.5 * (f_min[i] + f_max[i])).powi(2))
+        .sum();
+    0.5 * err + 0.5 * eps * reg
+}
+
+/// `Aᵀf + w` (the first `n` entries).
+fn wrench_residual(at: &[f64], n: usize, m: usize, w: &[f64], f: &[f64]) -> [f64; 6] {
+    let mut r = [0.0; 6];
+    for (a, ra) in r.iter_mut().enumerate().take(n) {
+        *ra = (0..m).map(|i| at[a * m + i] * f[i]).sum::<f64>() + w[a];
+    }
+    r
+}
+
+/// The exact minimiser of the least-wrench-error objective within the bounds, by a primal
+/// active set started from `start` (the interior point's answer): the free tensions solve the
+/// objective's normal equations with the held ones at their bounds; a free tension past a bound
+/// is held there, a held one whose gradient points into the box is freed; at most `4m + 4`
+/// changes of the face. `None` if it does not settle (the interior point's answer then stands).
+#[allow(clippy::too_many_arguments)]
+fn polish_least_error(
+    at: &[f64],
+    n: usize,
+    m: usize,
+    w: &[f64],
+    (f_min, f_max): (&[f64], &[f64]),
+    weights: &[f64],
+    eps: f64,
+    start: &[f64; MAX_CABLES],
+) -> Option<[f64; MAX_CABLES]> {
+    let band = |i: usize| 1e-6 * (1.0 + f_max[i].abs());
+    let mut face: Face = [0; MAX_CABLES];
+    for i in 0..m {
+        if start[i] <= f_min[i] + band(i) {
+            face[i] = -1;
+        } else if start[i] >= f_max[i] - band(i) {
+            face[i] = 1;
+        }
+    }
+    let mid = |i: usize| 0.5 * (f_min[i] + f_max[i]);
+    for _ in 0..4 * m + 4 {
+        let mut f = [0.0; MAX_CABLES];
+        let free: Vec<usize> = (0..m).filter(|&i| face[i] == 0).collect();
+        for i in 0..m {
+            f[i] = match face[i] {
+                -1 => f_min[i],
+                1 => f_max[i],
+                _ => 0.0,
+            };
+        }
+        if !free.is_empty() {
+            // residual of the held cables: r_H = A_Hᵀ f_H + w
+            let r_held = wrench_residual(at, n, m, w, &f[..m]);
+            let k = free.len();
+            let h = nalgebra::DMatrix::from_fn(k, k, |p, q| {
+                let (i, j) = (free[p], free[q]);
+                let mut v: f64 = (0..n).map(|a| at[a * m + i] * at[a * m + j]).sum();
+                if p == q {
+                    v += eps * weights[i];
+                }
+                v
+            });
+            let rhs = nalgebra::DVector::from_fn(k, |p, _| {
+                let i = free[p];
+                -(0..n).map(|a| at[a * m + i] * r_held[a]).sum::<f64>() + eps * weights[i] * mid(i)
+            });
+            let x = h.cholesky()?.solve(&rhs);
+            for (p, &i) in free.iter().enumerate() {
+                f[i] = x[p];
+            }
+        }
+        if f[..m].iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        // the free tension furthest past a bound is held there
+        let worst = free
+            .iter()
+            .map(|&i| {
+                let past = (f_min[i] - f[i]).max(f[i] - f_max[i]);
+                (i, past / (1.0 + f_max[i].abs()))
+            })
+            .filter(|&(_, past)| past > 1e-12)
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((i, _)) = worst {
+            face[i] = if f[i] < f_min[i] { -1 } else { 1 };
+            continue;
+        }
+        // a held tension whose gradient points into the box is freed (the most negative
+        // multiplier first)
+        let r = wrench_residual(at, n, m, w, &f[..m]);
+        let scale = 1.0 + r[..n].iter().map(|v| v.abs()).fold(0.0, f64::max);
+        let release = (0..m)
+            .filter(|&i| face[i] != 0)
+            .map(|i| {
+                let g = (0..n).map(|a| at[a * m + i] * r[a]).sum::<f64>()
+                    + eps * weights[i] * (f[i] - mid(i));
+                // held low: a multiplier −g·(−1) ≥ 0 means g ≥ 0; held high: g ≤ 0
+                (i, f64::from(face[i]) * g / scale)
+            })
+            .filter(|&(_, lam)| lam > 1e-12)
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        match release {
+            Some((i, _)) => face[i] = 0,
+            None => return Some(f),
+        }
+    }
+    None
 }
 
 fn diagonal(weights: &[f64]) -> CscMatrix<f64> {

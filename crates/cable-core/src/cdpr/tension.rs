@@ -240,8 +240,9 @@ pub(super) fn finish(
     })
 }
 
-/// Least-norm tensions `f = −A⁺ᵀ·w` (seed 003 eq. 8; bounds ignored, so `feasible` only says
-/// the equilibrium holds). `at` is `Aᵀ`, row-major `n × m`.
+/// Least-norm tensions `f = −A⁺ᵀ·w` (seed 003 eq. 8; bounds ignored: here `feasible` only says
+/// the equilibrium holds — a robot's `distribute` also judges them by its bounds). `at` is
+/// `Aᵀ`, row-major `n × m`.
 pub fn minimum_norm(at: &[f64], n: usize, m: usize, w: &[f64]) -> Result<Distribution> {
     checked(at, n, m, w)?;
     let mut f = [0.0; MAX_CABLES];

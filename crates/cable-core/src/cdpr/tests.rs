@@ -284,6 +284,37 @@ fn degenerate_geometry_and_bad_bounds_are_named_errors() {
 
 use crate::error::CableError;
 
+/// `feasible` means equilibrium and the bounds for every method (issue #38): the minimum-norm
+/// tensions, which ignore the bounds, are feasible only where they happen to respect them.
+#[test]
+fn minimum_norm_is_feasible_only_within_the_bounds() {
+    let robot = box_robot(false);
+    let g = ik(&robot, &[0.0; 6]);
+    let pose = Pose::from_coordinates(robot.motion, &[0.0; 6]).unwrap();
+    let mut w = [0.0; 6];
+    robot.gravity_wrench(&pose.rotation, &mut w);
+    let mut d = Distributor::new(6, 8, None).unwrap();
+    let free = d
+        .distribute(g.structure(), &w, &[0.0; 8], &[1e3; 8], Method::MinimumNorm)
+        .unwrap();
+    let within = free.tensions().iter().all(|&f| (0.0..=1e3).contains(&f));
+    assert!(free.residual <= 1e-9, "{free:?}");
+    assert_eq!(free.feasible, within, "{free:?}");
+    // bounds every one of the same tensions violates: equilibrium holds, feasibility does not
+    let lo = free.tensions().iter().fold(0.0, |a: f64, &b| a.max(b)) + 1.0;
+    let tight = d
+        .distribute(
+            g.structure(),
+            &w,
+            &[lo; 8],
+            &[lo + 1e3; 8],
+            Method::MinimumNorm,
+        )
+        .unwrap();
+    assert!(!tight.feasible && tight.residual <= 1e-9, "{tight:?}");
+    assert_eq!(tight.tensions(), free.tensions());
+}
+
 /// Where the closed form is feasible it is the QP's optimum (same objective, no active bound):
 /// the QP must agree; where it is not, the QP's answer holds the wrench within the bounds
 /// exactly; warm solves give the cold answers; an impossible wrench is flagged with the least

@@ -395,7 +395,7 @@ impl Jaw {
             &p("capstan"),
             self.capstan,
             20.0,
-            "in [0, 20]: μ·φ of the routing (e^20 is a tension ratio of 5·10⁸)",
+            "finite, in [0, 20]: μ·φ of the routing (e^20 is a tension ratio of 5·10⁸)",
         )?;
         check::positive(&p("capstan_travel"), self.capstan_travel)?;
         check::non_negative(&p("pulley_viscous"), self.pulley_viscous)?;
@@ -644,7 +644,7 @@ impl Twin {
             ("noise.tension", self.noise.tension),
             ("noise.pressure", self.noise.pressure),
         ] {
-            check::at_most(name, v, 1e300, "in [0, 1e300]")?;
+            check::at_most(name, v, 1e300, "finite, in [0, 1e300]")?;
         }
         check::positive("sample_time", self.sample_time)?;
         check::substeps("substeps", self.substeps)?;
