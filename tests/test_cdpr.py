@@ -633,6 +633,35 @@ def test_a_caspr_robot_imports_with_its_geometry_bounds_and_platform(tmp_path, n
         Robot.from_caspr(tmp_path / "b.xml", tmp_path / "c.xml", "other")
 
 
+def test_the_layouts_of_caspr_s_own_example_files_import(tmp_path):
+    """Issue #38: CASPR's shipped files wrap <links> in <bodies_system>, give the joint type as an
+    element and keep <display_range> beside the link (CoGiRo's, KNTU_planar's layout): they
+    import to the same robot as the plain layout."""
+    robot = shipped("ipanema_like")
+    (tmp_path / "c.xml").write_text(_caspr_cables(robot, "joint"))
+    plain = _BODIES.format(joint="SPATIAL_EULER_XYZ", mass=91.058)
+    newer = (
+        plain.replace('<joint type="SPATIAL_EULER_XYZ" />', "<joint_type>SPATIAL_EULER_XYZ</joint_type>")
+        .replace("</links>", "<display_range>-8 8 -6 6 0 6</display_range></links>")
+        .replace('<links display_range="-3 3 -3 3 0 3">', "<bodies_system><links>")
+        .replace("</links>", "</links><operational_spaces/></bodies_system>")
+    )
+    assert "<bodies_system>" in newer and "<joint_type>" in newer
+    (tmp_path / "plain.xml").write_text(plain)
+    (tmp_path / "newer.xml").write_text(newer)
+    a = Robot.from_caspr(tmp_path / "plain.xml", tmp_path / "c.xml")
+    b = Robot.from_caspr(tmp_path / "newer.xml", tmp_path / "c.xml")
+    poses = _poses(robot, 20, np.random.default_rng(1))
+    np.testing.assert_array_equal(
+        a.inverse_kinematics(poses).structure, b.inverse_kinematics(poses).structure
+    )
+    np.testing.assert_array_equal(a.gravity_wrench(poses[0]), b.gravity_wrench(poses[0]))
+    assert b.gravity_wrench(poses[0])[2] == pytest.approx(-9.80665 * 91.058)
+    (tmp_path / "empty.xml").write_text("<bodies_system><operational_spaces/></bodies_system>")
+    with pytest.raises(ck.DataError, match="holds no <links>"):
+        Robot.from_caspr(tmp_path / "empty.xml", tmp_path / "c.xml")
+
+
 def test_caspr_files_outside_what_is_imported_are_data_errors(tmp_path):
     robot = shipped("ipanema_like")
     b, c = tmp_path / "b.xml", tmp_path / "c.xml"
@@ -646,6 +675,10 @@ def test_caspr_files_outside_what_is_imported_are_data_errors(tmp_path):
         ),
         ("<links><link_rigid", "cannot read"),
         ("<bodies/>", "<links> root"),
+        (
+            _BODIES.format(joint="SPATIAL", mass=1.0).replace("</links>", "<spring/></links>"),
+            "single-platform",
+        ),
     ]
     for text, needle in cases:
         b.write_text(text)

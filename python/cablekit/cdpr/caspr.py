@@ -13,6 +13,10 @@ one rigid platform, so the import takes single-link robots with a ``PLANAR_XY`` 
 * ``force_min``/``force_max`` → ``f_min``/``f_max``; mass, ``com_location`` and the inertia about
   the centre of mass → the platform.
 * Ideal cables are rigid: their axial stiffness is the import's ``ea`` argument.
+* The layouts CASPR's own example files use: ``<links>`` as the root or inside a
+  ``<bodies_system>``, the joint type as ``<joint type="...">`` or ``<joint_type>``, display
+  settings (``<display_range>``) beside the link. Gravity is cablekit's default (−9.80665 m/s²
+  along the base's −z, −y for a planar robot): the bodies files do not state it.
 
 Orientation coordinates stay cablekit's (``R = R_z(yaw) R_y(pitch) R_x(roll)``), whatever Euler
 convention the CASPR joint names; the geometry does not depend on it. Anything else (several
@@ -41,6 +45,28 @@ def _parse(path: str | Path, root_tag: str) -> ET.Element:
     if root.tag != root_tag:
         raise DataError(f"{p}: a CASPR {root_tag} file has a <{root_tag}> root, got <{root.tag}>")
     return root
+
+
+#: children of <links> that describe the display, not a body
+_LINKS_METADATA = {"display_range", "view_angle"}
+
+
+def _links(path: str | Path) -> ET.Element:
+    """The <links> of a bodies file: the root, or the child of a <bodies_system> root (CASPR's
+    layout that also holds operational spaces beside the links)."""
+    p = Path(path)
+    try:
+        root = ET.parse(p).getroot()
+    except (OSError, ET.ParseError) as e:
+        raise DataError(f"{p}: cannot read the CASPR file ({e})") from e
+    if root.tag == "links":
+        return root
+    if root.tag == "bodies_system":
+        found = root.find("links")
+        if found is None:
+            raise DataError(f"{p}: a CASPR <bodies_system> holds no <links>")
+        return found
+    raise DataError(f"{p}: a CASPR bodies file has a <links> root (or <bodies_system>), got <{root.tag}>")
 
 
 def _text(node: ET.Element, tag: str, where: str) -> str:
@@ -78,17 +104,18 @@ def caspr_document(
     """The cablekit robot document (as a robot TOML file parses) of a CASPR robot: its bodies
     and cables files, the ``cable_set`` (default: the file's ``default_cable_set``) and the axial
     stiffness ``ea`` (N) given to its ideal cables."""
-    links = _parse(bodies, "links")
+    links = _links(bodies)
     rigid = links.findall("link_rigid")
-    if len(rigid) != 1 or len(list(links)) != 1:
+    bodies_found = [c.tag for c in links if c.tag not in _LINKS_METADATA]
+    if len(rigid) != 1 or len(bodies_found) != 1:
         raise DataError(
-            f"{bodies}: cablekit imports single-platform robots (one <link_rigid>), got "
-            f"{[c.tag for c in links]}"
+            f"{bodies}: cablekit imports single-platform robots (one <link_rigid>), got {bodies_found}"
         )
     link = rigid[0]
     where = f"{bodies}: link {link.get('num', '?')}"
+    # the joint type as an attribute (<joint type="...">) or, in CASPR's newer files, an element
     joint = link.find("joint")
-    kind = (joint.get("type") if joint is not None else None) or ""
+    kind = (joint.get("type") if joint is not None else None) or (link.findtext("joint_type") or "").strip()
     if kind == "PLANAR_XY":
         motion = "planar"
     elif kind.startswith("SPATIAL"):
