@@ -15,8 +15,8 @@ one rigid platform, so the import takes single-link robots with a ``PLANAR_XY`` 
 * Ideal cables are rigid: their axial stiffness is the import's ``ea`` argument.
 * The layouts CASPR's own example files use: ``<links>`` as the root or inside a
   ``<bodies_system>``, the joint type as ``<joint type="...">`` or ``<joint_type>``, display
-  settings (``<display_range>``) beside the link. Gravity is cablekit's default (−9.80665 m/s²
-  along the base's −z, −y for a planar robot): the bodies files do not state it.
+  settings (``<display_range>``) beside the link. Gravity is not read: the import uses
+  cablekit's default (−9.80665 m/s² along the base's −z, −y for a planar robot).
 
 Orientation coordinates stay cablekit's (``R = R_z(yaw) R_y(pitch) R_x(roll)``), whatever Euler
 convention the CASPR joint names; the geometry does not depend on it. Anything else (several
