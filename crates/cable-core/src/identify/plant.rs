@@ -35,6 +35,23 @@
 //! the end, through zero if they differ in sign), checked against the velocity actually reached
 //! (the interval is integrated again if it needed more), up to [`MAX_FRICTION_SUBSTEPS`]. A joint
 //! near rest 7 % of the time costs ~2 substeps per sample instead of 16.
+//!
+//! **Sticks as the slow manifold.** Where the friction's mode is much faster than a substep —
+//! the joint held in a stick by a sharp dry friction, its speed inside the sign's smoothing
+//! band — the speed is slaved to the rest of the state (singular perturbation, Tikhonov): it is
+//! the root of the joint's acceleration on the friction's rising branch,
+//! `J·θ̈(θ, θ̇*, …) = 0`, solved at every RK4 stage by a secant iteration, and the remaining states
+//! are integrated with the substeps of the other modes. The law is the same smoothed friction;
+//! what is dropped is the fast transient, of time constant `J/F'(θ̇*)` below a seventh of the
+//! substep. Within an interval whose friction needs four substeps or more, each step
+//! near rest is slaved when the joint is on the manifold (within the smoothing band of its root)
+//! or decelerating onto it within one of the friction's substeps (the arrival's extra travel
+//! `(θ̇ − θ̇*)²/(2|θ̈|)` is kept), and is an RK4 step of the friction's substeps otherwise — the
+//! slide into the stick and the break-away, where the root leaves the band or the mode slows.
+//! A stick then costs one slaved step per sample instead of [`MAX_FRICTION_SUBSTEPS`] RK4 steps,
+//! and a friction sharper than the cap is resolved instead of chattering through zero (45× and
+//! 5× closer to a 512-substep replay for the Coulomb and stick-slipping Stribeck laws of the
+//! tests).
 
 use crate::cable::{CableLaw, CableRun};
 use crate::dynamics::{AntagonisticJoint, Contact, Model};
@@ -67,6 +84,17 @@ const FRICTION_SAFETY: f64 = 0.8;
 /// its advised substeps at the same 16: a sharper friction chatters, boundedly, at rest rather
 /// than making one trial fit cost a hundred others).
 pub const MAX_FRICTION_SUBSTEPS: usize = 16;
+/// Friction substeps from which an interval's joint speed is slaved when it can be (module
+/// docs): the friction's rate is then at least ~9/dt, its transient at most a ninth of a sample.
+const SLAVE_FROM: usize = 4;
+/// Least `rate·h` (the friction mode's rate times the substep) at which a stage's speed may be
+/// slaved: the dropped transient decays within a seventh of the substep.
+const SLAVE_RATE_H: f64 = 7.0;
+/// Secant iterations per stage before the slaved step gives up (the interval is then integrated
+/// with its substeps).
+const SLAVE_ITER: usize = 12;
+/// Bit of [`JointPlant::regime`] that holds the joint's direction.
+const DIRECTION: u8 = 1 << 3;
 
 /// A rate-independent Dahl hysteresis with level `F`, break-away displacement `θ_d = F/σ₀` and
 /// shape exponent `n`, advanced in closed form (module docs).
@@ -232,6 +260,31 @@ impl CablePart {
     /// Tangent stiffness at stretch `s` (N/m).
     fn slope(&self, s: f64) -> f64 {
         self.run.slope(s) + 3.0 * self.run.law.stiffness() * self.cubic * s * s
+    }
+}
+
+/// Scratch space of the slaved step ([`JointPlant::simulate_refined`]).
+struct Slaved {
+    stage: Vec<f64>,
+    k: Vec<f64>,
+    acc: Vec<f64>,
+    /// The state the last slaved step ended at, with its derivative in `k` when `cached`.
+    end: Vec<f64>,
+    cached: bool,
+    /// The last secant slope of the joint's acceleration in its speed (1/s; NaN: none yet).
+    slope: f64,
+}
+
+impl Slaved {
+    fn new(n: usize) -> Self {
+        Self {
+            stage: vec![0.0; n],
+            k: vec![0.0; n],
+            acc: vec![0.0; n],
+            end: vec![0.0; n],
+            cached: false,
+            slope: f64::NAN,
+        }
     }
 }
 
@@ -474,6 +527,213 @@ impl JointPlant {
         f
     }
 
+    /// Speed band in which the joint's dry friction is stiff: the sign's smoothing `ε`, or the
+    /// power drag's if it is narrower (rad/s).
+    fn friction_band(&self) -> f64 {
+        self.power_drag.map_or(self.friction.smoothing, |d| {
+            (PowerDrag::SMOOTHING * d.reference).min(self.friction.smoothing)
+        })
+    }
+
+    /// The joint speed on the slow manifold at the state `x` (its `x[1]` is overwritten) and
+    /// inputs `u`: the root of the joint's acceleration in its speed on a falling (stable)
+    /// branch, by secant steps from `guess` and the last slope in `slope`, within twenty bands
+    /// of rest, where the mode is fast against the substep `h` (`rate·h` ≥ [`SLAVE_RATE_H`]).
+    /// `dx` then holds the derivative at the root. `None`: no such root (the joint slides, or
+    /// the friction is not stiff there).
+    #[allow(clippy::too_many_arguments)]
+    fn slaved_speed(
+        &self,
+        x: &mut [f64],
+        u: &[f64],
+        dx: &mut [f64],
+        guess: f64,
+        slope: &mut f64,
+        band: f64,
+        h: f64,
+    ) -> Option<f64> {
+        let limit = 20.0 * band;
+        let tol = 1e-9 * band;
+        let accel = |v: f64, x: &mut [f64], dx: &mut [f64]| {
+            x[1] = v;
+            self.derivative(x, u, dx);
+            dx[1]
+        };
+        let mut v0 = guess.clamp(-limit, limit);
+        let mut a0 = accel(v0, x, dx);
+        let mut m = *slope;
+        if m.is_nan() || m >= 0.0 {
+            let dv = 1e-3 * band;
+            m = (accel(v0 + dv, x, dx) - a0) / dv;
+        }
+        for _ in 0..SLAVE_ITER {
+            if !(m < 0.0 && m.is_finite() && a0.is_finite()) {
+                return None;
+            }
+            let step = -a0 / m;
+            let v1 = v0 + step;
+            if v1.is_nan() || v1.abs() > limit {
+                return None;
+            }
+            let a1 = accel(v1, x, dx);
+            if step.abs() <= tol {
+                if -m * h < SLAVE_RATE_H {
+                    return None;
+                }
+                *slope = m;
+                return Some(v1);
+            }
+            m = (a1 - a0) / (v1 - v0);
+            (v0, a0) = (v1, a1);
+        }
+        None
+    }
+
+    /// One RK4 step of size `h` (inputs `u0`, `um`, `u1` at its start, middle and end) with the
+    /// joint speed slaved to the slow manifold (module docs). `false`, with `x` untouched, where
+    /// the step does not start on the manifold — the joint is neither within the band of it nor
+    /// decelerating onto it within `h_arrive` — or a stage leaves it (break-away).
+    #[allow(clippy::too_many_arguments)]
+    fn slaved_step(
+        &self,
+        sw: &mut Slaved,
+        x: &mut [f64],
+        u0: &[f64],
+        um: &[f64],
+        u1: &[f64],
+        h: f64,
+        h_arrive: f64,
+        band: f64,
+    ) -> bool {
+        let ns = x.len();
+        // k1: the derivative on the manifold at x (kept from the last slaved step if x is still
+        // where that step left it)
+        let mut theta = x[0];
+        let v = if sw.cached && sw.end[..] == x[..] {
+            x[1]
+        } else {
+            // the joint's own acceleration, and the manifold's speed
+            self.derivative(x, u0, &mut sw.k);
+            let a = sw.k[1];
+            sw.stage.copy_from_slice(x);
+            let guess = x[1];
+            let Some(v) =
+                self.slaved_speed(&mut sw.stage, u0, &mut sw.k, guess, &mut sw.slope, band, h)
+            else {
+                return false;
+            };
+            // on the manifold already, or arriving within a fast step: the joint decelerates
+            // towards it, and the arrival's extra travel (x₁ − v*)²/(2|a|) is kept
+            let gap = x[1] - v;
+            if gap.abs() > band {
+                if !(gap * a < 0.0 && gap.abs() <= a.abs() * h_arrive) {
+                    return false;
+                }
+                theta += gap * gap.abs() / (2.0 * a.abs());
+                sw.stage[0] = theta;
+                let Some(v) =
+                    self.slaved_speed(&mut sw.stage, u0, &mut sw.k, v, &mut sw.slope, band, h)
+                else {
+                    return false;
+                };
+                v
+            } else {
+                v
+            }
+        };
+        sw.acc.copy_from_slice(&sw.k);
+        let x0 = |i: usize| if i == 0 { theta } else { x[i] };
+        for (stage_u, w, weight) in [(um, 0.5, 2.0), (um, 0.5, 2.0), (u1, 1.0, 1.0)] {
+            for i in 0..ns {
+                sw.stage[i] = x0(i) + w * h * sw.k[i];
+            }
+            if self
+                .slaved_speed(&mut sw.stage, stage_u, &mut sw.k, v, &mut sw.slope, band, h)
+                .is_none()
+            {
+                sw.cached = false;
+                return false;
+            }
+            for i in 0..ns {
+                sw.acc[i] += weight * sw.k[i];
+            }
+        }
+        for i in 0..ns {
+            sw.end[i] = x0(i) + h / 6.0 * sw.acc[i];
+        }
+        sw.end[1] = sw.stage[1];
+        self.reanchor(&mut sw.end);
+        sw.stage.copy_from_slice(&sw.end);
+        let guess = sw.end[1];
+        let Some(v1) =
+            self.slaved_speed(&mut sw.stage, u1, &mut sw.k, guess, &mut sw.slope, band, h)
+        else {
+            sw.cached = false;
+            return false;
+        };
+        sw.end[1] = v1;
+        x.copy_from_slice(&sw.end);
+        sw.cached = true;
+        true
+    }
+
+    /// Advance one sample interval `dt` by RK4 steps of `dt/n`, or — with `slave`, where the
+    /// joint is on the slow manifold of a stiff friction — by slaved steps of `dt/n_slow`
+    /// (module docs); inputs go linearly from `ua` to `ub`. At most `n + n_slow` steps.
+    #[allow(clippy::too_many_arguments)]
+    fn advance_mixed(
+        &self,
+        ws: &mut Rk4,
+        sw: &mut Slaved,
+        x: &mut [f64],
+        ua: &[f64],
+        ub: &[f64],
+        dt: f64,
+        n: usize,
+        n_slow: usize,
+        slave: bool,
+    ) {
+        if !slave {
+            sw.cached = false;
+            self.advance(ws, x, ua, ub, dt, n);
+            return;
+        }
+        let band = self.friction_band();
+        let (h_fast, h_slow) = (1.0 / n as f64, 1.0 / n_slow as f64);
+        let (mut u0, mut um, mut u1) = ([0.0; 3], [0.0; 3], [0.0; 3]);
+        // time as a fraction of the interval
+        let mut a = 0.0;
+        for _ in 0..n + n_slow {
+            if a >= 1.0 - 1e-12 {
+                break;
+            }
+            let near_rest = x[1].abs() <= 20.0 * band;
+            for fast in [false, true] {
+                if !fast && !near_rest {
+                    continue;
+                }
+                let b = (a + if fast { h_fast } else { h_slow }).min(1.0);
+                let m = 0.5 * (a + b);
+                for i in 0..3 {
+                    let du = ub[i] - ua[i];
+                    u0[i] = ua[i] + a * du;
+                    um[i] = ua[i] + m * du;
+                    u1[i] = ua[i] + b * du;
+                }
+                let h = (b - a) * dt;
+                if fast {
+                    sw.cached = false;
+                    ws.step_with(self, x, &u0, &um, &u1, h);
+                    self.reanchor(x);
+                } else if !self.slaved_step(sw, x, &u0, &um, &u1, h, h_fast * dt, band) {
+                    continue;
+                }
+                a = b;
+                break;
+            }
+        }
+    }
+
     /// RK4 substeps of a sample interval `dt` that the friction's local damping rate needs over
     /// velocities from `v0` to `v1` (through zero when their signs differ; the rate is largest
     /// at rest and falls with speed), at transmitted torque `load`.
@@ -486,10 +746,7 @@ impl JointPlant {
         } else {
             v0.abs().min(v1.abs())
         };
-        let h = 0.05
-            * self.power_drag.map_or(self.friction.smoothing, |d| {
-                (PowerDrag::SMOOTHING * d.reference).min(self.friction.smoothing)
-            });
+        let h = 0.05 * self.friction_band();
         let slope =
             (self.friction_torque(v + h, load) - self.friction_torque(v - h, load)) / (2.0 * h);
         let rate = slope.max(0.0) / self.inertias().0;
@@ -549,6 +806,7 @@ impl JointPlant {
         let mut saved = x.clone();
         let mut dx = vec![0.0; self.n_states];
         let local = refine > 1 && self.has_dry_friction();
+        let mut sw = Slaved::new(self.n_states);
         for k in 0..t_len {
             let u_k = &u[3 * k..3 * k + 3];
             if k > 0 {
@@ -565,32 +823,45 @@ impl JointPlant {
                 );
                 let n = if local {
                     self.derivative(&x, u_prev, &mut dx);
-                    substeps.max(self.friction_substeps(v0, v0 + dt * dx[1], load, dt))
+                    // twice the Euler prediction: a joint sliding into a stick decelerates
+                    // harder as it slows (the friction rises towards its static level)
+                    substeps.max(self.friction_substeps(v0, v0 + 2.0 * dt * dx[1], load, dt))
                 } else {
                     substeps
                 };
-                self.advance(&mut ws, &mut x, u_prev, u_k, dt, n);
+                // where the friction is stiff past SLAVE_FROM, sticks go on the slow manifold
+                let slave = |m: usize| local && m >= SLAVE_FROM && m > substeps;
+                self.advance_mixed(
+                    &mut ws,
+                    &mut sw,
+                    &mut x,
+                    u_prev,
+                    u_k,
+                    dt,
+                    n,
+                    substeps,
+                    slave(n),
+                );
                 let need = if local {
                     n.max(self.friction_substeps(v0, x[1], load, dt))
                 } else {
                     n
                 };
-                if refine > 1 && self.regime(&x, u_k) != before {
+                // a reversal in a stiff friction's interval is its own corner, resolved by the
+                // friction's substeps or on the manifold, not refined again
+                let mask = if slave(n) { !DIRECTION } else { u8::MAX };
+                let redo = if refine > 1 && self.regime(&x, u_k) & mask != before & mask {
                     // a kink: `refine` times the substeps of the other modes, or what the friction
                     // needs if that is finer (a friction past its cap chatters through zero at
                     // every sample of a stick: refining its need again would cost 8× for nothing)
+                    Some((need.max(substeps * refine), substeps * refine))
+                } else {
+                    (need > n).then_some((need, substeps))
+                };
+                if let Some((m, slow)) = redo {
                     x.copy_from_slice(&saved);
-                    self.advance(
-                        &mut ws,
-                        &mut x,
-                        u_prev,
-                        u_k,
-                        dt,
-                        need.max(substeps * refine),
-                    );
-                } else if need > n {
-                    x.copy_from_slice(&saved);
-                    self.advance(&mut ws, &mut x, u_prev, u_k, dt, need);
+                    let (a, b) = (u_prev, u_k);
+                    self.advance_mixed(&mut ws, &mut sw, &mut x, a, b, dt, m, slow, slave(m));
                 }
             }
             let y = &mut out[k * JOINT_OUTPUTS..(k + 1) * JOINT_OUTPUTS];
@@ -1141,6 +1412,75 @@ mod tests {
         };
         let (plain, refined) = (err(1), err(KINK_REFINE));
         assert!(refined < 0.25 * plain, "{refined} vs {plain}");
+    }
+
+    #[test]
+    fn sticks_beyond_the_substep_cap_are_integrated_on_the_slow_manifold() {
+        // sharp frictions whose sticks need 50-150 substeps (F_s/(ε·J) = 3-4e5 /s), past the
+        // cap of 16: at one substep per sample the slaved sticks follow a plain RK4 replay at 512
+        // substeps everywhere, where the capped substeps chatter through every stick. Coulomb
+        // sticks and slides; the Stribeck law (static level 1.5× the Coulomb level) stick-slips,
+        // whose slip times are sensitive to everything before them
+        let (dt, t_len) = (1e-3, 3000);
+        let u = inputs(t_len, dt, 2e-4);
+        let x0 = [0.0, 0.0];
+        for (friction, bound, gain) in [
+            (
+                StaticFriction::coulomb_viscous("f", 2e-3, 0.0, 0.005),
+                1e-3,
+                20.0,
+            ),
+            (
+                StaticFriction::stribeck("f", 2e-3, 3e-3, 0.5, 2.0, 0.0, 0.01),
+                0.03,
+                3.0,
+            ),
+        ] {
+            let mut j = AntagonisticJoint::forceps_example();
+            j.contact = None;
+            j.friction = friction.unwrap();
+            let p = JointPlant::from(&j);
+            assert_eq!(
+                p.friction_substeps(0.0, 0.0, 0.0, dt),
+                MAX_FRICTION_SUBSTEPS
+            );
+            let fine = p.simulate_refined(&u, &x0, dt, 512, 1).unwrap();
+            let slaved = p.simulate_refined(&u, &x0, dt, 1, KINK_REFINE).unwrap();
+            let capped = p
+                .simulate_refined(&u, &x0, dt, MAX_FRICTION_SUBSTEPS, 1)
+                .unwrap();
+            let channel = |y: &[f64], c: usize| -> Vec<f64> {
+                y.iter().skip(c).step_by(7).copied().collect()
+            };
+            let theta = channel(&fine, 4);
+            // the joint sticks: its angle stands nearly still for much of the run
+            let steps: Vec<f64> = theta.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+            let fastest = steps.iter().fold(0.0, |m: f64, s| m.max(*s));
+            let still = steps.iter().filter(|s| **s < 0.02 * fastest).count();
+            assert!(still > t_len / 10, "{still} samples at rest");
+            for c in [0, 4] {
+                let want = channel(&fine, c);
+                let range = want.iter().fold(f64::MIN, |m, x| m.max(*x))
+                    - want.iter().fold(f64::MAX, |m, x| m.min(*x));
+                let err = |y: &[f64]| {
+                    channel(y, c)
+                        .iter()
+                        .zip(&want)
+                        .map(|(a, b)| (a - b).abs())
+                        .fold(0.0, f64::max)
+                        / range
+                };
+                let (e_slaved, e_capped) = (err(&slaved), err(&capped));
+                assert!(
+                    e_slaved < bound,
+                    "channel {c}: {e_slaved} (capped {e_capped})"
+                );
+                assert!(
+                    e_capped > gain * e_slaved,
+                    "channel {c}: {e_capped} vs {e_slaved}"
+                );
+            }
+        }
     }
 
     #[test]
