@@ -7,11 +7,11 @@ use std::hint::black_box;
 use cable_bench::ipanema_fixture;
 use cable_core::cdpr::winch::Winch;
 use cable_core::cdpr::{
-    capacity_batch, capacity_margin, closed_loop, distribute_batch, improved_closed_form,
-    inverse_kinematics, CableGeometry, CapacityMut, CdprPlant, Distributor, LoopOptions, Margins,
-    Method, PlantOptions, Pose, Requirement, TensionsMut,
+    capacity_batch, capacity_margin, distribute_batch, improved_closed_form, inverse_kinematics,
+    CableGeometry, CapacityMut, Distributor, Margins, Method, Pose, Requirement, TensionsMut,
 };
-use cable_core::dynamics::Model;
+use cable_core::control::{closed_loop, LoopOptions};
+use cable_core::dynamics::{CdprPlant, Model, PlantOptions};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 
 fn per_pose(c: &mut Criterion) {

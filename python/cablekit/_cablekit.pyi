@@ -68,8 +68,6 @@ _F = NDArray[np.float64]
 
 @disjoint_base
 class Model:
-    """Base class of every cablekit model (ẋ = f(x, u), y = h(x, u))."""
-
     @property
     def n_states(self) -> int: ...
     @property
@@ -83,31 +81,13 @@ class Model:
     @property
     def output_names(self) -> list[str]: ...
     def rest_state(self) -> _F: ...
-    def derivative(self, x: _F, u: _F) -> _F:
-        """f(x, u), shape (n_states,)."""
-    def output(self, x: _F, u: _F) -> _F:
-        """h(x, u), shape (n_outputs,)."""
-    def rk4_step(self, x: _F, u: _F, dt: float, substeps: int = 1, u_next: _F | None = None) -> _F:
-        """State after one sample interval dt (s) of RK4 in `substeps` steps."""
-    def jacobian(self, x: _F, u: _F) -> _F:
-        """∂f/∂x by central differences, shape (n_states, n_states)."""
+    def derivative(self, x: _F, u: _F) -> _F: ...
+    def output(self, x: _F, u: _F) -> _F: ...
+    def rk4_step(self, x: _F, u: _F, dt: float, substeps: int = 1, u_next: _F | None = None) -> _F: ...
+    def jacobian(self, x: _F, u: _F) -> _F: ...
 
 @final
 class CableTransmission(Model):
-    """Cable-driven transmission with 1–3 coupled links (seed 001 eqs 2.3–2.8).
-
-    State per link [q_m (rad), dq_m (rad/s), q_l (rad or m), dq_l]; inputs
-    [tau_m (N·m) per link, tau_ext (N·m or N) per link]; outputs per link
-    [q_m, q_l, tension_a (N), tension_b (N), joint_torque (N·m or N)].
-    Per-link keywords take a float (broadcast) or a sequence of n floats:
-    motor_inertia kg·m², gear_ratio -, capstan_radius m, joint_radius m (m/m if prismatic),
-    link_inertia kg·m² (kg), cable_stiffness N/m, cable_damping N·s/m, pretension N,
-    motor_coulomb N·m, motor_viscous N·m·s/rad, motor_smoothing rad/s, link_coulomb,
-    link_viscous, link_smoothing, gravity_amplitude (N·m or N), gravity_offset rad.
-    cable_law "linear" | "exponential" (length_scale m); joint_kind list of
-    "revolute" | "prismatic"; coupling n×n strictly lower-triangular C_ij.
-    """
-
     def __new__(
         cls,
         *,
@@ -133,33 +113,20 @@ class CableTransmission(Model):
         coupling: list[list[float]] | None = None,
     ) -> CableTransmission: ...
     @staticmethod
-    def raven2(links: int = 3) -> CableTransmission:
-        """Raven-II shoulder/elbow/insertion parameter set (first `links` axes)."""
+    def raven2(links: int = 3) -> CableTransmission: ...
     @property
     def n_links(self) -> int: ...
     @property
-    def transmission_matrix(self) -> _F:
-        """T of eq. (2.8): q_m = T q_l at rest length, shape (n, n)."""
-    def params(self) -> dict[str, Any]:
-        """Constructor keywords with per-link lists."""
-    def parameter_values(self, names: list[str]) -> _F:
-        """Values of named parameters (``"cable_stiffness[1]"``, ``"coupling[2][0]"``, …)."""
-    def with_parameter_values(self, names: list[str], values: _F) -> CableTransmission:
-        """This model with the named parameters set to ``values``."""
+    def transmission_matrix(self) -> _F: ...
+    def params(self) -> dict[str, Any]: ...
+    def parameter_values(self, names: list[str]) -> _F: ...
+    def with_parameter_values(self, names: list[str], values: _F) -> CableTransmission: ...
     def joint_to_motor(self, q_l: _F) -> _F: ...
-    def motor_to_joint(self, q_m: _F) -> _F:
-        """``q_l = T⁻¹·q_m`` for ``(n,)`` or ``(T, n)`` motor angles."""
-    def energy(self, x: _F) -> float:
-        """Kinetic + taut-cable + gravity energy (J)."""
+    def motor_to_joint(self, q_m: _F) -> _F: ...
+    def energy(self, x: _F) -> float: ...
 
 @final
 class AntagonisticJoint(Model):
-    """Antagonistic cable-driven joint: state [theta, dtheta, (dahl_torque), (creep_drive,
-    creep_return)]; inputs [x_m (m), dx_m (m/s)];
-    outputs [tension_motor_drive, tension_motor_return, tension_joint_drive,
-    tension_joint_return (N), theta (rad), contact_force (N)].
-    """
-
     def __new__(
         cls,
         *,
@@ -198,8 +165,6 @@ class AntagonisticJoint(Model):
 
 @final
 class DahlElement(Model):
-    """Dahl friction element (seed 002 eq. 8): state [F], input [v], output [F]."""
-
     def __new__(cls, *, sigma0: float, coulomb: float, exponent: float = 1.0) -> DahlElement: ...
 
 def simulate_arrays(
@@ -243,15 +208,10 @@ def cable_tension(
     law: str = "linear",
     length_scale: float = 1.0,
 ) -> _F: ...
-def effect_catalogue() -> list[dict[str, Any]]:
-    """The candidate effects of the diagnosis: name, stage, has_state, description."""
+def effect_catalogue() -> list[dict[str, Any]]: ...
 
 @final
 class JointRun:
-    """One recorded run of a JointProblem: dt (s); input (joint x_m (T,) in m; transmission motor
-    torques (T, n); servo references (T, 2n)); measured (T, q); optional coupled (T,), external
-    joint torques (T,) or (T, n), initial state x0 and first counted sample start."""
-
     def __new__(
         cls,
         dt: float,
@@ -263,17 +223,13 @@ class JointRun:
         x0: _F | None = None,
         start: int = 0,
     ) -> JointRun: ...
-    def with_measured(self, measured: _F) -> JointRun:
-        """The same run with other measurements (T, q)."""
+    def with_measured(self, measured: _F) -> JointRun: ...
     @property
     def dt(self) -> float: ...
     def __len__(self) -> int: ...
 
 @final
 class JointProblem:
-    """Grey-box least-squares problem of an AntagonisticJoint or CableTransmission with candidate
-    effects."""
-
     def __new__(
         cls,
         model: Model,
@@ -311,8 +267,6 @@ class JointProblem:
 
 @final
 class SrUkf:
-    """Square-root unscented Kalman filter (seed 001, eqs 3.9–3.25)."""
-
     def __new__(
         cls,
         model: Model,
@@ -394,8 +348,7 @@ class SrUkf:
     @property
     def weights(self) -> tuple[float, tuple[float, float], tuple[float, float]]: ...
     @property
-    def nis_gate(self) -> float | None:
-        """Innovation gate: an update whose NIS exceeds it is rejected and counted."""
+    def nis_gate(self) -> float | None: ...
     @nis_gate.setter
     def nis_gate(self, value: float | None) -> None: ...
     @property
@@ -408,8 +361,6 @@ class SrUkf:
 
 @final
 class FitReport:
-    """A bounded Levenberg–Marquardt fit (``JointProblem.fit``)."""
-
     @property
     def params(self) -> _F: ...
     @property
@@ -431,8 +382,6 @@ class FitReport:
 
 @final
 class ParamSpec:
-    """One fitted parameter of a candidate (``JointProblem.param_specs``)."""
-
     def __new__(
         cls,
         effect: str,
@@ -472,10 +421,6 @@ class ParamSpec:
 
 @final
 class FilterRun:
-    """A filtered log (``SrUkf.run``): means ``x`` (T, n), lower square roots ``S`` (T, n, n),
-    per row ``nis``, ``condition``, ``recovered``, ``measured`` and ``gated``; ``x_smooth`` and
-    ``S_smooth`` with ``smooth=True``."""
-
     @property
     def x(self) -> _F: ...
     @property
@@ -497,9 +442,6 @@ class FilterRun:
 
 @final
 class DualRun:
-    """A dual-filtered log: state means ``x`` (T, n), parameter means ``theta`` (T, p) and their
-    standard deviations ``theta_std`` (T, p)."""
-
     @property
     def x(self) -> _F: ...
     @property
@@ -509,8 +451,6 @@ class DualRun:
 
 @final
 class FilterHealth:
-    """Health of a filter's last step."""
-
     @property
     def nis(self) -> float: ...
     @property
@@ -530,8 +470,6 @@ class FilterHealth:
 
 @final
 class DualSrUkf:
-    """Dual state–parameter sr-UKF (seed 001 eqs 3.7–3.8)."""
-
     def __new__(
         cls,
         model: Model,
@@ -555,8 +493,6 @@ class DualSrUkf:
 
 @disjoint_base
 class Robot:
-    """A cable-driven parallel robot (seeds 002, 003); see ``cablekit.cdpr`` for loading files."""
-
     def __new__(
         cls,
         *,
@@ -586,14 +522,11 @@ class Robot:
     @property
     def ea(self) -> _F: ...
     @property
-    def bounds(self) -> tuple[_F, _F]:
-        """(f_min, f_max) per cable (N)."""
-    def inverse_kinematics(self, poses: _F) -> Kinematics:
-        """Cable lengths (T, m) and structure matrices Aᵀ (T, n, m) of poses (T, n)."""
+    def bounds(self) -> tuple[_F, _F]: ...
+    def inverse_kinematics(self, poses: _F) -> Kinematics: ...
     def distribute(
         self, poses: _F, wrenches: _F | None = None, *, method: str = "auto", gravity: bool = True
-    ) -> Tensions:
-        """Tensions holding the platform's weight plus external wrenches (T, n)."""
+    ) -> Tensions: ...
     def path_friction(
         self,
         poses: _F,
@@ -607,19 +540,15 @@ class Robot:
         smoothing: float | None = None,
         presliding: float | None = None,
         exponent: float | None = None,
-    ) -> PathRun:
-        """Winch-side tensions through each cable's path friction (seed 002 eqs 7–8)."""
+    ) -> PathRun: ...
     def project_tensions(
         self, poses: _F, tensions: _F, wrenches: _F | None = None, *, gravity: bool = True
-    ) -> _F:
-        """The nearest tensions (T, m) to the measured ones that hold the platform (seed 002 eq. 10)."""
+    ) -> _F: ...
     def forward_kinematics(
         self, lengths: _F, seed: _F, tolerance: float = 1e-10
-    ) -> tuple[_F, float, int, bool]:
-        """(pose, rms_error, iterations, converged) for cable lengths (m,) from a seed pose."""
+    ) -> tuple[_F, float, int, bool]: ...
     def gravity_wrench(self, pose: _F) -> _F: ...
-    def points(self) -> tuple[_F, _F]:
-        """Anchors and attachments (m, 3)."""
+    def points(self) -> tuple[_F, _F]: ...
     def capacity(
         self,
         poses: _F,
@@ -629,16 +558,11 @@ class Robot:
         gravity: bool = True,
         moment_length: float = 1.0,
         margins: str = "everywhere",
-    ) -> Capacity:
-        """Capacity margins at poses (T, n) for the weight plus the wrench box wrench ± half_width;
-        margins="inside" stops an outside pose at its first crossed facet."""
-    def controller(self, method: str = "auto", *, gravity: bool = True) -> TensionController:
-        """One pose per call, the solver kept warm."""
+    ) -> Capacity: ...
+    def controller(self, method: str = "auto", *, gravity: bool = True) -> TensionController: ...
 
 @final
 class Capacity:
-    """Capacity margins at T poses (``Robot.capacity``)."""
-
     @property
     def margin(self) -> _F: ...
     @property
@@ -650,8 +574,6 @@ class Capacity:
 
 @final
 class Jtdo:
-    """Joint torque disturbance observer of a two-forceps end-effector (seed 000 eqs 8, 15–17)."""
-
     def __new__(
         cls,
         *,
@@ -674,8 +596,6 @@ class Jtdo:
 
 @final
 class ClampStep:
-    """One ``Jtdo.step``."""
-
     @property
     def disturbance(self) -> tuple[float, float, float, float]: ...
     @property
@@ -689,8 +609,6 @@ class ClampStep:
 
 @final
 class ClampRun:
-    """A ``Jtdo.estimate`` log."""
-
     @property
     def disturbance(self) -> _F: ...
     @property
@@ -706,8 +624,6 @@ _Segment = tuple[str, float] | tuple[str, float, float]
 
 @final
 class Twin:
-    """Seed 000's two-forceps bench as a twin (``cable_core::forceps::twin``)."""
-
     JAW_NAMES: ClassVar[list[str]]
     SEED_SPEEDS: ClassVar[list[float]]
     def __new__(
@@ -742,8 +658,6 @@ class Twin:
 
 @final
 class TwinRun:
-    """A twin run, one row per sample."""
-
     @property
     def time(self) -> _F: ...
     @property
@@ -763,8 +677,6 @@ class TwinRun:
 
 @final
 class PhysicsObserver:
-    """The physics-informed clamping-force estimator (``cable_core::forceps::physics``)."""
-
     LOSS_NAMES: ClassVar[list[str]]
     def __new__(
         cls,
@@ -791,8 +703,6 @@ class PhysicsObserver:
 
 @final
 class PhysicsCalibration:
-    """One forceps' calibration (``PhysicsObserver.calibrated``)."""
-
     @property
     def losses(self) -> list[float]: ...
     @property
@@ -806,8 +716,6 @@ class PhysicsCalibration:
 
 @final
 class DriveModel:
-    """Jaw torque from drive-side signals (``cable_core::forceps::drive``)."""
-
     @staticmethod
     def fit(
         runs: list[_F],
@@ -832,15 +740,11 @@ class DriveModel:
 
 @final
 class JawObserver:
-    """``DriveModel.observer``: one sample per call."""
-
     def step(self, spindle_angle: float, spindle_torque: float, motor_angle: float) -> JawSample: ...
     def reset(self) -> None: ...
 
 @final
 class JawSample:
-    """One ``JawObserver.step``."""
-
     @property
     def torque(self) -> float: ...
     @property
@@ -850,8 +754,6 @@ class JawSample:
 
 @final
 class JawEstimate:
-    """``DriveModel.estimate``."""
-
     @property
     def torque(self) -> _F: ...
     @property
@@ -861,8 +763,6 @@ class JawEstimate:
 
 @final
 class Winch:
-    """Seed 003's winch linearised (``cable_core::cdpr::winch``)."""
-
     NAMES: ClassVar[list[str]]
     def __new__(cls, values: _F) -> Winch: ...
     @staticmethod
@@ -880,8 +780,6 @@ class Winch:
 
 @final
 class PathRun:
-    """``Robot.path_friction``: pul, friction, speed, wrap, each (T, m)."""
-
     @property
     def pul(self) -> _F: ...
     @property
@@ -893,8 +791,6 @@ class PathRun:
 
 @final
 class LoadCellPulley:
-    """A load cell pushed by a pulley deflecting the cable (seed 003 eqs 31–32)."""
-
     def __new__(cls, angle_1: float, angle_2: float) -> LoadCellPulley: ...
     @property
     def ratio(self) -> float: ...
@@ -903,8 +799,6 @@ class LoadCellPulley:
 
 @final
 class Calibration:
-    """A linear calibration R = gain·T + offset (seed 003 eq. 33)."""
-
     def __new__(cls, gain: float, offset: float) -> Calibration: ...
     @property
     def gain(self) -> float: ...
@@ -918,8 +812,6 @@ class Calibration:
 
 @final
 class CalibrationFit:
-    """``Calibration.fit``: the line, its correlation, residuals and hysteresis."""
-
     @property
     def calibration(self) -> Calibration: ...
     @property
@@ -935,8 +827,6 @@ class CalibrationFit:
 
 @final
 class SignalChain:
-    """Integrating converter, sample-and-hold and latency between a gauge and the controller."""
-
     def __new__(cls, conversion_time: float, latency: float) -> SignalChain: ...
     @staticmethod
     def hx711_ble() -> SignalChain: ...
@@ -948,10 +838,6 @@ class SignalChain:
 
 @final
 class WinchDrive(Model):
-    """Seed 003's winch as a nonlinear model: state [alpha, alpha_dot, x_ee, x_ee_dot,
-    error_integral, derivative_filtered]; inputs [alpha_ref, alpha_ref_dot];
-    outputs [alpha, tension_a, tension_b, x_ee, current, tension_from_current]."""
-
     def __new__(
         cls,
         winch: Winch | None = None,
@@ -979,8 +865,6 @@ class WinchDrive(Model):
 
 @final
 class PulleyFriction:
-    """Pulley friction on one side of the winch-side sensor, per cable or shared."""
-
     def __new__(
         cls,
         coefficient: _F,
@@ -995,8 +879,6 @@ class PulleyFriction:
 
 @final
 class CdprPlant(Model):
-    """A cable-driven parallel robot with its winches and pulleys as a model."""
-
     def __new__(
         cls,
         robot: Robot,
@@ -1041,8 +923,6 @@ class CdprPlant(Model):
 
 @final
 class LoopRun:
-    """``CdprPlant.closed_loop``: per controller period, tensions (T, m) and wrenches (T, n)."""
-
     @property
     def pose(self) -> _F: ...
     @property
@@ -1074,8 +954,6 @@ class LoopRun:
 
 @final
 class TensionController:
-    """Tension distribution at a controller's rate (``Robot.controller``)."""
-
     def step(self, pose: _F, wrench: _F | None = None, out: _F | None = None) -> Step: ...
     def reset(self) -> None: ...
     @property
@@ -1083,8 +961,6 @@ class TensionController:
 
 @final
 class Step:
-    """One ``TensionController.step``."""
-
     @property
     def f(self) -> _F: ...
     @property
@@ -1098,8 +974,6 @@ class Step:
 
 @final
 class Kinematics:
-    """Inverse kinematics of T poses (``Robot.inverse_kinematics``)."""
-
     @property
     def length(self) -> _F: ...
     @property
@@ -1107,8 +981,6 @@ class Kinematics:
 
 @final
 class Tensions:
-    """Tensions at T poses (``Robot.distribute``)."""
-
     @property
     def f(self) -> _F: ...
     @property
@@ -1120,8 +992,6 @@ class Tensions:
 
 @final
 class Mlp:
-    """A multilayer perceptron with ``mapminmax`` normalisation (seed 000 §2.3.3, seed 002 eq. 9)."""
-
     @staticmethod
     def load(path: str | os.PathLike[str]) -> Mlp: ...
     @staticmethod

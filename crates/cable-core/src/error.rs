@@ -6,6 +6,11 @@
 
 use thiserror::Error;
 
+/// The most RK4 substeps one sample interval may take (every loop in cablekit is bounded; a
+/// sample interval that needs more is a sign of a wrong `dt` or an extreme parameter). It lives
+/// beside the error type because [`check::substeps`] enforces it; `integrate` re-exports it.
+pub const MAX_SUBSTEPS: usize = 100_000;
+
 /// Everything that can go wrong in cable-core, with enough structure to say what and where.
 #[derive(Debug, Clone, PartialEq, Error)]
 #[non_exhaustive]
@@ -311,7 +316,7 @@ pub mod check {
 
     /// A count of RK4 substeps per sample: `1 ..= MAX_SUBSTEPS`.
     pub fn substeps(name: &str, n: usize) -> Result<usize> {
-        if (1..=crate::integrate::MAX_SUBSTEPS).contains(&n) {
+        if (1..=super::MAX_SUBSTEPS).contains(&n) {
             Ok(n)
         } else {
             Err(invalid(

@@ -3,8 +3,7 @@
 use std::sync::Mutex;
 
 use cable_core::cdpr::{
-    self as core, CapacityMut, KinematicsMut, Margins, Method, Motion, Platform, Requirement,
-    TensionsMut,
+    self as core, KinematicsMut, Margins, Method, Motion, Platform, Requirement, TensionsMut,
 };
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -13,7 +12,7 @@ use crate::convert::{
     any_vector, matrix, opt_tuples, out_vector, to_matrix, to_vector, vector, vector_into,
 };
 use crate::errors::{guarded, lock};
-use crate::results::{Capacity, Kinematics, PathRun, Step, Tensions};
+use crate::results::{Capacity, CapacityBuffers, Kinematics, PathRun, Step, Tensions};
 
 /// `(cable, radius, axis)` of each pulley.
 type Pulleys = Vec<(usize, f64, [f64; 3])>;
@@ -77,6 +76,7 @@ impl Robot {
         Ok(Self { inner })
     }
 
+    /// The robot's name (from its file, or empty).
     #[getter]
     fn name(&self) -> &str {
         &self.inner.name
@@ -248,42 +248,11 @@ impl Robot {
     ) -> PyResult<Capacity> {
         let n = self.inner.dof();
         let (p, t) = matrix(poses, "poses", Some(n))?;
-        let mut req = Requirement {
-            gravity,
-            moment_length,
-            margins: guarded(|| Margins::from_name(margins))?,
-            ..Requirement::default()
-        };
-        for (arg, name, into) in [
-            (wrench, "wrench", &mut req.center),
-            (half_width, "half_width", &mut req.half_width),
-        ] {
-            if let Some(v) = arg.filter(|v| !v.is_none()) {
-                vector_into(v, name, &mut into[..n])?;
-            }
-        }
-        let (mut margin, mut feasible, mut degenerate, mut weakest) = (
-            vec![0.0; t],
-            vec![false; t],
-            vec![false; t],
-            vec![0.0; t * n],
-        );
-        let out = CapacityMut {
-            margin: &mut margin,
-            feasible: &mut feasible,
-            degenerate: &mut degenerate,
-            weakest: &mut weakest,
-        };
+        let req = requirement(n, wrench, half_width, gravity, moment_length, margins)?;
         let p = p.as_slice()?;
-        py.detach(|| guarded(|| core::capacity_batch(&self.inner, p, &req, out)))?;
-        Ok(Capacity::new(
-            py,
-            margin,
-            feasible,
-            degenerate,
-            weakest,
-            (t, n),
-        ))
+        let mut buf = CapacityBuffers::new(t, n);
+        py.detach(|| guarded(|| core::capacity_batch(&self.inner, p, &req, buf.out())))?;
+        Ok(Capacity::new(py, buf, (t, n)))
     }
 
     /// A `TensionController` for this robot: one pose per call, the solver kept warm.
@@ -420,6 +389,7 @@ impl TensionController {
         Ok(())
     }
 
+    /// The tension distribution method in use.
     #[getter]
     fn method(&self) -> PyResult<&'static str> {
         Ok(lock(&self.inner, "TensionController")?.method().name())
@@ -433,4 +403,37 @@ impl TensionController {
             c.method().name()
         ))
     }
+}
+
+/// The required wrench set of `Robot.capacity` from its arguments (`n` the robot's DOF).
+fn requirement(
+    n: usize,
+    wrench: Option<&Bound<'_, PyAny>>,
+    half_width: Option<&Bound<'_, PyAny>>,
+    gravity: bool,
+    moment_length: f64,
+    margins: &str,
+) -> PyResult<Requirement> {
+    let mut req = Requirement {
+        gravity,
+        moment_length,
+        margins: guarded(|| Margins::from_name(margins))?,
+        ..Requirement::default()
+    };
+    for (arg, name, into) in [
+        (wrench, "wrench", &mut req.center),
+        (half_width, "half_width", &mut req.half_width),
+    ] {
+        if let Some(v) = arg.filter(|v| !v.is_none()) {
+            vector_into(v, name, &mut into[..n])?;
+        }
+    }
+    Ok(req)
+}
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Robot>()?;
+    m.add_class::<TensionController>()?;
+    Ok(())
 }

@@ -20,26 +20,32 @@ pub struct Model {
 
 #[pymethods]
 impl Model {
+    /// Number of states.
     #[getter]
     fn n_states(&self) -> usize {
         self.inner.n_states()
     }
+    /// Number of inputs.
     #[getter]
     fn n_inputs(&self) -> usize {
         self.inner.n_inputs()
     }
+    /// Number of outputs.
     #[getter]
     fn n_outputs(&self) -> usize {
         self.inner.n_outputs()
     }
+    /// Names of the states, in order.
     #[getter]
     fn state_names(&self) -> Vec<String> {
         self.inner.state_names()
     }
+    /// Names of the inputs, in order.
     #[getter]
     fn input_names(&self) -> Vec<String> {
         self.inner.input_names()
     }
+    /// Names of the outputs, in order.
     #[getter]
     fn output_names(&self) -> Vec<String> {
         self.inner.output_names()
@@ -189,6 +195,7 @@ impl CableTransmission {
         Py::new(py, wrap(AnyModel::Transmission(model), CableTransmission))
     }
 
+    /// Number of links.
     #[getter]
     fn n_links(slf: PyRef<'_, Self>) -> usize {
         transmission(&slf).n_links()
@@ -332,4 +339,13 @@ impl DahlElement {
             DahlElement,
         ))
     }
+}
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Model>()?;
+    m.add_class::<CableTransmission>()?;
+    m.add_class::<AntagonisticJoint>()?;
+    m.add_class::<DahlElement>()?;
+    Ok(())
 }

@@ -83,9 +83,14 @@ pub fn arg_error(class: Class, name: &str, message: String) -> PyErr {
 
 /// The exception of a core error: its class, with what it names as attributes.
 pub fn core_error(err: CableError) -> PyErr {
+    let (class, attrs) = classify(&err);
+    raise(class, err.to_string(), &attrs)
+}
+
+/// The class of a core error and the attributes its exception carries.
+fn classify(err: &CableError) -> (Class, Vec<(&'static str, Attr<'_>)>) {
     use Attr::{Float, Int, Str};
-    let msg = err.to_string();
-    let (class, attrs): (Class, Vec<(&str, Attr<'_>)>) = match &err {
+    match err {
         CableError::Shape { what, .. } => (Class::Shape, vec![("argument", Str(what))]),
         CableError::WrongType { name, .. } => (Class::DType, vec![("argument", Str(name))]),
         CableError::NotFinite { what, index, .. } => (
@@ -117,19 +122,20 @@ pub fn core_error(err: CableError) -> PyErr {
             Class::Convergence,
             vec![("argument", Str(what)), ("limit", Int(*limit))],
         ),
-        CableError::Weights { kind, item, .. } => (
-            match kind {
-                WeightsErrorKind::Corrupt => Class::WeightsCorrupt,
-                WeightsErrorKind::Metadata => Class::WeightsMetadata,
-                WeightsErrorKind::Shape => Class::WeightsShape,
-                WeightsErrorKind::Value => Class::WeightsValue,
-                _ => Class::WeightsFormat,
-            },
-            vec![("item", Str(item))],
-        ),
+        CableError::Weights { kind, item, .. } => (weights_class(*kind), vec![("item", Str(item))]),
         _ => (Class::Cablekit, vec![]),
-    };
-    raise(class, msg, &attrs)
+    }
+}
+
+/// The class of a weight file's error of kind `kind`.
+fn weights_class(kind: WeightsErrorKind) -> Class {
+    match kind {
+        WeightsErrorKind::Corrupt => Class::WeightsCorrupt,
+        WeightsErrorKind::Metadata => Class::WeightsMetadata,
+        WeightsErrorKind::Shape => Class::WeightsShape,
+        WeightsErrorKind::Value => Class::WeightsValue,
+        _ => Class::WeightsFormat,
+    }
 }
 
 /// Run core work, turning a Rust panic into `cablekit.errors.InternalError` instead of letting

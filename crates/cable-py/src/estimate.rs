@@ -228,14 +228,17 @@ impl SrUkf {
         Self::build(kind, measure, moments(x0, P0, Q, R)?, [alpha, beta, kappa])
     }
 
+    /// Number of states the filter estimates.
     #[getter]
     fn n_states(&self) -> PyResult<usize> {
         Ok(self.filter()?.n_states())
     }
+    /// Number of measured outputs.
     #[getter]
     fn n_outputs(&self) -> PyResult<usize> {
         Ok(self.filter()?.n_outputs())
     }
+    /// Number of inputs the process takes.
     #[getter]
     fn n_inputs(&self) -> usize {
         self.m
@@ -460,4 +463,11 @@ fn bool_matrix(mask: Option<&Bound<'_, PyAny>>, t: usize, q: usize) -> PyResult<
         }
         _ => Ok(None),
     }
+}
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<SrUkf>()?;
+    m.add_class::<DualSrUkf>()?;
+    Ok(())
 }

@@ -70,6 +70,7 @@ impl Jtdo {
         let g = self.inner.geometry();
         (g.r2, g.arm_a, g.arm_b)
     }
+    /// The collision threshold on the external force (N).
     #[getter]
     fn threshold(&self) -> f64 {
         self.inner.threshold()
@@ -413,6 +414,7 @@ impl PhysicsObserver {
         let g = lock(&self.inner, "PhysicsObserver")?.geometry();
         Ok((g.r2, g.arm_a, g.arm_b))
     }
+    /// The collision threshold on the external force (N).
     #[getter]
     fn threshold(&self) -> PyResult<f64> {
         Ok(lock(&self.inner, "PhysicsObserver")?.threshold())
@@ -528,6 +530,25 @@ fn drive_array(
     Ok((v.t().as_standard_layout().into_owned(), cols))
 }
 
+/// One `(T,)` array of sample weights per run of `data` (`DriveModel.fit`'s `weights`).
+fn run_weights(
+    ws: &[Bound<'_, PyAny>],
+    data: &[(numpy::ndarray::Array2<f64>, usize)],
+) -> PyResult<Vec<Vec<f64>>> {
+    if ws.len() != data.len() {
+        return Err(core_error(cable_core::CableError::Shape {
+            what: "weights".into(),
+            expected: format!("one array per run ({})", data.len()),
+            got: ws.len().to_string(),
+        }));
+    }
+    ws.iter()
+        .zip(data)
+        .enumerate()
+        .map(|(i, (w, (a, _)))| vector(w, &format!("weights[{i}]"), a.ncols()))
+        .collect()
+}
+
 #[pymethods]
 impl DriveModel {
     /// Fits on `runs` (a list of `(T, 5)` arrays) with Maxwell-slip element `travels` (rad
@@ -550,25 +571,7 @@ impl DriveModel {
             .enumerate()
             .map(|(i, r)| drive_array(r, &format!("runs[{i}]"), true))
             .collect::<PyResult<Vec<_>>>()?;
-        let weights = match weights {
-            None => None,
-            Some(ws) => {
-                if ws.len() != data.len() {
-                    return Err(core_error(cable_core::CableError::Shape {
-                        what: "weights".into(),
-                        expected: format!("one array per run ({})", data.len()),
-                        got: ws.len().to_string(),
-                    }));
-                }
-                Some(
-                    ws.iter()
-                        .zip(&data)
-                        .enumerate()
-                        .map(|(i, (w, (a, _)))| vector(w, &format!("weights[{i}]"), a.ncols()))
-                        .collect::<PyResult<Vec<_>>>()?,
-                )
-            }
-        };
+        let weights = weights.map(|ws| run_weights(&ws, &data)).transpose()?;
         let inner = py.detach(|| {
             let views: Option<Vec<&[f64]>> = weights
                 .as_ref()
@@ -648,6 +651,7 @@ impl DriveModel {
     fn angle_coefficients(&self) -> [f64; 3] {
         self.inner.angle_coefficients()
     }
+    /// The Maxwell-slip elements' travels (rad of motor angle).
     #[getter]
     fn travels(&self) -> Vec<f64> {
         self.inner.travels().to_vec()
@@ -678,6 +682,8 @@ pub struct JawObserver {
 
 #[pymethods]
 impl JawObserver {
+    /// One sample: spindle angle (rad), spindle torque (N·m) and motor angle (rad) in, the jaw's
+    /// `JawSample` out; the friction states carry over to the next call.
     fn step(
         &self,
         spindle_angle: f64,
@@ -693,6 +699,7 @@ impl JawObserver {
         })
     }
 
+    /// Forget the friction states (a new run starts at rest).
     fn reset(&self) -> PyResult<()> {
         lock(&self.inner, "JawObserver")?.reset();
         Ok(())
@@ -706,4 +713,20 @@ pub struct JawSample {
     torque: f64,
     angle: f64,
     outside: bool,
+}
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Jtdo>()?;
+    m.add_class::<ClampStep>()?;
+    m.add_class::<ClampRun>()?;
+    m.add_class::<Twin>()?;
+    m.add_class::<TwinRun>()?;
+    m.add_class::<PhysicsObserver>()?;
+    m.add_class::<PhysicsCalibration>()?;
+    m.add_class::<DriveModel>()?;
+    m.add_class::<JawEstimate>()?;
+    m.add_class::<JawObserver>()?;
+    m.add_class::<JawSample>()?;
+    Ok(())
 }

@@ -145,3 +145,13 @@ pub fn cable_tension<'py>(
         |a, b| run.tension(a, b),
     )
 }
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(coulomb_friction, m)?)?;
+    m.add_function(wrap_pyfunction!(stribeck_friction, m)?)?;
+    m.add_function(wrap_pyfunction!(capstan_ratio, m)?)?;
+    m.add_function(wrap_pyfunction!(dahl_rate, m)?)?;
+    m.add_function(wrap_pyfunction!(cable_tension, m)?)?;
+    Ok(())
+}

@@ -332,3 +332,11 @@ impl JointProblem {
         self.inner.substeps()
     }
 }
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<JointProblem>()?;
+    m.add_class::<JointRun>()?;
+    m.add_function(wrap_pyfunction!(effect_catalogue, m)?)?;
+    Ok(())
+}

@@ -57,6 +57,16 @@ pub fn simulate_arrays<'py>(
     Ok((states, outputs))
 }
 
+/// The optional `(T, nl)` external torques of a servo run as a flat row-major vector (empty:
+/// none).
+fn external_torques(external: Option<&Bound<'_, PyAny>>, nl: usize) -> PyResult<Vec<f64>> {
+    let Some(e) = external else {
+        return Ok(Vec::new());
+    };
+    let (m, _) = matrix(e, "external", Some(nl))?;
+    Ok(m.as_slice()?.to_vec())
+}
+
 /// Closed-loop simulation under a motor-space PD servo; returns `(states, outputs, inputs)`.
 #[pyfunction]
 #[pyo3(signature = (model, references, dt, *, kp, kd, torque_limit, external = None, x0 = None, substeps = 1))]
@@ -74,20 +84,11 @@ pub fn simulate_servo_arrays<'py>(
 ) -> PyResult<Arrays3<'py>> {
     let t = guarded(|| model.as_super().inner.transmission("the servo").cloned())?;
     let nl = t.n_links();
-    let (refs_arr, t_len) = matrix(references, "references", Some(2 * nl))?;
-    let refs = refs_arr.as_slice()?;
-    let ext = external
-        .map(|e| matrix(e, "external", Some(nl)))
-        .transpose()?;
-    let ext = ext
-        .map(|e| e.0.as_slice().map(<[f64]>::to_vec))
-        .transpose()?;
-    let ext = ext.unwrap_or_default();
-    let x0 = x0.map(|o| vector(o, "x0", t.n_states())).transpose()?;
-    let x0 = x0.unwrap_or_else(|| t.rest_state());
-    let states = PyArray2::<f64>::zeros(py, [t_len, t.n_states()], false);
-    let outputs = PyArray2::<f64>::zeros(py, [t_len, t.n_outputs()], false);
-    let inputs = PyArray2::<f64>::zeros(py, [t_len, t.n_inputs()], false);
+    let (refs, t_len) = matrix(references, "references", Some(2 * nl))?;
+    let (refs, ext) = (refs.as_slice()?, external_torques(external, nl)?);
+    let x0 = x0.map_or_else(|| Ok(t.rest_state()), |o| vector(o, "x0", t.n_states()))?;
+    let [states, outputs, inputs] = [t.n_states(), t.n_outputs(), t.n_inputs()]
+        .map(|w| PyArray2::<f64>::zeros(py, [t_len, w], false));
     {
         let (mut sw, mut ow, mut iw) =
             (states.readwrite(), outputs.readwrite(), inputs.readwrite());
@@ -129,4 +130,12 @@ pub fn propose_step_raw(
         .unwrap_or(vec![0.0; m]);
     let adv = guarded(|| propose_step(inner, &x, &u, dt, safety))?;
     Ok((adv.max_stable_step, adv.stiffest_eigenvalue, adv.substeps))
+}
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(simulate_arrays, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_servo_arrays, m)?)?;
+    m.add_function(wrap_pyfunction!(propose_step_raw, m)?)?;
+    Ok(())
 }

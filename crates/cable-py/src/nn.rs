@@ -253,3 +253,9 @@ impl Mlp {
         format!("Mlp(sizes={sizes:?}, activations={:?})", self.activations())
     }
 }
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Mlp>()?;
+    Ok(())
+}

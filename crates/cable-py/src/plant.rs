@@ -1,7 +1,9 @@
 //! `CdprPlant`: a cable-driven parallel robot with winches and pulleys as a `Model`, and its
-//! closed loop (`cable_core::cdpr::plant`).
+//! closed loop (`cable_core::dynamics::CdprPlant`, `cable_core::control::closed_loop`).
 
-use cable_core::cdpr::{self as core, Feedback, LoopOptions, Method, PathFriction, PathLaw};
+use cable_core::cdpr::{Method, PathFriction, PathLaw};
+use cable_core::control::{self as control, Feedback, LoopOptions};
+use cable_core::dynamics;
 use cable_core::dynamics::AnyModel;
 use numpy::PyArray2;
 use pyo3::prelude::*;
@@ -69,7 +71,7 @@ impl PulleyFriction {
     }
 }
 
-/// A cable-driven parallel robot as a `Model` (`cable_core::cdpr::CdprPlant`): the platform
+/// A cable-driven parallel robot as a `Model` (`cable_core::dynamics::CdprPlant`): the platform
 /// (Newton–Euler), elastic one-sided cables, one `winch` (default `Winch.seed003()`) per cable
 /// under its PID, and pulley friction between the drum and the winch-side sensor
 /// (`drum_side`) and between the sensor and the platform (`platform_side`). At α = 0 it rests
@@ -82,7 +84,7 @@ impl PulleyFriction {
 #[pyclass(extends = Model, frozen, module = "cablekit._cablekit")]
 pub struct CdprPlant;
 
-fn plant<'a>(slf: &'a PyRef<'_, CdprPlant>) -> &'a core::CdprPlant {
+fn plant<'a>(slf: &'a PyRef<'_, CdprPlant>) -> &'a dynamics::CdprPlant {
     match &slf.as_super().inner {
         AnyModel::Cdpr(p) => p,
         _ => unreachable!("CdprPlant always wraps a plant"),
@@ -113,23 +115,12 @@ impl CdprPlant {
         let home_tensions = home_tensions
             .map(|h| any_vector(h, "home_tensions"))
             .transpose()?;
-        let drum_friction = drum_friction
-            .map(|h| any_vector(h, "drum_friction"))
-            .transpose()?
-            .unwrap_or_default();
-        let d = core::PlantOptions::default();
-        let m = r.n_cables();
-        let what = "a pair (ratio, time_constant) of (m,) or (1,) arrays";
-        let creep: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>)> = opt_tuples(creep, "creep", what)?;
-        let creep = match creep {
-            Some((ratio, tau)) => {
-                let (ratio, tau) = (any_vector(&ratio, "creep")?, any_vector(&tau, "creep")?);
-                guarded(|| core::Creep::per_cable(&ratio, &tau, m))?
-            }
-            None => Vec::new(),
-        };
+        let drum_friction =
+            drum_friction.map_or(Ok(Vec::new()), |h| any_vector(h, "drum_friction"))?;
+        let (d, m) = (dynamics::PlantOptions::default(), r.n_cables());
+        let creep = creep_of(creep, m)?;
         let p = guarded(|| {
-            let options = core::PlantOptions {
+            let options = dynamics::PlantOptions {
                 lpf: lpf.unwrap_or(d.lpf),
                 current_limit: current_limit.unwrap_or(d.current_limit),
                 friction_smoothing: friction_smoothing.unwrap_or(d.friction_smoothing),
@@ -140,8 +131,8 @@ impl CdprPlant {
                 creep,
                 drum_friction,
             };
-            let w = winch.map_or_else(core::winch::Winch::seed003, |w| w.inner);
-            core::CdprPlant::new(r, w, &home, options)
+            let w = winch.map_or_else(cable_core::cdpr::winch::Winch::seed003, |w| w.inner);
+            dynamics::CdprPlant::new(r, w, &home, options)
         })?;
         Ok(wrap(AnyModel::Cdpr(p), CdprPlant))
     }
@@ -177,7 +168,7 @@ impl CdprPlant {
         }
     }
 
-    /// Run the trajectory controller (`cable_core::cdpr::closed_loop`) over desired `poses`
+    /// Run the trajectory controller (`cable_core::control::closed_loop`) over desired `poses`
     /// `(T, n)` every `dt` s, from rest at home: the tension distribution (`method`) of weight
     /// and inertia gives `f_d`; the force loop `f_u = gain·(f_d − f̂)` feeds back `feedback`
     /// (`"open"`: none, `"platform"`, `"sensor"` with `sensor_noise` `(T, m)` N added, or
@@ -205,13 +196,8 @@ impl CdprPlant {
         let p = plant(&slf);
         let (n, m) = (p.robot().dof(), p.robot().n_cables());
         let (q, _) = matrix(poses, "poses", Some(n))?;
-        let signal = |s: Option<&Bound<'_, PyAny>>, name: &str| {
-            s.filter(|s| !s.is_none())
-                .map(|s| Ok::<_, PyErr>(matrix(s, name, Some(m))?.0.as_slice()?.to_vec()))
-                .transpose()
-        };
-        let noise = signal(sensor_noise, "sensor_noise")?;
-        let offset = signal(tension_offset, "tension_offset")?;
+        let noise = per_cable(sensor_noise, "sensor_noise", m)?;
+        let offset = per_cable(tension_offset, "tension_offset", m)?;
         let opts = guarded(|| {
             Ok(LoopOptions {
                 substeps,
@@ -226,10 +212,28 @@ impl CdprPlant {
         let q = q.as_slice()?;
         let net = network.as_ref().map(|n| &n.inner);
         let run = py.detach(|| {
-            guarded(|| core::closed_loop(p, q, &opts, noise.as_deref(), offset.as_deref(), net))
+            guarded(|| control::closed_loop(p, q, &opts, noise.as_deref(), offset.as_deref(), net))
         })?;
         Ok(LoopRun::new(py, run, n, m))
     }
+}
+
+/// `CdprPlant(creep=(ratio, time_constant))` per cable of `m` (empty: no creep).
+fn creep_of(creep: Option<&Bound<'_, PyAny>>, m: usize) -> PyResult<Vec<dynamics::Creep>> {
+    let what = "a pair (ratio, time_constant) of (m,) or (1,) arrays";
+    let creep: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>)> = opt_tuples(creep, "creep", what)?;
+    let Some((ratio, tau)) = creep else {
+        return Ok(Vec::new());
+    };
+    let (ratio, tau) = (any_vector(&ratio, "creep")?, any_vector(&tau, "creep")?);
+    guarded(|| dynamics::Creep::per_cable(&ratio, &tau, m))
+}
+
+/// An optional `(T, m)` per-cable signal of `closed_loop` as a flat row-major vector.
+fn per_cable(s: Option<&Bound<'_, PyAny>>, name: &str, m: usize) -> PyResult<Option<Vec<f64>>> {
+    s.filter(|s| !s.is_none())
+        .map(|s| Ok(matrix(s, name, Some(m))?.0.as_slice()?.to_vec()))
+        .transpose()
 }
 
 /// `CdprPlant.closed_loop`: per controller period (rows) the platform `pose` `(T, n)`, the
@@ -258,7 +262,7 @@ pub struct LoopRun {
 }
 
 impl LoopRun {
-    fn new(py: Python<'_>, r: core::LoopRun, n: usize, m: usize) -> Self {
+    fn new(py: Python<'_>, r: control::LoopRun, n: usize, m: usize) -> Self {
         let t = r.samples;
         let mat = |v: Vec<f64>, c: usize| to_matrix(py, v, t, c).unbind();
         Self {
@@ -278,4 +282,12 @@ impl LoopRun {
             initial_state: to_vector(py, r.initial_state).unbind(),
         }
     }
+}
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<CdprPlant>()?;
+    m.add_class::<PulleyFriction>()?;
+    m.add_class::<LoopRun>()?;
+    Ok(())
 }

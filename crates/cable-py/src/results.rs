@@ -1,6 +1,7 @@
 //! Typed results (numpy arrays as read-only attributes), converted from the core's
 //! `FilterRun`, `DualRun`, `Health` and `LmReport`.
 
+use cable_core::cdpr::CapacityMut;
 use cable_core::estimate::{DualRun as CoreDualRun, FilterRun as CoreFilterRun, Health};
 use cable_core::identify::LmReport;
 use numpy::ndarray::Array3;
@@ -368,20 +369,43 @@ pub struct Capacity {
     weakest: Py<PyArray2<f64>>,
 }
 
-impl Capacity {
-    pub fn new(
-        py: Python<'_>,
-        margin: Vec<f64>,
-        feasible: Vec<bool>,
-        degenerate: Vec<bool>,
-        weakest: Vec<f64>,
-        (t, n): (usize, usize),
-    ) -> Self {
+/// The owned arrays a capacity batch writes into, before they become a [`Capacity`].
+pub struct CapacityBuffers {
+    margin: Vec<f64>,
+    feasible: Vec<bool>,
+    degenerate: Vec<bool>,
+    weakest: Vec<f64>,
+}
+
+impl CapacityBuffers {
+    /// Zeroed arrays for `t` poses of an `n`-DOF robot.
+    pub fn new(t: usize, n: usize) -> Self {
         Self {
-            margin: margin.into_pyarray(py).unbind(),
-            feasible: feasible.into_pyarray(py).unbind(),
-            degenerate: degenerate.into_pyarray(py).unbind(),
-            weakest: to_matrix(py, weakest, t, n).unbind(),
+            margin: vec![0.0; t],
+            feasible: vec![false; t],
+            degenerate: vec![false; t],
+            weakest: vec![0.0; t * n],
+        }
+    }
+
+    /// The core's view of them.
+    pub fn out(&mut self) -> CapacityMut<'_> {
+        CapacityMut {
+            margin: &mut self.margin,
+            feasible: &mut self.feasible,
+            degenerate: &mut self.degenerate,
+            weakest: &mut self.weakest,
+        }
+    }
+}
+
+impl Capacity {
+    pub fn new(py: Python<'_>, b: CapacityBuffers, (t, n): (usize, usize)) -> Self {
+        Self {
+            margin: b.margin.into_pyarray(py).unbind(),
+            feasible: b.feasible.into_pyarray(py).unbind(),
+            degenerate: b.degenerate.into_pyarray(py).unbind(),
+            weakest: to_matrix(py, b.weakest, t, n).unbind(),
         }
     }
 }
@@ -446,4 +470,19 @@ impl PathRun {
             wrap: to_matrix(py, run.wrap, t, m).unbind(),
         }
     }
+}
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<FilterRun>()?;
+    m.add_class::<DualRun>()?;
+    m.add_class::<FilterHealth>()?;
+    m.add_class::<FitReport>()?;
+    m.add_class::<ParamSpec>()?;
+    m.add_class::<Kinematics>()?;
+    m.add_class::<Tensions>()?;
+    m.add_class::<Capacity>()?;
+    m.add_class::<PathRun>()?;
+    m.add_class::<Step>()?;
+    Ok(())
 }

@@ -28,9 +28,11 @@ impl LoadCellPulley {
     fn ratio(&self) -> f64 {
         self.inner.ratio()
     }
+    /// The force on the load cell (N) at cable tension `tension` (N), eq. 31.
     fn push(&self, tension: f64) -> PyResult<f64> {
         guarded(|| self.inner.push(tension))
     }
+    /// The largest tension (N) a cell rated `rating` N measures (eqs 31–32).
     fn tension_range(&self, rating: f64) -> PyResult<f64> {
         guarded(|| self.inner.tension_range(rating))
     }
@@ -167,4 +169,13 @@ impl SignalChain {
         let out = py.detach(|| guarded(|| chain.apply(&t, &s)))?;
         Ok(to_vector(py, out))
     }
+}
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<LoadCellPulley>()?;
+    m.add_class::<Calibration>()?;
+    m.add_class::<CalibrationFit>()?;
+    m.add_class::<SignalChain>()?;
+    Ok(())
 }

@@ -179,6 +179,7 @@ impl WinchDrive {
     fn setup(slf: PyRef<'_, Self>) -> &'static str {
         drive(&slf).setup.name()
     }
+    /// Whether the PID's derivative goes through the low-pass filter (seed 003 eq. 13).
     #[getter]
     fn lpf(slf: PyRef<'_, Self>) -> bool {
         drive(&slf).lpf
@@ -199,4 +200,11 @@ impl WinchDrive {
             d.cable_damping,
         )
     }
+}
+
+/// Add this file's classes and functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<WinchDrive>()?;
+    m.add_class::<Winch>()?;
+    Ok(())
 }

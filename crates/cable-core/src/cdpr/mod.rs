@@ -3,12 +3,15 @@
 //!
 //! Sign convention (seed 002 eq. 5): tensions `f ≥ 0` hold the platform against an external
 //! wrench `w` (gravity included) when `Aᵀ·f + w = 0`.
+//!
+//! This is the statics layer: geometry, the structure matrix and the tension distribution. The
+//! robot as a dynamic model is [`crate::dynamics::CdprPlant`], its closed loop
+//! [`crate::control::closed_loop`]; neither is imported here.
 
 mod batch;
 mod controller;
 mod kinematics;
 mod path;
-mod plant;
 mod qp;
 mod robot;
 pub mod sensors;
@@ -25,8 +28,8 @@ pub use kinematics::{
     coordinates, elongation, forward_kinematics, inverse_kinematics, rpy, CableGeometry,
     ForwardKinematics, Pose, FK_MAX_ITER,
 };
+pub(crate) use path::{dahl_slope, shared_or_own};
 pub use path::{equilibrium_projection, path_friction, PathFriction, PathLaw, PathRun};
-pub use plant::{closed_loop, CdprPlant, Creep, Feedback, LoopOptions, LoopRun, PlantOptions};
 pub use qp::{Distributor, LEAST_ERROR_REGULARISATION, QP_MAX_ITER};
 pub use robot::{Cable, Motion, Platform, Pulley, Robot, MAX_CABLES};
 pub use tension::{
@@ -36,4 +39,4 @@ pub use tension::{
 pub use workspace::{capacity, capacity_margin, Capacity, Margins, Requirement, RANK_TOLERANCE};
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

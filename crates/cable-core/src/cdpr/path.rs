@@ -143,7 +143,7 @@ impl PathFriction {
 }
 
 /// `dz/ds` of the normalised Dahl state.
-pub(super) fn dahl_slope(z: f64, dir: f64, presliding: f64, exponent: f64) -> f64 {
+pub(crate) fn dahl_slope(z: f64, dir: f64, presliding: f64, exponent: f64) -> f64 {
     let s = 1.0 - z * dir;
     s.abs().powf(exponent) * s.signum() / presliding
 }
@@ -344,7 +344,7 @@ pub fn equilibrium_projection(
 }
 
 /// Cable `i`'s value of a column given shared `(1,)` or per cable `(m,)`.
-pub(super) fn shared_or_own(what: &str, v: &[f64], i: usize, m: usize) -> Result<f64> {
+pub(crate) fn shared_or_own(what: &str, v: &[f64], i: usize, m: usize) -> Result<f64> {
     match v.len() {
         1 => Ok(v[0]),
         len if len == m => Ok(v[i]),

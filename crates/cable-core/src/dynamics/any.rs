@@ -1,8 +1,8 @@
 //! [`AnyModel`]: the closed set of cablekit models as one value, for front ends that choose a
 //! model at run time (the Python classes, model files).
 
+use super::CdprPlant;
 use super::{AntagonisticJoint, CableTransmission, DahlElement, Model, WinchDrive};
-use crate::cdpr::CdprPlant;
 use crate::error::{CableError, Result};
 
 /// One of cablekit's models. Implements [`Model`] by forwarding (one branch per call); hot

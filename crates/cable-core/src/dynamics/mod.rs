@@ -6,6 +6,7 @@
 
 mod antagonistic;
 mod any;
+mod cdpr;
 mod dahl;
 mod raven2;
 mod spec;
@@ -14,6 +15,7 @@ mod winch;
 
 pub use antagonistic::{AntagonisticJoint, Contact, OUTPUT_NAMES as ANTAGONISTIC_OUTPUTS};
 pub use any::AnyModel;
+pub use cdpr::{CdprPlant, Creep, PlantOptions};
 pub use dahl::DahlElement;
 pub use raven2::raven2;
 pub use spec::{

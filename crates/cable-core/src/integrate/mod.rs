@@ -21,9 +21,7 @@
 
 mod stability;
 
-/// The most RK4 substeps one sample interval may take (every loop in cablekit is bounded; a
-/// sample interval that needs more is a sign of a wrong `dt` or an extreme parameter).
-pub const MAX_SUBSTEPS: usize = 100_000;
+pub use crate::error::MAX_SUBSTEPS;
 
 pub use stability::{jacobian, jacobian_rows, propose_step, rk4_stability_radius, StepAdvice};
 

@@ -12,6 +12,10 @@
 //! `(T, 2n)` array `[q_m,ref (n), q̇_m,ref (n)]` and the applied torques are returned with the
 //! trajectory.
 
+mod cdpr;
+
+pub use cdpr::{closed_loop, Feedback, LoopOptions, LoopRun};
+
 use crate::dynamics::{CableTransmission, Model};
 use crate::error::{check, CableError, Result};
 use crate::integrate::{record, Rk4, SimOptions, Trajectory, TrajectoryMut};
