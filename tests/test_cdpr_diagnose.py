@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 
 import cablekit as ck
 from cablekit.cdpr import shipped
-from cablekit.cdpr.diagnose import load_cdpr_run, twin_run
+from cablekit.cdpr.diagnose import twin_run
+from cablekit.cdpr.formats import load_cdpr_run
 
 POSE = ("x", "y", "z", "roll", "pitch", "yaw")
 

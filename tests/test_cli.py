@@ -85,3 +85,57 @@ def test_the_package_carries_its_licence():
     assert "License :: OSI Approved :: Apache Software License" in meta.get_all("Classifier")
     text = (Path(__file__).resolve().parents[1] / "LICENSE").read_text()
     assert "Apache License" in text and "Version 2.0, January 2004" in text
+
+
+def _parsers(parser, path=()):
+    """Every (sub-)command's parser with its command path."""
+    import argparse
+
+    yield path, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _parsers(sub, (*path, name))
+
+
+def test_help_shows_every_default_and_every_option_is_explained():
+    import argparse
+
+    from cablekit.cli import build_parser
+
+    seen = 0
+    for path, parser in _parsers(build_parser()):
+        text = " ".join(parser.format_help().split())
+        for action in parser._actions:
+            if not action.option_strings or isinstance(
+                action, argparse._HelpAction | argparse._VersionAction
+            ):
+                continue
+            flag = action.option_strings[-1]
+            # every option says what it does (a choice list alone counts: it names the values)
+            assert action.help or action.choices, f"cablekit {' '.join(path)} {flag}: no help text"
+            if action.default not in (None, False, argparse.SUPPRESS, []):
+                seen += 1
+                shown = f"(default: {action.default})" in text or f"default: {action.default}" in text
+                assert shown, f"cablekit {' '.join(path)} {flag}: default {action.default!r} not in --help"
+    assert seen > 20  # the check looked at the options that have defaults
+
+
+def test_help_texts_name_the_physics_not_only_the_paper(capsys):
+    from cablekit.cli import build_parser
+
+    for path, parser in _parsers(build_parser()):
+        for action in parser._actions:
+            words = action.help or ""
+            if "seed 00" in words:
+                # a reference to a seed paper is fine beside a description, not instead of one
+                before = words.split("seed 00")[0]
+                assert len(before.split()) >= 4, f"cablekit {' '.join(path)}: {words!r}"
+
+
+def test_python_dash_m_runs_the_command(tmp_path):
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "cablekit.cli", "--version"], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.startswith("cablekit ")

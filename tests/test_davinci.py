@@ -99,14 +99,14 @@ def test_bench_folder_errors_name_the_expected_files(tmp_path):
     with pytest.raises(ck.DataError, match="no bench files found"):
         bench_directory(tmp_path)
     (tmp_path / "00.TXT").write_text("% header\n1,2,3\n")
-    with pytest.raises(ck.DataError, match=r"1 rows x 3 columns; expected files named"):
+    with pytest.raises(ck.DataError, match=r"00\.TXT:2: 3 columns, need at least 6 .*expected files named"):
         prepare_bench(tmp_path, BenchSplit(("00",), ("01",), ("02",)))
     (tmp_path / "00.TXT").write_text("a,b,c,d,e,f\n" * 20)
     with pytest.raises(ck.DataError, match="not a bench file"):
         load_bench_run(tmp_path / "00.TXT")
     rows = "\n".join(f"{i * 1e-3},{i},{i},0.1,{i},nan" for i in range(20))
     (tmp_path / "00.TXT").write_text(rows)
-    with pytest.raises(ck.DataError, match="non-finite value at row 1, column 6"):
+    with pytest.raises(ck.DataError, match=r"00\.TXT:1: column 6 is not finite"):
         load_bench_run(tmp_path / "00.TXT")
     rows = "\n".join(f"{i * 1e-3},{i},{i},0.1,{i},{i}" for i in range(20))
     (tmp_path / "00.TXT").write_text(rows)

@@ -215,7 +215,8 @@ def test_a_long_gap_is_a_data_error_naming_its_rows(tmp_path):
 def example_diagnosed(tmp_path_factory):
     """The embedded example's runs and model, and its diagnosis as the CLI writes it (computed
     once: three tests compare a transformed copy of the runs against it)."""
-    from cablekit.cli import _write_example, main
+    from cablekit.cli import main
+    from cablekit.cli.diagnose import _write_example
 
     root = tmp_path_factory.mktemp("example")
     fit, hold, model = _write_example(root / "example")

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cablekit.errors import DataError, NotFiniteError, ParameterError, ShapeError
-from cablekit.forceps import DriveModel
+from cablekit.forceps import DriveModel, bench
 from cablekit.forceps import davinci as dv
 from tests.bench_data import davinci_dir
 from tests.reference import drive as ref
@@ -102,8 +102,8 @@ def test_loader_reports_the_line_and_column_of_bad_rows(tmp_path):
     run = dv.read_bench_file(_write(tmp_path / "31.TXT.gz", header + rows))
     assert run.frequency == 3 and run.load == 1 and run.signals.shape == (20, 5)
     assert run.dt == pytest.approx(1e-3)
-    assert run.signals[0, 1] == pytest.approx(100 * dv.FUTEK_NM)
-    assert run.signals[0, 0] == pytest.approx(10 * 2 * math.pi / dv.CUI_COUNTS)
+    assert run.signals[0, 1] == pytest.approx(100 * bench.FUTEK_NM)
+    assert run.signals[0, 0] == pytest.approx(10 * 2 * math.pi / bench.CUI_COUNTS)
     short = header + rows + "0.5,1,2,3\n"
     with pytest.raises(DataError, match=r"31b.TXT.gz:23: 4 columns"):
         dv.read_bench_file(_write(tmp_path / "31b.TXT.gz", short))

@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 import cablekit as ck
 from cablekit.cdpr import Robot
-from cablekit.cdpr.cli import read_trajectory
+from cablekit.cdpr.formats import read_trajectory
 from cablekit.diagnose.davinci import load_bench_run
 from cablekit.diagnose.many import load_manifest
 from cablekit.diagnose.spec import load_model_spec

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 import cablekit as ck
 from cablekit._args import choice, count, real
 from cablekit.cdpr import Robot, sensors, shipped
-from cablekit.cdpr.cli import read_trajectory
+from cablekit.cdpr.formats import read_trajectory
 from cablekit.cdpr.planar import PlanarRobot, circle
 from cablekit.estimate.joint_states import estimate_joint_states
 from cablekit.forceps.twin import twin_from_toml
@@ -271,3 +271,20 @@ def test_the_compiled_csv_parsers_read_what_the_careful_reader_reads(tmp_path_fa
     assert header == ["t", "a", "b"]
     want = np.array([[float(fmt.format(v)) for v in r] for r in rows])
     np.testing.assert_array_equal(got, want)
+
+
+def test_the_html_report_escapes_what_the_user_named(tmp_path):
+    # run names, notes and file paths come from the user: the report shows them as text
+    import dataclasses
+
+    from cablekit.diagnose import Options, diagnose
+    from cablekit.diagnose.report import write_html
+    from cablekit.diagnose.selftest import make_case
+
+    case = make_case(("sensor_gain_bias",), 3, 2.0)
+    hostile = "<script>alert('x')</script>"
+    fit = [dataclasses.replace(case.fit[0], name=hostile, notes=[f"note {hostile}"])]
+    res = diagnose(case.spec, fit, case.hold, Options(progress=False, interval_refits=0))
+    text = write_html(res, tmp_path / "report.html").read_text(encoding="utf-8")
+    assert "<script>" not in text
+    assert "&lt;script&gt;" in text  # it is there, as text

@@ -276,4 +276,4 @@ def test_condition_warnings_are_one_per_attribute_and_value(conditions, attribut
         for k, v in r.attributes.items():
             built = spec.conditions.get(k)
             if built and not any(math.isclose(v, c, rel_tol=1e-9, abs_tol=1e-9) for c in built):
-                assert any(f"{r.name}" in x and f"{k} = {v:g}" in x for x in w)
+                assert any(f"{r.name}" in x and f"{k} = {v + 0.0:g}" in x for x in w)  # -0 reads 0

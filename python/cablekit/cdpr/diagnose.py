@@ -73,7 +73,8 @@ import numpy as np
 from cablekit import _log
 from cablekit._cablekit import PulleyFriction, SignalChain
 from cablekit.cdpr import Robot, Winch
-from cablekit.errors import DataError, ParameterError, ShapeError
+from cablekit.cdpr.formats import RunFile, load_cdpr_run
+from cablekit.errors import ParameterError, ShapeError
 
 FORCE_EFFECTS = ("pulley_friction", "sensor_lag", "sensor_gain", "drum_friction")
 LENGTH_EFFECTS = ("cable_elasticity", "cable_creep", "length_offset")
@@ -571,68 +572,6 @@ def _channels(
 
 
 # ---- a measured run --------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class RunFile:
-    """A CDPR run read from a table: times (s), drum angles (rad), motor currents (A), the
-    winch-side sensors (N), each ``(T, m)``, and the measured poses ``(T, n)`` if given."""
-
-    t: np.ndarray
-    alpha: np.ndarray
-    current: np.ndarray
-    sensor: np.ndarray
-    poses: np.ndarray | None
-    #: what the loader did to the table (a resampling onto a uniform time grid)
-    notes: tuple[str, ...] = ()
-
-
-def load_cdpr_run(path: str | Path, robot: Robot) -> RunFile:
-    """A run table (CSV, ``.csv.gz`` or Parquet) for ``robot``: ``t``; per cable ``j = 1..m``
-    ``alpha_j``, ``current_j`` and ``sensor_j``; and, for the length channel, all the pose columns
-    (planar ``x, y, theta``; spatial ``x, y, z, roll, pitch, yaw``) or none. Missing, unknown or
-    duplicate columns, non-finite cells, a time that does not increase and fewer than 100 rows
-    are :class:`~cablekit.errors.DataError` errors naming them. Jittered time stamps are put on
-    a uniform grid as a joint model's run files are (:func:`cablekit.diagnose.data.uniform_time`:
-    kept on their clock when only the stamps jitter, else resampled), with a note."""
-    from cablekit.cdpr.cli import POSE_COLUMNS
-    from cablekit.diagnose.data import read_table, require_finite_cells, uniform_time
-
-    p = Path(path)
-    header, data = read_table(p)
-    m = robot.n_cables
-    drums = [f"{k}_{j + 1}" for k in ("alpha", "current", "sensor") for j in range(m)]
-    pose = list(POSE_COLUMNS[robot.motion])
-    if len(set(header)) != len(header):
-        raise DataError(f"{p}: duplicate column(s) {sorted({c for c in header if header.count(c) > 1})}")
-    missing = [c for c in ["t", *drums] if c not in header]
-    if missing:
-        raise DataError(f"{p}: missing column(s) {missing} (a run of {robot.name!r} has {m} cables)")
-    unknown = [c for c in header if c not in {"t", *drums, *pose}]
-    if unknown:
-        raise DataError(f"{p}: unknown column(s) {unknown}; known: t, alpha_j, current_j, sensor_j, {pose}")
-    given = [c for c in pose if c in header]
-    if given and given != pose:
-        raise DataError(f"{p}: give all pose columns {pose} or none, got {given}")
-    if data.shape[0] < 100:
-        raise DataError(f"{p}: needs at least 100 rows, got {data.shape[0]}")
-    require_finite_cells(p, header, data)
-    ti = header.index("t")
-    if not (np.diff(data[:, ti]) > 0).all():
-        k = int(np.argmax(np.diff(data[:, ti]) <= 0))
-        raise DataError(f"{p}: t must increase (row {k + 3} is not after row {k + 2})")
-    notes: list[str] = []
-    t, data = uniform_time(str(p), data, ti, notes)
-    if len(t) < 100:
-        raise DataError(f"{p}: needs at least 100 samples on a uniform grid, got {len(t)}")
-    t = np.ascontiguousarray(t)
-    col = {c: data[:, header.index(c)] for c in header}
-
-    def block(kind: str) -> np.ndarray:
-        return np.ascontiguousarray(np.column_stack([col[f"{kind}_{j + 1}"] for j in range(m)]))
-
-    poses = np.ascontiguousarray(np.column_stack([col[c] for c in pose])) if given else None
-    return RunFile(t, block("alpha"), block("current"), block("sensor"), poses, tuple(notes))
 
 
 def rest_from_first_sample(robot: Robot, winch: Winch, run: RunFile) -> np.ndarray:

@@ -24,18 +24,17 @@ spindle's cables close and open one jaw, which a front-end motor loads with a re
 
 from __future__ import annotations
 
-import gzip
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from cablekit._files import bench_runs, check_counts, text_runs
+from cablekit._files import bench_runs, text_runs
 from cablekit.diagnose.data import Run
 from cablekit.diagnose.spec import ModelSpec, model_spec_from_dict
 from cablekit.errors import DataError
+from cablekit.forceps.bench import BENCH_PATTERN, CITATION, FREQS, LOADS, condition, read_raw
 from cablekit.forceps.posture import Posture, folder_posture, run_posture
 
 __all__ = [
@@ -50,25 +49,7 @@ __all__ = [
     "split_for",
 ]
 
-CITATION = (
-    "J. O'Neill, T. Stephens, T. Kowalewski, 'Evaluation of Torque Measurement Surrogates as Applied to "
-    "Grip Torque and Jaw Angle Estimation of Robotic Surgical Tools', IEEE RA-L 3(4):3027-3034, 2018; "
-    "data: MRDLab/mis-tool-characterization (ODbL 1.0 / DbCL 1.0)"
-)
-
 SPINDLE_RADIUS = 4e-3  # m, assumed (see module docs)
-CUI_COUNTS = 8192.0
-MAXON_COUNTS = 4000.0
-FUTEK_NM = 3.9811e-5
-FREQS = (0.1, 0.2, 0.3, 0.4, 0.5)
-LOADS = (10, 20, 30, 40)
-#: what a bench folder holds (the MRDLab recording format, one file per condition)
-BENCH_PATTERN = (
-    "files named FL.TXT or FL.TXT.gz (F = frequency index 0-4 for 0.1-0.5 Hz, L = load index 0-3 for "
-    "10-40 % resistive torque; any other stem works when named explicitly), each with >= 6 "
-    "comma-separated columns: time s, spindle encoder counts, spindle torque counts, motor current A, "
-    "jaw encoder counts, jaw torque counts"
-)
 
 
 def load_bench_run(
@@ -82,30 +63,11 @@ def load_bench_run(
     not, so one reference for all runs keeps their jaw angles comparable. ``posture`` (the
     folder's, :func:`cablekit.forceps.posture.folder_posture`) becomes the run's attributes, with
     the jaw stopping position of a ``ZXY`` name."""
-    path = Path(path)
-    if not path.exists():
-        raise DataError(f"{path}: no such bench file")
-    opener = gzip.open if path.suffix == ".gz" else open
-    try:
-        with opener(path, "rt") as fh, warnings.catch_warnings():  # type: ignore[operator]
-            warnings.simplefilter("ignore")  # an empty file: its shape is reported below
-            d = np.loadtxt(fh, comments="%", delimiter=",", ndmin=2)
-    except (ValueError, OSError, EOFError, UnicodeDecodeError) as exc:
-        raise DataError(f"{path}: not a bench file ({exc}); expected {BENCH_PATTERN}") from exc
-    if d.shape[0] < 10 or d.shape[1] < 6:
-        raise DataError(f"{path}: got {d.shape[0]} rows x {d.shape[1]} columns; expected {BENCH_PATTERN}")
-    if not np.all(np.isfinite(d[:, :6])):
-        bad = np.argwhere(~np.isfinite(d[:, :6]))[0]
-        raise DataError(f"{path}: non-finite value at row {bad[0] + 1}, column {bad[1] + 1}")
-    check_counts(path, d, (1, 2, 4, 5))
-    t = d[:, 0] - d[0, 0]
-    keep = np.concatenate([[True], np.diff(t) > 0])
-    d, t = d[keep], t[keep]
-    th_s = d[:, 1] * (2 * np.pi / CUI_COUNTS)
-    tau_s = d[:, 2] * FUTEK_NM
-    th_j = d[:, 4] * (2 * np.pi / MAXON_COUNTS)
-    tau_j = d[:, 5] * FUTEK_NM
-    # every count is within ±2^53 (check_counts above): the conversions stay finite
+    raw = read_raw(path)
+    t, d = raw.t, raw.data
+    th_s, tau_s = raw.spindle_angle, raw.spindle_torque
+    th_j, tau_j = raw.jaw_angle, raw.jaw_torque
+    # every count is within ±2^53 (read_raw): the conversions stay finite
     cols = {
         "x_m": SPINDLE_RADIUS * (th_s - th_s[0]),
         "theta": -(th_j - (th_j[0] if jaw_reference is None else jaw_reference)),
@@ -117,12 +79,12 @@ def load_bench_run(
         "jaw_torque": tau_j,
         "motor_current": d[:, 3],
     }
-    name = path.name.split(".")[0]
-    notes = [] if keep.all() else [f"removed {int((~keep).sum())} rows with non-increasing time"]
-    code = name[-2:] if len(name) in (2, 3) and name.isascii() and name.isdigit() else ""
-    if code and int(code[0]) < len(FREQS):
-        load = f"{LOADS[int(code[1])]} %" if int(code[1]) < len(LOADS) else f"level {code[1]}"
-        notes.append(f"{FREQS[int(code[0])]} Hz, {load} resistive torque")
+    name = raw.name
+    notes = list(raw.notes)
+    freq, load = condition(name) if len(name) in (2, 3) else (None, None)
+    if freq is not None:
+        level = f"{LOADS[load]} %" if load is not None else f"level {name[-1]}"
+        notes.append(f"{FREQS[freq]} Hz, {level} resistive torque")
     attributes: dict[str, float] = {}
     if posture is not None:
         here = run_posture(posture, name)

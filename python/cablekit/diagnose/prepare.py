@@ -261,7 +261,7 @@ def unknown_conditions(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run
         for r in runs:
             v = r.attributes.get(name)
             if v is not None and not known(v, built):
-                other.setdefault(v, []).append(r.name)
+                other.setdefault(v + 0.0, []).append(r.name)  # + 0.0: -0 is 0
         for v, names in sorted(other.items()):
             out.append(
                 f"run(s) {', '.join(names)} at {name} = {v:g}, the nominal was built at "
@@ -276,7 +276,7 @@ def unknown_conditions(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run
     for r in hold_runs:
         for name, v in r.attributes.items():
             if name not in spec.conditions and not known(v, fitted.get(name, set())):
-                new.setdefault((name, v), []).append(r.name)
+                new.setdefault((name, v + 0.0), []).append(r.name)
     for (name, v), names in sorted(new.items()):
         out.append(
             f"held-out run(s) {', '.join(names)} at {name} = {v:g}, which no fit run has "

@@ -1,46 +1,48 @@
-"""A dependency-free progress bar on stderr (quiet when disabled or not a terminal-like run)."""
+"""Progress of long work on stderr: a thin, thread-safe layer over tqdm (quiet when disabled).
+
+Every long loop of cablekit (candidate fits in parallel threads, self-test cases, benchmark
+cases, network training) reports through :class:`Progress`, so the look and the ``--quiet``
+switch are the same everywhere; tqdm draws the bar, its rate and remaining time."""
 
 from __future__ import annotations
 
 import sys
 import threading
-import time
+
+from tqdm import tqdm
 
 
 class Progress:
-    """``with Progress(total, "fitting") as p: ... p.advance(label)``. Thread-safe."""
+    """``with Progress(total, "fitting") as p: ... p.advance(label)``. Thread-safe: parallel fits
+    advance it from their threads."""
 
     def __init__(self, total: int, label: str, enabled: bool = True, width: int = 28):
         self.total = max(1, total)
         self.label = label
         self.enabled = enabled
-        self.width = width
         self.done = 0
-        self.t0 = time.perf_counter()
         self._lock = threading.Lock()
+        self._bar = tqdm(
+            total=self.total,
+            desc=f"{label:<14}",
+            disable=not enabled,
+            file=sys.stderr,
+            ncols=width + 80,
+            leave=True,
+            bar_format="{desc} [{bar}] {n_fmt:>3}/{total_fmt:<3} {elapsed} <{remaining} {postfix}",
+            ascii=" #",
+        )
 
     def __enter__(self) -> Progress:
-        self._draw("")
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
+        self._bar.close()
 
     def advance(self, note: str = "") -> None:
+        """One more unit done; ``note`` (what it was) is shown beside the bar."""
         with self._lock:
             self.done += 1
-            self._draw(note)
-
-    def _draw(self, note: str) -> None:
-        if not self.enabled:
-            return
-        frac = self.done / self.total
-        filled = round(frac * self.width)
-        elapsed = time.perf_counter() - self.t0
-        bar = "#" * filled + "-" * (self.width - filled)
-        sys.stderr.write(
-            f"\r{self.label:<14} [{bar}] {self.done:>3}/{self.total:<3} {elapsed:6.1f}s {note[:32]:<32}"
-        )
-        sys.stderr.flush()
+            if self.enabled:
+                self._bar.set_postfix_str(note[:32], refresh=False)
+            self._bar.update(1)

@@ -41,7 +41,6 @@ sampling, gain/bias) act on force sensors only.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -221,6 +220,9 @@ class ModelSpec:
         return self.extra.get("servo")
 
     def to_dict(self) -> dict[str, Any]:
+        """The model file's tables (:func:`write_model_toml` writes them, :func:`load_model_spec`
+        reads them back into the same spec)."""
+        servo = self.servo()
         if self.kind == "antagonistic_joint":
             inputs: dict[str, Any] = {"x_m": self.x_m}
             if self.coupled:
@@ -244,6 +246,7 @@ class ModelSpec:
                 "diagnosis": {"warmup": self.warmup, "substeps": self.substeps}
                 | ({"effects": self.effects} if self.effects else {}),
             }
+            | ({"servo": dict(zip(SERVO_GAINS, map(list, servo), strict=True))} if servo else {})
             | ({"units": {c: d for c, (_, _, d) in self.column_units.items()}} if self.column_units else {})
             | ({"conditions": {k: list(v) for k, v in self.conditions.items()}} if self.conditions else {})
         )
@@ -253,7 +256,8 @@ class ModelSpec:
 #: must not be silently ignored)
 TOP_LEVEL = {"model", "parameters", "inputs", "outputs", "diagnosis", "servo", "units", "conditions"}
 DIAGNOSIS_KEYS = {"warmup", "substeps", "effects"}
-SERVO_KEYS = {"preset", "kp", "kd", "torque_limit"}
+SERVO_GAINS = ("kp", "kd", "torque_limit")
+SERVO_KEYS = {"preset", *SERVO_GAINS}
 #: the most RK4 substeps per sample the core accepts (cable_core::integrate::MAX_SUBSTEPS)
 MAX_SUBSTEPS = 100_000
 
@@ -525,16 +529,12 @@ def _parameter(value: Any, what: str, source: str) -> None:
 
 def write_model_toml(spec: ModelSpec, path: str | Path, comment: str = "") -> Path:
     """Write a model file that :func:`load_model_spec` reads back into the same spec."""
+    import tomli_w
+
     path = Path(path)
-    doc = spec.to_dict()
-    lines = [f"# {comment}"] if comment else []
-    lines += [f'model = "{doc["model"]}"', ""]
-    for table in ("parameters", "inputs", "outputs", "diagnosis"):
-        if table not in doc:
-            continue
-        lines.append(f"[{table}]")
-        for k, v in doc[table].items():
-            lines.append(f"{k} = {json.dumps(v)}")
-        lines.append("")
-    path.write_text("\n".join(lines))
+    text = tomli_w.dumps(spec.to_dict())
+    # a TOML comment holds no control character: they become spaces
+    printable = "".join(c if c.isprintable() or c in "\t\n" else " " for c in comment)
+    head = "".join(f"# {line}\n" for line in printable.split("\n")) if comment else ""
+    path.write_text(head + ("\n" if head else "") + text, encoding="utf-8")
     return path

@@ -21,9 +21,7 @@ RMSE in mN·m after a 1 s warm-up per run; the jaw angle's RMSE in degrees (phys
 
 from __future__ import annotations
 
-import gzip
 import math
-import re
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -34,19 +32,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cablekit._cablekit import DriveModel
-from cablekit._files import bench_runs, check_counts, text_runs
+from cablekit._files import bench_runs, text_runs
 from cablekit.errors import DataError
+from cablekit.forceps.bench import FREQS, LOADS, condition, read_raw
 
 F64 = NDArray[np.float64]
 
-CUI_COUNTS = 8192.0  # spindle encoder, counts/rev
-FUTEK_NM = 3.9811e-5  # both torque sensors, N·m/count
-MAXON_COUNTS = 4000.0  # jaw encoder, counts/rev
-MOTOR_COUNTS = 4096.0 * 35.0  # back-end motor encoder through its 35:1 gearbox, counts/rev
-#: the columns read (1-based, as the bench's README numbers them)
-NEEDED_COLUMNS = 9
-FREQS = (0.1, 0.2, 0.3, 0.4, 0.5)
-LOADS = (10, 20, 30, 40)
 #: Maxwell-slip element travels of the physics model (degrees of motor angle)
 TRAVELS_DEG = (0.1, 0.5, 2.0, 8.0, 32.0)
 WARMUP_S = 1.0
@@ -86,77 +77,18 @@ class BenchRun:
         return f"{self.name} ({FREQS[self.frequency]} Hz, {LOADS[self.load]} %)"
 
 
-def _lines(path: Path) -> list[str]:
-    opener: Callable[..., object] = gzip.open if path.suffix == ".gz" else open
-    try:
-        with opener(path, "rt", encoding="utf-8") as fh:  # type: ignore[operator]
-            return fh.read().splitlines()  # type: ignore[attr-defined, no-any-return]
-    except (OSError, EOFError, UnicodeDecodeError) as exc:
-        raise DataError(f"{path}: cannot read a bench file ({exc})") from exc
-
-
-def _parse(path: Path, lines: list[str]) -> F64:
-    rows, numbers = [], []
-    for i, line in enumerate(lines, start=1):
-        text = line.strip()
-        if not text or text.startswith("%"):
-            continue
-        cells = text.split(",")
-        if len(cells) < NEEDED_COLUMNS:
-            raise DataError(
-                f"{path}:{i}: {len(cells)} columns, need at least {NEEDED_COLUMNS} (time, spindle encoder, "
-                "spindle torque, motor current, jaw encoder, jaw torque, front-end command, back-end "
-                "command, motor encoder)"
-            )
-        try:
-            numbers.append([float(c) for c in cells[:NEEDED_COLUMNS]])
-        except ValueError:
-            j = next(k for k, c in enumerate(cells[:NEEDED_COLUMNS]) if not _is_float(c))
-            raise DataError(f"{path}:{i}: column {j + 1} is not a number: {cells[j]!r}") from None
-        rows.append(i)
-    if len(numbers) < 10:
-        raise DataError(f"{path}: {len(numbers)} data rows; a bench run needs at least 10")
-    d = np.asarray(numbers)
-    bad = np.argwhere(~np.isfinite(d))
-    if bad.size:
-        r, c = bad[0]
-        raise DataError(f"{path}:{rows[r]}: column {c + 1} is not finite ({d[r, c]})")
-    check_counts(path, d, (1, 2, 4, 5, 8), rows)
-    return d
-
-
-def _is_float(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
 def read_bench_file(path: str | Path) -> BenchRun:
-    """One run of the bench format (see the module docs)."""
-    path = Path(path)
-    if not path.is_file():
-        raise DataError(f"{path}: no such bench file")
-    d = _parse(path, _lines(path))
-    t = d[:, 0] - d[0, 0]
-    keep = np.concatenate([[True], np.diff(t) > 0])
-    notes = () if keep.all() else (f"dropped {int((~keep).sum())} rows whose time does not increase",)
-    d, t = d[keep], t[keep]
-    dt = float(np.median(np.diff(t)))
-    # every count is within ±2^53 (_parse): the conversions stay finite
-    spindle = d[:, 1] * (2 * np.pi / CUI_COUNTS)
-    motor = d[:, 8] * (2 * np.pi / MOTOR_COUNTS)
+    """One run of the bench format (:func:`cablekit.forceps.bench.read_raw`, with the motor
+    encoder's ninth column)."""
+    raw = read_raw(path, columns=9)
+    dt = float(np.median(np.diff(raw.t)))
+    spindle, motor = raw.spindle_angle, raw.motor_angle
     # the motor turns the spindle through a coupling: take its sign from the data
     sign = 1.0 if float(np.dot(np.diff(spindle), np.diff(motor))) >= 0 else -1.0
-    signals = np.column_stack(
-        [spindle, d[:, 2] * FUTEK_NM, sign * motor, d[:, 5] * FUTEK_NM, d[:, 4] * (2 * np.pi / MAXON_COUNTS)]
-    )
-    name = path.name.split(".")[0]
-    m = re.fullmatch(r"(\d)(\d)", name)
-    freq = int(m.group(1)) if m and int(m.group(1)) < len(FREQS) else None
-    load = int(m.group(2)) if m and int(m.group(2)) < len(LOADS) else None
-    return BenchRun(name, path, dt, np.ascontiguousarray(signals), d[:, 3].copy(), freq, load, notes)
+    signals = np.column_stack([spindle, raw.spindle_torque, sign * motor, raw.jaw_torque, raw.jaw_angle])
+    freq, load = condition(raw.name) if len(raw.name) == 2 else (None, None)
+    signals = np.ascontiguousarray(signals)
+    return BenchRun(raw.name, raw.path, dt, signals, raw.motor_current, freq, load, raw.notes)
 
 
 def bench_folder(directory: str | Path) -> Path:

@@ -4,23 +4,18 @@ from __future__ import annotations
 
 import argparse
 import csv
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cablekit._args import choice
 from cablekit.cdpr import Robot, Winch, shipped, shipped_names
+from cablekit.cdpr.formats import read_trajectory
 from cablekit.cdpr.workspace import DEFAULT_COUNTS, Requirement, plot_workspace, workspace
 from cablekit.errors import DataError
 
 if TYPE_CHECKING:
     from cablekit.cdpr.diagnose import CdprDiagnosis
-
-#: trajectory CSV columns: the pose, then optional external wrench columns and time
-POSE_COLUMNS = {"planar": ("x", "y", "theta"), "spatial": ("x", "y", "z", "roll", "pitch", "yaw")}
-WRENCH_COLUMNS = {"planar": ("fx", "fy", "mz"), "spatial": ("fx", "fy", "fz", "mx", "my", "mz")}
 
 
 def robot_from(spec: str) -> Robot:
@@ -34,47 +29,6 @@ def robot_from(spec: str) -> Robot:
         assert isinstance(r, Robot)
         return r
     raise DataError(f"{spec!r} is neither a robot file nor a shipped robot ({', '.join(names)})")
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """Poses ``(T, n)``, optional external wrenches ``(T, n)`` and times ``(T,)``."""
-
-    poses: np.ndarray
-    wrenches: np.ndarray | None
-    t: np.ndarray | None
-
-
-def read_trajectory(path: str | Path, motion: str) -> Trajectory:
-    """A trajectory table (CSV, ``.csv.gz`` or Parquet, read like a run file): the pose columns
-    (planar ``x, y, theta``; spatial ``x, y, z, roll, pitch, yaw``), optionally all the wrench
-    columns (planar ``fx, fy, mz``; spatial ``fx, fy, fz, mx, my, mz``) and ``t``. Other
-    columns, missing ones and cells that are not finite numbers are ``DataError``s naming them."""
-    from cablekit.diagnose.data import read_table, require_finite_cells
-
-    choice(motion, "motion", sorted(POSE_COLUMNS))
-    p = Path(path)
-    header, data = read_table(p)
-    pose_cols, wrench_cols = POSE_COLUMNS[motion], WRENCH_COLUMNS[motion]
-    missing = [c for c in pose_cols if c not in header]
-    if missing:
-        raise DataError(f"{p}: missing column(s) {missing} (a {motion} pose is {', '.join(pose_cols)})")
-    known = {*pose_cols, *wrench_cols, "t"}
-    unknown = [c for c in header if c not in known]
-    if unknown:
-        raise DataError(f"{p}: unknown column(s) {unknown}; known: {sorted(known)}")
-    given = [c for c in wrench_cols if c in header]
-    if given and len(given) != len(wrench_cols):
-        raise DataError(f"{p}: give all wrench columns {list(wrench_cols)} or none, got {given}")
-    if data.shape[0] == 0:
-        raise DataError(f"{p}: no rows after the header")
-    require_finite_cells(p, header, data)
-    col = {c: data[:, header.index(c)] for c in header}
-    return Trajectory(
-        poses=np.ascontiguousarray(np.column_stack([col[c] for c in pose_cols])),
-        wrenches=np.ascontiguousarray(np.column_stack([col[c] for c in wrench_cols])) if given else None,
-        t=col.get("t"),
-    )
 
 
 def _floats(text: str | None, n: int, name: str) -> np.ndarray | None:
@@ -365,13 +319,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "--method",
         default="auto",
         choices=["auto", "improved_closed_form", "closed_form", "qp", "least_wrench_error", "minimum_norm"],
+        help="tension distribution: auto takes the improved closed form and falls back to the QP, then "
+        "to the least wrench error where no tensions within the bounds hold the platform",
     )
     d.add_argument("--no-gravity", action="store_true", help="leave out the platform's weight")
-    d.add_argument("--no-plots", action="store_true")
+    d.add_argument("--no-plots", action="store_true", help="no PNGs (no matplotlib needed)")
     d.set_defaults(func=_distribute)
     wn = cs.add_parser(
         "winch",
-        help="seed 003's winch: Table 5 and root locus, the nonlinear model stepped, the sensors and Fig. 18",
+        help="a winch under PID (motor, gearbox, drum, elastic cable): its linearised poles and root "
+        "locus (seed 003 Table 5), the nonlinear model stepped, the load-cell pulleys and their calibration",
     )
     wn.add_argument("--out", default="out/winch", help="output folder")
     wn.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
@@ -379,8 +336,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     wn.set_defaults(func=_winch)
     pl = cs.add_parser(
         "planar",
-        help="seed 003's planar 4-cable robot in closed loop: pose steps, a circle with the tension "
-        "distribution",
+        help="a planar 4-cable robot with PID winches in closed loop (seed 003): pose steps and a "
+        "circle, the tension distribution in the loop",
     )
     pl.add_argument("--out", default="out/planar", help="output folder")
     pl.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
@@ -404,12 +361,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     dg.add_argument(
         "--winch",
         dest="winch_parameters",
-        help="with --run: seed 003's winch with overrides, e.g. drum_radius=0.02,gear_ratio=51",
+        help="with --run: the winch's parameters (motor, gearbox, drum; seed 003's by default) with "
+        "overrides, e.g. drum_radius=0.02,gear_ratio=51",
     )
     dg.add_argument(
         "--platform-friction",
         help="with --run: the nominal pulley friction between sensor and platform, every cable: "
-        "mu,viscous,guide_wrap,presliding (seed 002 eq. 8)",
+        "friction coefficient, viscous coefficient, wrap angle of the guide pulley (rad) and the Dahl "
+        "pre-sliding length (m): mu,viscous,guide_wrap,presliding (seed 002 eq. 8)",
     )
     dg.add_argument("--out", default="out/cdpr-diagnose", help="output folder")
     dg.add_argument("--cases", type=int, default=3, help="runs per withheld effect (and with none)")
@@ -418,8 +377,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     dg.set_defaults(func=_diagnose)
     cp = cs.add_parser(
         "compensate",
-        help="seed 002 on the twin: PUL vs EE, the 14-8 network (Tables 1-2), the force loop on it "
-        "(Tables 3-4)",
+        help="pulley friction between a winch-side sensor and the platform: the tension the sensor "
+        "reads against the platform's, a network that compensates it (seed 002 Tables 1-2), a force loop "
+        "on its estimate (Tables 3-4)",
     )
     cp.add_argument("--out", default="out/compensate", help="output folder")
     cp.add_argument("--hidden", type=int, default=20, help="hidden neurons")

@@ -369,16 +369,22 @@ def _protocols(args: argparse.Namespace) -> int:
 
 def add_parser(sub: Any) -> None:
     """``cablekit forceps experiments`` and ``cablekit forceps davinci``."""
-    p = sub.add_parser("forceps", help="cable-driven forceps: clamping-force estimation (seed 000)")
+    p = sub.add_parser(
+        "forceps",
+        help="cable-driven forceps: clamping force without a sensor in the jaws, jaw torque of a real "
+        "instrument from drive-side signals",
+    )
     fs = p.add_subparsers(dest="forceps_command", required=True)
     e = fs.add_parser(
         "experiments",
-        help="seed 000's experiments in the twin: seed vs cablekit table, transfer table, Figs 7-9",
+        help="clamping-force estimation on a simulated two-forceps bench (seed 000): the paper's "
+        "free-motion network and disturbance observer against a physics-informed estimator, and their "
+        "transfer to other instruments",
         description="Free motion at the seed's five speeds, the PSO-BPNN free-motion model, the JTDO; "
         "continuous and stair clamping; the physics-informed estimator beside it; four other instruments "
         "(±30 %% cable stiffness, pretension, friction). Needs the train extra (torch).",
     )
-    e.add_argument("--twin", help="twin TOML file (default: the shipped seed 000 bench)")
+    e.add_argument("--twin", help="twin TOML file (default: the shipped bench of seed 000)")
     e.add_argument("--out", default="out/forceps", help="output folder")
     e.add_argument("--no-plots", action="store_true", help="no PNGs (no matplotlib needed)")
     e.add_argument("--quiet", action="store_true", help="no progress bars, no table on stdout")

@@ -165,6 +165,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     )
     c.add_argument("--davinci-dir", default=DAVINCI_DIR, help="folder of the da Vinci bench data")
     c.add_argument("--seeds", type=int, default=5, help="number of seeds (>= 5 for the table)")
-    c.add_argument("--out", default="out/nn")
-    c.add_argument("--quiet", action="store_true")
+    c.add_argument("--out", default="out/nn", help="output folder")
+    c.add_argument("--quiet", action="store_true", help="no progress or table on stdout")
     c.set_defaults(func=compare)
