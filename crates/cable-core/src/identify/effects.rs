@@ -30,8 +30,6 @@
 
 use crate::error::{CableError, Result};
 
-use super::site::{Candidate, Form, Side, Site};
-
 /// A candidate effect (see the module table).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Effect {
@@ -142,7 +140,7 @@ impl ParamSpec {
     }
 
     /// The same spec with further starting values (kept inside the bounds).
-    fn starts(mut self, v: &[f64]) -> Self {
+    pub(crate) fn starts(mut self, v: &[f64]) -> Self {
         // max/min, not clamp: bounds from degenerate data scales must not panic
         self.starts = v
             .iter()
@@ -154,7 +152,7 @@ impl ParamSpec {
 
 /// A spec from `(name, unit, reference, initial, lower, upper, scale)`, no grid, no further
 /// starts.
-fn spec(
+pub(crate) fn spec(
     name: &str,
     unit: &'static str,
     reference: f64,
@@ -549,174 +547,6 @@ impl Effect {
 /// one sample's travel at the typical joint speed, below which pre-sliding is not observable.
 pub fn bristle_floor(s: &Scales) -> f64 {
     (s.speed * s.dt).max(1e-7)
-}
-
-impl Candidate {
-    /// Parameters of the candidate for data of typical magnitudes `s`: the effect's own
-    /// parameters, laid out for its site and form.
-    pub fn params(&self, s: &Scales) -> Vec<ParamSpec> {
-        let base = self.effect.params(s);
-        let side = |v: Vec<ParamSpec>| -> Vec<ParamSpec> {
-            // a one-cable site names its parameters after the cable
-            match self.site {
-                Site::Cable(x) | Site::Contact(x) if x != Side::Both => v
-                    .into_iter()
-                    .map(|mut q| {
-                        q.name = format!("{}[{}]", q.name, x.name());
-                        q
-                    })
-                    .collect(),
-                _ => v,
-            }
-        };
-        let p = spec;
-        // a friction level at the motor side (N at the motor)
-        let motor_level = || {
-            p(
-                "F_m",
-                "N",
-                0.0,
-                0.1 * s.force,
-                0.0,
-                100.0 * s.force,
-                s.force,
-            )
-        };
-        match (self.effect, self.site, self.form) {
-            // the bristle forms carry the level(s) only: their break-away displacement is the
-            // resolution floor (one sample's travel), below which no pre-sliding is observable
-            // (fixed: lower = upper, carried with the parameters so that every run replays the
-            // same law)
-            (Effect::CoulombFriction, _, Form::Sticking)
-            | (Effect::StribeckFriction, _, Form::Lugre) => {
-                let th = bristle_floor(s);
-                let n = if self.effect == Effect::CoulombFriction {
-                    1
-                } else {
-                    3
-                };
-                let mut v: Vec<ParamSpec> = base.into_iter().take(n).collect();
-                v.push(p("theta_d", "rad", th, th, th, th, th));
-                v
-            }
-            (Effect::ViscousFriction, _, Form::PowerLaw) => {
-                // the drag at the typical speed w (so that n moves the shape, not the level), n
-                // from shear thinning (0.2) to thickening (3), and w itself as a fixed parameter
-                let w = s.speed.max(1e-9);
-                let sc = 0.1 * s.torque;
-                vec![
-                    p("b_w", "N·m", 0.0, 0.0, 0.0, 100.0 * sc, sc),
-                    p("n", "1", 1.0, 1.0, 0.2, 3.0, 0.3).starts(&[0.5, 2.0]),
-                    p("v_r", "rad/s", w, w, w, w, w),
-                ]
-            }
-            (Effect::CoulombFriction, _, Form::LoadDependent) => {
-                let mut v = base;
-                // μ_L: dry friction per N·m of transmitted torque (arXiv 2410.08650, M3)
-                v.insert(1, p("mu_L", "1", 0.0, 0.02, 0.0, 2.0, 0.05));
-                v
-            }
-            (Effect::DahlHysteresis, Site::Joint, Form::Generalised) => {
-                let mut v = base;
-                v.push(p("n", "1", 1.0, 1.0, 0.3, 4.0, 0.5).starts(&[2.0]));
-                v
-            }
-            (Effect::DahlHysteresis, Site::Contact(_), _) => {
-                // level: the contact's capstan exponent μφ; break-away: cable sliding (m)
-                let st = s.stretch.max(1e-9);
-                let lo = (s.motor_speed * s.dt * 0.1).max(1e-9);
-                side(vec![
-                    p("mu_phi", "1", 0.0, 0.02, 0.0, 3.0, 0.1),
-                    p("x_d", "m", st, st, lo, 0.5 * s.travel.max(10.0 * st), st)
-                        .starts(&[0.1 * st, 10.0 * st]),
-                ])
-            }
-            (Effect::NonlinearStiffness, _, Form::Cubic) => {
-                let st = s.stretch.max(1e-12);
-                vec![p(
-                    "gamma",
-                    "1/m²",
-                    0.0,
-                    0.0,
-                    -0.3 / (st * st),
-                    30.0 / (st * st),
-                    0.3 / (st * st),
-                )]
-            }
-            // motor side: forces in N at the motor, driven by the motor displacement
-            (Effect::CoulombFriction, Site::Motor, _) => {
-                let v = s.motor_speed.max(1e-9);
-                vec![
-                    motor_level(),
-                    p("eps_m", "m/s", 0.0, 0.01 * v, 1e-4 * v, v, 0.01 * v),
-                ]
-            }
-            (Effect::ViscousFriction, Site::Motor, _) => {
-                let b = s.force / s.motor_speed.max(1e-9);
-                vec![p("b_m", "N·s/m", 0.0, 0.0, 0.0, 100.0 * b, b)]
-            }
-            (Effect::DahlHysteresis, Site::Motor, _) => {
-                let st = s.stretch.max(1e-9);
-                let lo = (s.motor_speed * s.dt * 0.1).max(1e-9);
-                vec![
-                    motor_level(),
-                    p("x_d", "m", st, st, lo, 0.5 * s.travel.max(10.0 * st), st)
-                        .starts(&[0.1 * st, 10.0 * st]),
-                ]
-            }
-            (Effect::NonlinearStiffness, _, Form::Scale) => {
-                vec![p("eps_k", "1", 0.0, 0.0, -0.95, 20.0, 0.2).starts(&[-0.6, -0.3, 0.5, 2.0])]
-            }
-            (Effect::SensorLag, _, Form::Resonant) => {
-                // τ = 1/ω_n (swept like the lag constant) and the damping ratio ζ: from a ringing
-                // cell (0.05) to an overdamped amplifier (3); ζ = 1 is the two-pole lag
-                let mut v = base;
-                v.push(p("zeta", "1", 1.0, 0.5, 0.05, 3.0, 0.3).starts(&[0.15, 0.3, 1.0]));
-                v
-            }
-            (Effect::Backlash, Site::Joint, _) => {
-                // the clearance (rad of joint angle), the link's share of the inertia, and the
-                // contact's stiffness as a multiple of the cables' torsional stiffness
-                // a cable stretch in joint angle (the radius is motor speed over joint speed)
-                let radius = s.motor_speed / s.speed.max(1e-12);
-                let th = (s.stretch / radius.max(1e-9)).clamp(1e-6, 0.02);
-                // a clearance of 0 is the nominal rigid hub (the reference), but a vanishing one
-                // still leaves the two-mass contact: the fit stays above it, so no finite
-                // difference straddles the switch
-                vec![
-                    p("delta_j", "rad", 0.0, th, 1e-3 * th, 0.2, th).starts(&[
-                        0.1 * th,
-                        0.3 * th,
-                        3.0 * th,
-                        10.0 * th,
-                    ]),
-                    p("link_share", "1", 0.7, 0.7, 0.05, 0.95, 0.2).starts(&[0.3]),
-                    p("k_ratio", "1", 10.0, 10.0, 0.5, 1e3, 10.0).starts(&[2.0, 100.0]),
-                ]
-            }
-            (Effect::SensorGainBias, Site::Sensor(_), _) => base.into_iter().take(2).collect(),
-            // every force channel with its own converter: each its own clock (period and
-            // phase), as one HX711 per load cell has
-            (Effect::SensorSampling, Site::ForceSensors, _) => (0..s.sensors.max(1))
-                .flat_map(|i| {
-                    base.iter().map(move |q| {
-                        let mut q = q.clone();
-                        q.name = format!("{}[{i}]", q.name);
-                        q
-                    })
-                })
-                .collect(),
-            (
-                Effect::SensorGainBias
-                | Effect::SensorLag
-                | Effect::SensorSampling
-                | Effect::TimeDelay,
-                _,
-                _,
-            ) => base,
-            _ => side(base),
-        }
-    }
 }
 
 #[cfg(test)]

@@ -12,6 +12,7 @@ pub mod augment;
 pub mod effects;
 pub mod fit;
 pub mod lm;
+pub mod nominal;
 pub mod plant;
 pub mod problem;
 pub mod run;

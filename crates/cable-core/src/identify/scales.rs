@@ -6,7 +6,7 @@ use crate::dynamics::{AntagonisticJoint, CableTransmission, Model};
 use crate::integrate::InputHold;
 
 use super::effects::Scales;
-use super::problem::{run_into, servo_into, Plant};
+use super::nominal::{run_into, servo_into, Plant};
 use super::run::{Channel, JointRun};
 use super::signal;
 
