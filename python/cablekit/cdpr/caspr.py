@@ -15,8 +15,12 @@ one rigid platform, so the import takes single-link robots with a ``PLANAR_XY`` 
 * Ideal cables are rigid: their axial stiffness is the import's ``ea`` argument.
 * The layouts CASPR's own example files use: ``<links>`` as the root or inside a
   ``<bodies_system>``, the joint type as ``<joint type="...">`` or ``<joint_type>``, display
-  settings (``<display_range>``) beside the link. Gravity is not read: the import uses
-  cablekit's default (−9.80665 m/s² along the base's −z, −y for a planar robot).
+  settings (``<display_range>``) beside the link.
+* Gravity is CASPR's: its files hold none, and its model applies ``SystemModel.GRAVITY_CONSTANT``
+  = 9.81 m/s² along the base frame's −z to every body (``G_b = R_0kᵀ·[0, 0, −m·g]``). A
+  ``PLANAR_XY`` robot therefore moves in a horizontal plane, with no weight in it — unlike a
+  cablekit planar robot file, whose default gravity is along −y. The imported robot states it
+  (``gravity = [0, 0, −9.81]``); give a cablekit robot file to put a planar robot upright.
 
 Orientation coordinates stay cablekit's (``R = R_z(yaw) R_y(pitch) R_x(roll)``), whatever Euler
 convention the CASPR joint names; the geometry does not depend on it. Anything else (several
@@ -34,6 +38,9 @@ import numpy as np
 from cablekit.errors import DataError
 
 __all__ = ["caspr_document"]
+
+#: CASPR's gravity (``SystemModel.GRAVITY_CONSTANT``, m/s²), along the base frame's −z
+CASPR_GRAVITY = 9.81
 
 
 def _parse(path: str | Path, root_tag: str) -> ET.Element:
@@ -179,6 +186,7 @@ def caspr_document(
     return {
         "name": link.get("name") or Path(bodies).stem,
         "motion": motion,
+        "gravity": [0.0, 0.0, -CASPR_GRAVITY],
         "platform": {"mass": _float(physical, "mass", where), "com": com, "inertia": inertia},
         "cables": out,
     }
