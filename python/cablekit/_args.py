@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import math
 import numbers
+import typing
 from collections.abc import Sequence
 from typing import Any
 
 from cablekit._arrays import float_array
 from cablekit.errors import DTypeError, ParameterError
 
-__all__ = ["choice", "count", "float_array", "real"]
+__all__ = ["SIGNAL_LIMIT", "choice", "count", "float_array", "instance", "real", "signal", "text"]
 
 
 def real(
@@ -69,3 +70,38 @@ def choice(value: Any, name: str, options: Sequence[Any]) -> Any:
     if not ok:
         raise ParameterError(f"{name} must be one of {list(options)}, got {value!r}")
     return value
+
+
+def instance(value: Any, name: str, kind: type | tuple[type, ...], *, optional: bool = False) -> Any:
+    """``value`` if it is a ``kind`` (or ``None`` when ``optional``); a :class:`DTypeError`
+    naming the argument and the type it must be otherwise — never an ``AttributeError`` from
+    deep inside the function."""
+    kinds = kind if isinstance(kind, tuple) else typing.get_args(kind) or (kind,)
+    if (optional and value is None) or isinstance(value, kinds):
+        return value
+    names = " or ".join(getattr(k, "__name__", str(k)) for k in kinds)
+    raise DTypeError(f"{name} must be a {names}{' or None' if optional else ''}, got {type(value).__name__}")
+
+
+def text(value: Any, name: str) -> str:
+    """``value`` if it is a ``str``; a :class:`DTypeError` otherwise."""
+    return str(instance(value, name, str))
+
+
+#: the largest magnitude a physical signal may have: beyond it the arithmetic of a filter or a
+#: norm overflows (a square of 1e155 is inf), and no sensor reports such a number
+SIGNAL_LIMIT = 1e150
+
+
+def signal(value: Any, name: str, ndim: int | tuple[int, ...] | None = None) -> Any:
+    """``value`` as a finite float64 array (:func:`float_array`) whose every sample is within
+    ``±SIGNAL_LIMIT``: NaN/inf are a :class:`ParameterError` naming the argument, as are
+    magnitudes no measurement has."""
+    import numpy as np
+
+    arr = float_array(value, name, ndim)
+    if not np.isfinite(arr).all():
+        raise ParameterError(f"{name} has NaN or inf samples")
+    if arr.size and float(np.abs(arr).max()) > SIGNAL_LIMIT:
+        raise ParameterError(f"{name} has samples beyond ±{SIGNAL_LIMIT:g}: not a physical signal")
+    return arr

@@ -29,9 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
+from cablekit._args import instance, real, signal, text
 from cablekit._cablekit import Mlp
 from cablekit.cdpr import Robot, shipped
-from cablekit.errors import ParameterError
+from cablekit.errors import ParameterError, ShapeError
 
 #: the seed's Tables 1–2: RMSE (N) per cable and mean, EE vs PUL and EE vs NN
 SEED_TABLE1 = {
@@ -73,6 +74,15 @@ class Trajectory:
 
 def path(name: str, points: list[np.ndarray], *, speed: float = 0.1, dt: float = 0.01) -> Trajectory:
     """Through ``points`` at ``speed`` m/s, corners rounded by a 0.25 s moving average."""
+    text(name, "name")
+    instance(points, "points", list | tuple)
+    points = [signal(p, f"points[{k}]", 1) for k, p in enumerate(points)]
+    if len(points) < 2 or any(p.shape != (3,) or not np.isfinite(p).all() for p in points):
+        raise ParameterError("points must be two or more finite positions (x, y, z)")
+    speed = real(speed, "speed", lo=1e-6, hi=1e3)
+    dt = real(dt, "dt", lo=1e-6, hi=1.0)
+    if sum(float(np.linalg.norm(b - a)) for a, b in itertools.pairwise(points)) / speed / dt > 1e7:
+        raise ParameterError("the path is over 1e7 samples at this speed and dt")
     segs = []
     for a, b in itertools.pairwise(points):
         n = max(2, int(np.linalg.norm(b - a) / speed / dt))
@@ -182,6 +192,9 @@ def tensions(
 
 
 def rmse(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    a, b = signal(a, "a"), signal(b, "b")
+    if a.shape != b.shape or a.size == 0:
+        raise ShapeError(f"a and b must be non-empty and of one shape, got {a.shape} and {b.shape}")
     """Per-column RMSE."""
     return np.sqrt(np.mean((a - b) ** 2, axis=0))
 

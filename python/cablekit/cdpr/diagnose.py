@@ -71,6 +71,7 @@ from typing import Any
 import numpy as np
 
 from cablekit import _log
+from cablekit._args import instance, real, signal
 from cablekit._cablekit import PulleyFriction, SignalChain
 from cablekit.cdpr import Robot, Winch
 from cablekit.cdpr.formats import RunFile, load_cdpr_run
@@ -116,8 +117,8 @@ def _sgn(v: np.ndarray, eps: float) -> np.ndarray:
 
 
 def _run_arrays(t: Any, *arrays: Any) -> tuple[np.ndarray, ...]:
-    t = np.asarray(t, float)
-    out = [np.asarray(a, float) for a in arrays]
+    t = signal(t, "t")
+    out = [signal(a, name) for a, name in zip(arrays, ("alpha", "current", "sensor"), strict=False)]
     if (
         t.ndim != 1
         or t.size < 8
@@ -141,6 +142,8 @@ def drum_residual(
     smoothing: float = 0.01,
 ) -> np.ndarray:
     """``T̂_drum − T_PUL`` ``(T, m)`` from drum angles (rad), currents (A) and the sensors (N)."""
+    instance(winch, "winch", Winch)
+    smoothing = real(smoothing, "smoothing", lo=0.0, lo_open=True)
     t, alpha, current, sensor = _run_arrays(t, alpha, current, sensor)
     w = dict(zip(Winch.NAMES, winch.values, strict=True))
     r = w["drum_radius"]

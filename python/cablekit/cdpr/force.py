@@ -33,9 +33,11 @@ from pathlib import Path
 import numpy as np
 
 from cablekit import _log
+from cablekit._args import instance, real, signal
 from cablekit._cablekit import CdprPlant, LoopRun, Mlp, PulleyFriction
 from cablekit.cdpr import Robot, Winch, shipped
 from cablekit.cdpr.compensate import TWIN_FRICTION, first_test_trajectory, training_trajectories
+from cablekit.errors import ShapeError
 
 #: seed 002 Table 3: force RMSE (N) per gain k_p
 SEED_TABLE3 = {0.55: 0.489, 0.60: 0.466, 0.65: 0.465, 0.70: 0.437, 0.75: 0.451, 0.85: 0.479, 0.90: 0.527}
@@ -93,6 +95,14 @@ def excitation(
     """Tension offsets ``(T, m)`` in the null space of ``Aᵀ`` at each pose (internal forces only:
     the wrench stays): white noise low-passed twice over ``correlation`` s (smooth), projected,
     scaled to ``rms`` N."""
+    instance(robot, "robot", Robot)
+    instance(rng, "rng", np.random.Generator)
+    poses = signal(poses, "poses", 2)
+    if poses.shape[1] != robot.dof or poses.shape[0] < 2:
+        raise ShapeError(f"poses must be finite (T, {robot.dof}), got shape {poses.shape}")
+    rms = real(rms, "rms", lo=0.0, hi=1e6)
+    dt = real(dt, "dt", lo=1e-9, hi=1.0)
+    correlation = real(correlation, "correlation", lo=1e-9, hi=1e6)
     t_len, m = poses.shape[0], robot.n_cables
     a = np.exp(-dt / correlation)
     white = rng.normal(size=(t_len, m)) * np.sqrt(1 - a * a)

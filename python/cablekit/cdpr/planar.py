@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from cablekit._args import float_array, real
+from cablekit._args import float_array, instance, real
 from cablekit._cablekit import CdprPlant, LoopRun
 from cablekit.cdpr import Robot, Winch, shipped
 from cablekit.errors import ParameterError
@@ -39,8 +39,10 @@ def planar_plant(
 ) -> CdprPlant:
     """The shipped ``seed003_planar`` robot (or ``robot``) resting at ``home`` under seed 003's
     winches."""
-    robot = robot or shipped("seed003_planar")
-    return CdprPlant(robot, np.asarray(HOME if home is None else home, float), winch or Winch.seed003())
+    robot = instance(robot, "robot", Robot, optional=True) or shipped("seed003_planar")
+    home = float_array(HOME if home is None else home, "home", 1)
+    winch = instance(winch, "winch", Winch, optional=True) or Winch.seed003()
+    return CdprPlant(robot, home, winch)
 
 
 @dataclass(frozen=True)
@@ -96,7 +98,7 @@ def step_response(
 ) -> StepResponse:
     """Step the reference pose by ``size`` along ``axis`` at 0.2 s, PID only (no feed-forward, no
     tension distribution in the reference: the desired tensions are recorded for comparison)."""
-    plant = plant or planar_plant()
+    plant = instance(plant, "plant", CdprPlant, optional=True) or planar_plant()
     if isinstance(axis, bool) or not isinstance(axis, int | np.integer) or axis not in (0, 1, 2):
         raise ParameterError(f"axis must be 0 (x), 1 (y) or 2 (θ), got {axis!r}")
     size = real(size, "size")

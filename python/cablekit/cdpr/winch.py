@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from cablekit._args import count, float_array, instance, real, text
 from cablekit._cablekit import Winch, WinchDrive
+from cablekit.errors import ParameterError
 from cablekit.simulation import simulate
 
 #: seed 003 Table 5 as printed: per column, zeros then poles (complex)
@@ -40,6 +42,8 @@ KP_SEED = 6.0
 
 def with_modulus(w: Winch, youngs_modulus: float) -> Winch:
     """The same winch with both cables' stiffness scaled to another Young's modulus."""
+    instance(w, "w", Winch)
+    youngs_modulus = real(youngs_modulus, "youngs_modulus", lo=0.0, lo_open=True, hi=1e15)
     v = w.values.copy()
     names = list(Winch.NAMES)
     for k in ("stiffness_a", "stiffness_b"):
@@ -74,7 +78,7 @@ def _complex(a: np.ndarray) -> np.ndarray:
 
 def table5(w: Winch | None = None) -> list[Column]:
     """The six columns of seed 003 Table 5 recomputed."""
-    w = w or Winch.seed003()
+    w = instance(w, "w", Winch, optional=True) or Winch.seed003()
     cols = []
     for (setup, lpf, e_gpa), (sz, sp) in SEED_TABLE5.items():
         we = with_modulus(w, e_gpa * 1e9)
@@ -125,7 +129,7 @@ def table5_markdown(cols: list[Column]) -> str:
 
 def inconsistencies(w: Winch | None = None) -> list[str]:
     """Where seed 003's printed values disagree with its own equations, with the arithmetic."""
-    w = w or Winch.seed003()
+    w = instance(w, "w", Winch, optional=True) or Winch.seed003()
     v = dict(zip(Winch.NAMES, w.values, strict=True))
     j_l, b_l = w.load
     ea_l = 48.9e9 * 1.89e-6 / 6.0
@@ -171,7 +175,7 @@ def plot_root_locus(path: str | Path, w: Winch | None = None) -> Path | None:
     plt = pyplot_or_none()
     if plt is None:
         return None
-    w = w or Winch.seed003()
+    w = instance(w, "w", Winch, optional=True) or Winch.seed003()
     kps = list(np.geomspace(0.01, 100.0, 400))
     fig, axes = plt.subplots(2, 3, figsize=(13, 8))
     for ax, (setup, lpf, e_gpa) in zip(axes.ravel(), SEED_TABLE5, strict=True):
@@ -299,7 +303,9 @@ class Linearised:
 def linearise(w: Winch | None = None, setup: str = "fixed", *, lpf: bool = True) -> Linearised:
     """The winch's open-loop transfer function about its working point (seed 003 eqs 26–27);
     the core's (``Winch.open_loop``, ``Winch.zeros_and_poles``)."""
-    w = w or Winch.seed003()
+    w = instance(w, "w", Winch, optional=True) or Winch.seed003()
+    instance(setup, "setup", str)
+    instance(lpf, "lpf", bool)
     num, den = w.open_loop(setup, lpf)
     z, p = w.zeros_and_poles(setup, lpf)
     return Linearised(setup, lpf, np.asarray(num), np.asarray(den), _complex(z), _complex(p))
@@ -310,8 +316,10 @@ def root_locus(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(kps, poles)``: the closed-loop poles ``(K, n)`` (complex) at each gain ``K_p`` (A/rad;
     default 200 gains from 0.01 to 100, log-spaced)."""
-    w = w or Winch.seed003()
-    gains = np.geomspace(0.01, 100.0, 200) if kps is None else np.asarray(kps, float)
+    w = instance(w, "w", Winch, optional=True) or Winch.seed003()
+    instance(setup, "setup", str)
+    instance(lpf, "lpf", bool)
+    gains = np.geomspace(0.01, 100.0, 200) if kps is None else float_array(kps, "kps", 1)
     poles = np.asarray(w.root_locus(setup, lpf, [float(k) for k in gains]))
     return gains, poles[..., 0] + 1j * poles[..., 1]
 
@@ -321,6 +329,7 @@ def linearised_poles(drive: WinchDrive) -> np.ndarray:
     (the eigenvalues of ``∂f/∂x`` at rest; for Setup 1 these are eq. 26 closed by the PID, a
     tested identity; for Setup 2 they are the physical setup's, not eq. 27's lumped one),
     sorted by modulus. Without the LPF the unused filter state adds one pole at 0, left out."""
+    instance(drive, "drive", WinchDrive)
     d = _without_static_friction(drive)
     ev = np.linalg.eigvals(d.jacobian(np.zeros(d.n_states), np.zeros(d.n_inputs)))
     if not drive.lpf:
@@ -338,6 +347,16 @@ def step_response(
     label: str = "",
 ) -> StepResponse:
     """Simulate a reference step of ``step`` rad for ``duration`` s (RK4, ``substeps`` per ``dt``)."""
+    instance(drive, "drive", WinchDrive)
+    step = real(step, "step", lo=-1e3, hi=1e3)
+    if step == 0.0:
+        raise ParameterError("step must be a non-zero reference step")
+    duration = real(duration, "duration", lo=0.0, lo_open=True, hi=1e4)
+    dt = real(dt, "dt", lo=1e-7, hi=1.0)
+    substeps = count(substeps, "substeps", lo=1, hi=100_000)
+    text(label, "label")
+    if duration / dt > 1e7:
+        raise ParameterError(f"duration / dt must be at most 1e7 samples, got {duration / dt:.3g}")
     n = round(duration / dt) + 1
     inputs = np.zeros((n, 2))
     inputs[1:, 0] = step
@@ -357,7 +376,7 @@ def step_response(
         settle = float(t[outside[-1] + 1])
     poles = linearised_poles(drive)
     pair = [p for p in poles if p.imag > 1e-9]
-    real = [p for p in poles if abs(p.imag) <= 1e-9 and p.real < 0]
+    damped = [p for p in poles if abs(p.imag) <= 1e-9 and p.real < 0]
     return StepResponse(
         label=label,
         step=step,
@@ -374,7 +393,7 @@ def step_response(
         peak_tension=float(run["tension_a"].max()),
         final_error=float(alpha[-1] - step),
         linear_peak_time=float(np.pi / pair[0].imag) if pair else None,
-        linear_slowest=float(-1.0 / max(p.real for p in real)) if real else None,
+        linear_slowest=float(-1.0 / max(p.real for p in damped)) if damped else None,
     )
 
 
@@ -382,7 +401,7 @@ def step_cases(w: Winch | None = None) -> list[tuple[str, WinchDrive, float]]:
     """The steps of :func:`step_table`: the linear model's assumptions first (no static
     friction), then the seed's friction, the LPF left out, Setup 2 as built (the antagonist's
     drum following) and a step of a whole radian with the antagonist fixed."""
-    w = w or Winch.seed003()
+    w = instance(w, "w", Winch, optional=True) or Winch.seed003()
     frictionless = _frictionless(w)
     return [
         ("Setup 1, LPF, no static friction", WinchDrive(frictionless, setup="fixed"), 0.2),

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from cablekit._args import instance
 from cablekit._cablekit import (
     ClampRun,
     ClampStep,
@@ -70,6 +71,7 @@ __all__ = [
 def free_motion_tensions(model: Mlp, motors: np.ndarray) -> np.ndarray:
     """The free-motion tensions ``F̂_E`` ``(T, 4)`` a network predicts from the motor motion
     ``motors`` ``(T, 4)`` (``[x_a, v_a, x_b, v_b]``, m and m/s)."""
+    instance(model, "model", Mlp)
     if model.n_inputs != 4 or model.n_outputs != 4:
         raise ShapeError(
             f"a free-motion model maps 4 motor signals to 4 tensions; this one maps "

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from cablekit._args import text
 from cablekit._files import check_counts
 from cablekit.errors import DataError
 
@@ -128,6 +129,7 @@ class RawRun:
 def condition(name: str) -> tuple[int | None, int | None]:
     """The frequency and load indices of a run named ``FL`` (or ``ZFL`` with a wrist stop ``Z``);
     ``None`` for what the name does not give."""
+    text(name, "name")
     m = re.fullmatch(r"\d?(\d)(\d)", name)
     if m is None:
         return None, None

@@ -31,6 +31,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from cablekit._args import count, instance
 from cablekit._cablekit import ClampRun, Jtdo, Mlp, PhysicsObserver, Twin, TwinRun
 from cablekit.diagnose.progress import Progress
 from cablekit.forceps.twin import TRANSFER_VARIATIONS, Variation, another_instrument
@@ -115,6 +116,8 @@ def metrics(run: TwinRun, est: ClampRun, threshold: float = SEED_THRESHOLD) -> M
 
 def with_seed(twin: Twin, seed: int) -> Twin:
     """The same bench with another noise realisation."""
+    instance(twin, "twin", Twin)
+    seed = count(seed, "seed", hi=2**63 - 1)
     tn, pn, _, dt, sub = twin.bench
     return Twin(twin.a, twin.b, tension_noise=tn, pressure_noise=pn, seed=seed, sample_time=dt, substeps=sub)
 
@@ -143,6 +146,7 @@ def _geometry(twin: Twin) -> dict[str, float]:
 def neutral_physics(twin: Twin) -> PhysicsObserver:
     """A physics estimator with the core's neutral start (``Losses::START``) for ``twin``'s
     lever geometry."""
+    instance(twin, "twin", Twin)
     return PhysicsObserver(**_geometry(twin))
 
 

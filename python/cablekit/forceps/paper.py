@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from cablekit._args import count, instance, real, signal
 from cablekit.errors import CablekitError, DataError, ParameterError
 from cablekit.forceps.davinci import PUBLISHED_RMSE, BenchRun, Estimator, Physics, _skip, score
 
@@ -65,7 +66,9 @@ def lowpass_zero_phase(x: F64, dt: float, hz: float = FILTER_HZ, order: int = FI
     """``x`` (1-D or ``(T, k)`` columns) through a Butterworth low-pass of ``order`` and 3 dB
     frequency ``hz``, forwards and backwards: the gain ``1 / (1 + (tan(ω/2) / tan(ω_c/2))^{2N})``
     at every frequency, no phase."""
-    x = np.asarray(x, dtype=np.float64)
+    x = signal(x, "x")
+    # a cut-off below 1e-9 of the sample rate is no filter (its period exceeds any run)
+    dt, hz = real(dt, "dt", lo=1e-9, hi=1e3), real(hz, "hz", lo=1e-9 / dt)
     if x.ndim not in (1, 2) or x.shape[0] < 2:
         raise DataError(f"lowpass_zero_phase needs a 1-D or 2-D array of at least 2 rows, got {x.shape}")
     if not np.isfinite(x).all():
@@ -90,7 +93,8 @@ def lowpass_zero_phase(x: F64, dt: float, hz: float = FILTER_HZ, order: int = FI
 def holoborodko(x: F64, dt: float) -> F64:
     """Derivative of ``x`` by the 11-point smooth noise-robust differentiator (Holoborodko), ends
     mirrored about the first and last sample as ``filteredDerivative.m`` does."""
-    x = np.asarray(x, dtype=np.float64)
+    x = signal(x, "x")
+    dt = real(dt, "dt", lo=1e-9, hi=1e3)
     s = 5
     if x.ndim != 1 or x.size < s + 2:
         raise DataError(f"holoborodko needs a 1-D array of at least {s + 2} samples, got {x.shape}")
@@ -132,6 +136,11 @@ def closing_mask(run: BenchRun, velocity: F64 | None = None) -> NDArray[np.bool_
 def paper_split(masks: Sequence[NDArray[np.bool_]], seed: int = 0) -> list[NDArray[np.int8]]:
     """dividerand over the concatenated kept samples: per run, ``0`` not kept, ``1`` train,
     ``2`` validation, ``3`` test."""
+    instance(masks, "masks", list | tuple)
+    masks = [instance(m, f"masks[{k}]", np.ndarray) for k, m in enumerate(masks)]
+    if any(m.dtype != np.bool_ or m.ndim != 1 for m in masks):
+        raise DataError("masks must be 1-D boolean arrays, one per run")
+    seed = count(seed, "seed", hi=2**63 - 1)
     sizes = [int(m.sum()) for m in masks]
     total = sum(sizes)
     if total < 20:

@@ -18,6 +18,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from cablekit._args import instance, text
 from cablekit.errors import DataError
 
 __all__ = ["Posture", "folder_posture", "parse_posture", "posture_from_text", "run_posture"]
@@ -156,5 +157,7 @@ def folder_posture(folder: str | Path) -> Posture:
 def run_posture(folder_posture: Posture, stem: str) -> Posture:
     """The posture of the run named ``stem`` in a folder of ``folder_posture``: a ``ZXY`` name
     adds the jaw stopping position ``Z``."""
+    instance(folder_posture, "folder_posture", Posture)
+    text(stem, "stem")
     yaw = int(stem[0]) if len(stem) == 3 and stem.isascii() and stem.isdigit() else None
     return folder_posture.with_yaw(yaw)

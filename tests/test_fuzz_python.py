@@ -1,0 +1,290 @@
+"""Property tests over the public Python functions of ``cablekit.cdpr`` and ``cablekit.forceps``
+(issue #38): a valid call with one argument replaced by a drawn bad value — NaN, ±inf, ±1e308,
+an empty, huge or wrongly shaped array, another dtype, another Python type.
+
+The contract, as for the bindings (``test_fuzz_bindings.py``), but stricter on types: a Python
+function checks its arguments itself, so a wrong type is cablekit's own typed error too, never a
+bare ``TypeError``/``AttributeError`` from deep inside. Every draw either raises a
+:class:`cablekit.CablekitError`, or returns, and then every number it returns is finite whenever
+every number it was given is finite.
+
+File readers are fuzzed byte by byte in ``test_fuzz_loaders.py``; renderers of a result object
+(markdown tables, plots, reports) and the whole studies are listed in ``NOT_IN_TABLE`` with the
+reason; ``test_every_public_function_is_in_the_table`` keeps the two lists complete.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import inspect
+import pkgutil
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import cablekit as ck
+import cablekit.cdpr
+import cablekit.forceps
+from tests.test_fuzz_bindings import Call, _finite_numbers, mutated
+
+
+@functools.cache
+def _planar() -> Any:
+    from cablekit.cdpr import shipped
+
+    return shipped("seed003_planar")
+
+
+@functools.cache
+def _plant() -> Any:
+    from cablekit.cdpr.planar import planar_plant
+
+    return planar_plant()
+
+
+@functools.cache
+def _twin() -> Any:
+    from cablekit.forceps import load_twin
+
+    return load_twin()
+
+
+@functools.cache
+def _drive() -> Any:
+    from cablekit.cdpr.winch import step_cases
+
+    return step_cases()[0][1]
+
+
+@functools.cache
+def _drum_run() -> tuple[Any, ...]:
+    from cablekit.cdpr.diagnose import twin_run
+
+    run = twin_run(None, 0, seed=0)
+    k = slice(0, 400)
+    return (
+        run.winch,
+        np.ascontiguousarray(run.t[k]),
+        np.ascontiguousarray(run.alpha[k]),
+        np.ascontiguousarray(run.current[k]),
+        np.ascontiguousarray(run.sensor[k]),
+    )
+
+
+def _mlp_4_4() -> ck.Mlp:
+    from cablekit.nn import MapMinMax
+    from cablekit.nn.export import FORMAT, FORMAT_VERSION, network_arrays, safetensors_bytes
+
+    rng = np.random.default_rng(0)
+    arrays = network_arrays(
+        [rng.normal(size=(3, 4)), rng.normal(size=(4, 3))],
+        [np.zeros(3), np.zeros(4)],
+        MapMinMax(-np.ones(4), np.ones(4)),
+        MapMinMax(np.zeros(4), np.ones(4)),
+    )
+    md = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "architecture": '{"sizes": [4, 3, 4], "activations": ["tansig", "purelin"]}',
+        "normalization": "mapminmax",
+    }
+    return ck.Mlp.from_bytes(safetensors_bytes(arrays, md))
+
+
+def _home() -> np.ndarray:
+    return np.asarray(_plant().home)
+
+
+def _x() -> np.ndarray:
+    return np.sin(np.linspace(0.0, 6.0, 300))
+
+
+def _factories() -> dict[str, Any]:
+    """Each public function's valid call, built on first use (some simulate a run)."""
+    from cablekit.cdpr import Winch, compensate, force, planar, sensors, winch
+    from cablekit.cdpr import diagnose as cdiag
+
+    ws = importlib.import_module("cablekit.cdpr.workspace")
+    from cablekit.forceps import bench, experiments, paper, posture, twin
+
+    seed003 = Winch.seed003
+    return {
+        "cablekit.cdpr.shipped": lambda: Call(cablekit.cdpr.shipped, ("seed003_planar",)),
+        "cablekit.cdpr.shipped_names": lambda: Call(cablekit.cdpr.shipped_names),
+        "cablekit.cdpr.compensate.path": lambda: Call(
+            compensate.path, ("p", [np.zeros(3), np.array([0.05, 0.02, 0.0])]), {"speed": 0.1, "dt": 0.01}
+        ),
+        "cablekit.cdpr.compensate.rmse": lambda: Call(compensate.rmse, (np.ones((6, 2)), np.zeros((6, 2)))),
+        "cablekit.cdpr.diagnose.drum_residual": lambda: Call(cdiag.drum_residual, _drum_run()),
+        "cablekit.cdpr.force.excitation": lambda: Call(
+            force.excitation,
+            (
+                force.plant_robot(),
+                np.tile(np.asarray(force.mini_plant().home), (50, 1)),
+                np.random.default_rng(0),
+            ),
+            {"rms": 2.0, "dt": 1e-3, "correlation": 0.5},
+        ),
+        "cablekit.cdpr.force.plant_robot": lambda: Call(force.plant_robot),
+        "cablekit.cdpr.planar.circle": lambda: Call(
+            planar.circle, (_home(),), {"radius": 0.1, "period": 0.5, "turns": 1.0, "dt": 0.01}
+        ),
+        "cablekit.cdpr.planar.planar_plant": lambda: Call(planar.planar_plant, (_planar(),)),
+        "cablekit.cdpr.planar.step_response": lambda: Call(
+            planar.step_response, (_plant(),), {"axis": 0, "size": 0.02, "t_end": 0.3, "dt": 1e-3}
+        ),
+        "cablekit.cdpr.sensors.calibrate": lambda: Call(
+            sensors.calibrate, ("cell", 1.0, 0.0), {"capstan": 0.0, "noise": 0.0, "readings_per_mass": 2}
+        ),
+        "cablekit.cdpr.sensors.current_sweep": lambda: Call(
+            sensors.current_sweep, (0.5,), {"hold": 0.1, "ramp": 0.05}
+        ),
+        "cablekit.cdpr.winch.inconsistencies": lambda: Call(winch.inconsistencies, (seed003(),)),
+        "cablekit.cdpr.winch.linearise": lambda: Call(winch.linearise, (seed003(), "fixed")),
+        "cablekit.cdpr.winch.linearised_poles": lambda: Call(winch.linearised_poles, (_drive(),)),
+        "cablekit.cdpr.winch.root_locus": lambda: Call(
+            winch.root_locus, (seed003(), "fixed"), {"kps": np.array([0.5, 1.0, 2.0])}
+        ),
+        "cablekit.cdpr.winch.step_response": lambda: Call(
+            winch.step_response, (_drive(), 0.2), {"duration": 0.1, "dt": 1e-3, "substeps": 4}
+        ),
+        "cablekit.cdpr.winch.table5": lambda: Call(winch.table5, (seed003(),)),
+        "cablekit.cdpr.winch.with_modulus": lambda: Call(winch.with_modulus, (seed003(), 1e9)),
+        "cablekit.cdpr.workspace.workspace": lambda: Call(ws.workspace, (_planar(),), {"counts": 4}),
+        "cablekit.forceps.free_motion_tensions": lambda: Call(
+            cablekit.forceps.free_motion_tensions, (_mlp_4_4(), 0.1 * np.ones((20, 4)))
+        ),
+        "cablekit.forceps.bench.condition": lambda: Call(bench.condition, ("31",)),
+        "cablekit.forceps.experiments.neutral_physics": lambda: Call(experiments.neutral_physics, (_twin(),)),
+        "cablekit.forceps.experiments.with_seed": lambda: Call(experiments.with_seed, (_twin(), 3)),
+        "cablekit.forceps.paper.holoborodko": lambda: Call(paper.holoborodko, (_x(), 1e-3)),
+        "cablekit.forceps.paper.lowpass_zero_phase": lambda: Call(
+            paper.lowpass_zero_phase, (_x(), 1e-3), {"hz": 50.0, "order": 3}
+        ),
+        "cablekit.forceps.paper.paper_split": lambda: Call(
+            paper.paper_split, ([np.arange(300) % 7 == 0],), {"seed": 0}
+        ),
+        "cablekit.forceps.posture.parse_posture": lambda: Call(posture.parse_posture, ("pitch=30,roll=-45",)),
+        "cablekit.forceps.posture.posture_from_text": lambda: Call(
+            posture.posture_from_text, ("This is a pitch of +60 degrees", "README")
+        ),
+        "cablekit.forceps.posture.run_posture": lambda: Call(
+            posture.run_posture, (posture.parse_posture("pitch=30"), "310")
+        ),
+        "cablekit.forceps.twin.twin_from_toml": lambda: Call(
+            twin.twin_from_toml, (twin.SEED_FILE.read_text(),)
+        ),
+    }
+
+
+#: public functions not drawn here, and why
+NOT_IN_TABLE = {
+    # file readers: fuzzed byte by byte in test_fuzz_loaders.py (or read a folder of them)
+    "cablekit.cdpr.caspr.caspr_document": "two XML files; tests/test_caspr.py feeds it broken files",
+    "cablekit.cdpr.formats.load_cdpr_run": "a run file: test_fuzz_loaders.py",
+    "cablekit.cdpr.formats.read_trajectory": "a run file: test_fuzz_loaders.py",
+    "cablekit.cdpr.diagnose.diagnose_file": "a run file, then diagnose",
+    "cablekit.cdpr.diagnose.diagnose_runs": "run files, then diagnose",
+    "cablekit.forceps.bench.read_raw": "a bench file: test_fuzz_loaders.py",
+    "cablekit.forceps.davinci.bench_folder": "a folder",
+    "cablekit.forceps.davinci.read_bench_file": "a bench file: test_fuzz_loaders.py",
+    "cablekit.forceps.davinci.read_bench_folder": "a folder of bench files",
+    "cablekit.forceps.posture.folder_posture": "a folder's README: test_fuzz_loaders.py",
+    "cablekit.forceps.twin.load_twin": "a twin file: test_fuzz_loaders.py",
+    "cablekit.forceps.protocols.protocols_present": "a folder tree",
+    # renderers of a result object the library made (their input is never the user's numbers)
+    **{
+        f"cablekit.{name}": "renders a result object"
+        for name in (
+            "cdpr.compensate.plot_cable cdpr.compensate.report cdpr.compensate.table_markdown "
+            "cdpr.diagnose.markdown cdpr.diagnose.plot cdpr.diagnose.report cdpr.force.markdown "
+            "cdpr.force.plot cdpr.planar.markdown cdpr.planar.plot cdpr.planar.report "
+            "cdpr.sensors.calibration_table cdpr.sensors.fig18_table cdpr.sensors.plot_fig18 "
+            "cdpr.winch.plot_root_locus cdpr.winch.plot_steps cdpr.winch.report "
+            "cdpr.winch.step_markdown cdpr.winch.table5_markdown cdpr.workspace.plot_workspace "
+            "forceps.experiments.as_dict forceps.experiments.seed_table "
+            "forceps.experiments.transfer_table forceps.protocols.cv_markdown "
+            "forceps.protocols.markdown "
+        ).split()
+    },
+    # whole studies and the seed's fixed cases (minutes each; their goals are asserted in their own tests)
+    **{
+        f"cablekit.{name}": "a whole study or the seed's fixed cases: asserted in its own test"
+        for name in (
+            "cdpr.compensate.compensate cdpr.compensate.first_test_trajectory "
+            "cdpr.compensate.second_test_trajectory cdpr.compensate.training_trajectories "
+            "cdpr.compensate.statics cdpr.compensate.tensions cdpr.diagnose.diagnose "
+            "cdpr.diagnose.length_residual cdpr.diagnose.rest_from_first_sample "
+            "cdpr.diagnose.self_test cdpr.diagnose.twin_run cdpr.force.force_control "
+            "cdpr.force.mini_plant cdpr.force.plant_network cdpr.planar.trajectory_response "
+            "cdpr.sensors.fig18 cdpr.sensors.seed_calibrations cdpr.winch.step_cases "
+            "cdpr.winch.step_table forceps.calibrate.calibrate forceps.davinci.estimator_fitters "
+            "forceps.davinci.leave_one_out forceps.davinci.new_instrument forceps.davinci.score "
+            "forceps.experiments.metrics forceps.experiments.pooled_rmse "
+            "forceps.experiments.seed_experiments forceps.experiments.set_up "
+            "forceps.experiments.train_free_motion_network forceps.experiments.transfer_study "
+            "forceps.paper.closing_mask forceps.paper.paper_protocol forceps.paper.strict_folds "
+            "forceps.protocols.calibration_cv forceps.protocols.calibration_runs "
+            "forceps.protocols.protocols forceps.protocols.transfer forceps.twin.another_instrument "
+        ).split()
+    },
+}  # fmt: skip
+
+
+def _public_functions() -> set[str]:
+    names = set()
+    for pkg in (cablekit.cdpr, cablekit.forceps):
+        mods = [pkg.__name__] + [f"{pkg.__name__}.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)]
+        for m in mods:
+            mod = importlib.import_module(m)
+            for n in getattr(mod, "__all__", None) or [n for n in dir(mod) if not n.startswith("_")]:
+                f = getattr(mod, n, None)
+                if inspect.isfunction(f) and f.__module__ == m:
+                    names.add(f"{m}.{n}")
+    return names
+
+
+@functools.cache
+def _call(name: str) -> Call:
+    return _factories()[name]()
+
+
+def test_every_public_function_is_in_the_table():
+    """A new public function of cablekit.cdpr or cablekit.forceps joins the table (or
+    ``NOT_IN_TABLE`` with a reason)."""
+    public = _public_functions()
+    missing = sorted(public - set(NAMES) - set(NOT_IN_TABLE))
+    assert not missing, f"public functions without property draws: {missing}"
+    gone = sorted((set(NAMES) | set(NOT_IN_TABLE)) - public)
+    assert not gone, f"listed but no longer public: {gone}"
+
+
+NAMES = sorted(_factories())
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_valid_call_works_and_is_finite(name):
+    call = _call(name)
+    assert _finite_numbers(call.fn(*call.args, **(call.kwargs or {})))
+
+
+@pytest.mark.parametrize("name", NAMES)
+@settings(
+    max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large]
+)
+@given(data=st.data())
+def test_a_bad_argument_is_a_typed_error_or_a_finite_result(name, data):
+    call = _call(name)
+    if not [a for a in call.args if not isinstance(a, ck.Model)] and not call.kwargs:
+        return  # nothing to draw (a model argument is the bindings' suite's)
+    args, kwargs, finite, _ = data.draw(mutated(call))
+    try:
+        result = call.fn(*args, **kwargs)
+    except ck.CablekitError:
+        return
+    if finite:
+        assert _finite_numbers(result), f"{name}{args, kwargs} returned non-finite numbers"
