@@ -52,21 +52,22 @@ def _srukf() -> ck.SrUkf:
     return ck.SrUkf(R1, np.zeros(4), np.eye(4), 1e-6 * np.eye(4), np.eye(2), dt=1e-3, states=[0, 2])
 
 
-def _mlp() -> ck.Mlp:
+def _mlp(n_in: int = 2, hidden: int = 4, n_out: int = 1) -> ck.Mlp:
+    """A small random tansig-purelin network, ``n_in``-``hidden``-``n_out``, from bytes."""
     from cablekit.nn import MapMinMax
     from cablekit.nn.export import FORMAT, FORMAT_VERSION, network_arrays, safetensors_bytes
 
     rng = np.random.default_rng(0)
     arrays = network_arrays(
-        [rng.normal(size=(4, 2)), rng.normal(size=(1, 4))],
-        [np.zeros(4), np.zeros(1)],
-        MapMinMax(-np.ones(2), np.ones(2)),
-        MapMinMax(np.zeros(1), np.ones(1)),
+        [rng.normal(size=(hidden, n_in)), rng.normal(size=(n_out, hidden))],
+        [np.zeros(hidden), np.zeros(n_out)],
+        MapMinMax(-np.ones(n_in), np.ones(n_in)),
+        MapMinMax(np.zeros(n_out), np.ones(n_out)),
     )
     md = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
-        "architecture": '{"sizes": [2, 4, 1], "activations": ["tansig", "purelin"]}',
+        "architecture": f'{{"sizes": [{n_in}, {hidden}, {n_out}], "activations": ["tansig", "purelin"]}}',
         "normalization": "mapminmax",
     }
     return ck.Mlp.from_bytes(safetensors_bytes(arrays, md))

@@ -29,7 +29,7 @@ from hypothesis import strategies as st
 import cablekit as ck
 import cablekit.cdpr
 import cablekit.forceps
-from tests.test_fuzz_bindings import Call, _finite_numbers, mutated
+from tests.test_fuzz_bindings import Call, _finite_numbers, _mlp, mutated
 
 
 @functools.cache
@@ -76,23 +76,7 @@ def _drum_run() -> tuple[Any, ...]:
 
 
 def _mlp_4_4() -> ck.Mlp:
-    from cablekit.nn import MapMinMax
-    from cablekit.nn.export import FORMAT, FORMAT_VERSION, network_arrays, safetensors_bytes
-
-    rng = np.random.default_rng(0)
-    arrays = network_arrays(
-        [rng.normal(size=(3, 4)), rng.normal(size=(4, 3))],
-        [np.zeros(3), np.zeros(4)],
-        MapMinMax(-np.ones(4), np.ones(4)),
-        MapMinMax(np.zeros(4), np.ones(4)),
-    )
-    md = {
-        "format": FORMAT,
-        "format_version": FORMAT_VERSION,
-        "architecture": '{"sizes": [4, 3, 4], "activations": ["tansig", "purelin"]}',
-        "normalization": "mapminmax",
-    }
-    return ck.Mlp.from_bytes(safetensors_bytes(arrays, md))
+    return _mlp(4, 3, 4)
 
 
 def _home() -> np.ndarray:

@@ -12,6 +12,7 @@ import numpy as np
 from cablekit.cdpr import Robot, Winch, shipped, shipped_names
 from cablekit.cdpr.formats import read_trajectory
 from cablekit.cdpr.workspace import DEFAULT_COUNTS, Requirement, plot_workspace, workspace
+from cablekit.cli._options import outputs
 from cablekit.errors import DataError
 
 if TYPE_CHECKING:
@@ -330,18 +331,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="a winch under PID (motor, gearbox, drum, elastic cable): its linearised poles and root "
         "locus (seed 003 Table 5), the nonlinear model stepped, the load-cell pulleys and their calibration",
     )
-    wn.add_argument("--out", default="out/winch", help="output folder")
-    wn.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
-    wn.add_argument("--quiet", action="store_true", help="no table on stdout")
+    outputs(wn, "out/winch")
     wn.set_defaults(func=_winch)
     pl = cs.add_parser(
         "planar",
         help="a planar 4-cable robot with PID winches in closed loop (seed 003): pose steps and a "
         "circle, the tension distribution in the loop",
     )
-    pl.add_argument("--out", default="out/planar", help="output folder")
-    pl.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
-    pl.add_argument("--quiet", action="store_true", help="no table on stdout")
+    outputs(pl, "out/planar")
     pl.set_defaults(func=_planar)
     dg = cs.add_parser(
         "diagnose",
@@ -381,10 +378,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "reads against the platform's, a network that compensates it (seed 002 Tables 1-2), a force loop "
         "on its estimate (Tables 3-4)",
     )
-    cp.add_argument("--out", default="out/compensate", help="output folder")
+    outputs(cp, "out/compensate")
     cp.add_argument("--hidden", type=int, default=20, help="hidden neurons")
     cp.add_argument("--epochs", type=int, default=300, help="Bayesian-regularisation epochs")
     cp.add_argument("--seed", type=int, default=0, help="noise, test points and training seed")
-    cp.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
-    cp.add_argument("--quiet", action="store_true", help="no table or progress on stdout")
+
     cp.set_defaults(func=_compensate)

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from cablekit.cli._options import outputs
 from cablekit.forceps.experiments import (
     ESTIMATORS,
     GOAL_RMSE,
@@ -385,9 +386,7 @@ def add_parser(sub: Any) -> None:
         "(±30 %% cable stiffness, pretension, friction). Needs the train extra (torch).",
     )
     e.add_argument("--twin", help="twin TOML file (default: the shipped bench of seed 000)")
-    e.add_argument("--out", default="out/forceps", help="output folder")
-    e.add_argument("--no-plots", action="store_true", help="no PNGs (no matplotlib needed)")
-    e.add_argument("--quiet", action="store_true", help="no progress bars, no table on stdout")
+    outputs(e, "out/forceps")
     e.set_defaults(func=_experiments)
     d = fs.add_parser(
         "davinci",
@@ -435,9 +434,7 @@ def add_parser(sub: Any) -> None:
         help="the earlier flag for --calibration 'offset + friction' (the offsets and the friction's scale)",
     )
     d.add_argument("--no-networks", action="store_true", help="skip the network estimators (no torch needed)")
-    d.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
-    d.add_argument("--out", default="out/forceps-davinci", help="output folder")
-    d.add_argument("--quiet", action="store_true", help="no progress bar, no table on stdout")
+    outputs(d, "out/forceps-davinci")
     d.set_defaults(func=_davinci)
     q = fs.add_parser(
         "protocols",
@@ -462,6 +459,5 @@ def add_parser(sub: Any) -> None:
     )
     q.add_argument("--seed", type=int, default=0, help="seed of the paper protocol's random split")
     q.add_argument("--no-networks", action="store_true", help="skip the network estimators (no torch needed)")
-    q.add_argument("--out", default="out/forceps-protocols", help="output folder")
-    q.add_argument("--quiet", action="store_true", help="no progress bar, no table on stdout")
+    outputs(q, "out/forceps-protocols", plots=False)
     q.set_defaults(func=_protocols)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cablekit.cli._options import outputs
 from cablekit.nn.datasets import Dataset, cdpr_pulley_friction, davinci_jaw_torque, forceps_free_motion
 
 #: where CI keeps the real bench data (never copied into the project)
@@ -165,6 +166,5 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     )
     c.add_argument("--davinci-dir", default=DAVINCI_DIR, help="folder of the da Vinci bench data")
     c.add_argument("--seeds", type=int, default=5, help="number of seeds (>= 5 for the table)")
-    c.add_argument("--out", default="out/nn", help="output folder")
-    c.add_argument("--quiet", action="store_true", help="no progress or table on stdout")
+    outputs(c, "out/nn", plots=False)
     c.set_defaults(func=compare)
