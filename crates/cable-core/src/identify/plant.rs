@@ -263,6 +263,15 @@ impl CablePart {
     }
 }
 
+/// The inputs at the start, middle and end of the step from fraction `a` to `b` of a sample
+/// interval whose inputs go linearly from `ua` to `ub` (first-order hold).
+#[inline]
+fn hold_inputs(ua: &[f64], ub: &[f64], a: f64, b: f64) -> [[f64; 3]; 3] {
+    let m = 0.5 * (a + b);
+    let at = |f: f64| std::array::from_fn(|i| ua[i] + f * (ub[i] - ua[i]));
+    [at(a), at(m), at(b)]
+}
+
 /// Scratch space of the slaved step ([`JointPlant::simulate_refined`]).
 struct Slaved {
     stage: Vec<f64>,
@@ -700,7 +709,6 @@ impl JointPlant {
         }
         let band = self.friction_band();
         let (h_fast, h_slow) = (1.0 / n as f64, 1.0 / n_slow as f64);
-        let (mut u0, mut um, mut u1) = ([0.0; 3], [0.0; 3], [0.0; 3]);
         // time as a fraction of the interval
         let mut a = 0.0;
         for _ in 0..n + n_slow {
@@ -713,13 +721,7 @@ impl JointPlant {
                     continue;
                 }
                 let b = (a + if fast { h_fast } else { h_slow }).min(1.0);
-                let m = 0.5 * (a + b);
-                for i in 0..3 {
-                    let du = ub[i] - ua[i];
-                    u0[i] = ua[i] + a * du;
-                    um[i] = ua[i] + m * du;
-                    u1[i] = ua[i] + b * du;
-                }
+                let [u0, um, u1] = hold_inputs(ua, ub, a, b);
                 let h = (b - a) * dt;
                 if fast {
                     sw.cached = false;
@@ -879,18 +881,9 @@ impl JointPlant {
 
     fn advance(&self, ws: &mut Rk4, x: &mut [f64], ua: &[f64], ub: &[f64], dt: f64, n: usize) {
         let h = dt / n as f64;
-        let mut u0 = [0.0; 3];
-        let mut um = [0.0; 3];
-        let mut u1 = [0.0; 3];
         for j in 0..n {
             let (a, b) = (j as f64 / n as f64, (j + 1) as f64 / n as f64);
-            let m = 0.5 * (a + b);
-            for i in 0..3 {
-                let du = ub[i] - ua[i];
-                u0[i] = ua[i] + a * du;
-                um[i] = ua[i] + m * du;
-                u1[i] = ua[i] + b * du;
-            }
+            let [u0, um, u1] = hold_inputs(ua, ub, a, b);
             ws.step_with(self, x, &u0, &um, &u1, h);
             self.reanchor(x);
         }
