@@ -402,8 +402,8 @@ def test_workspace_grid_summary_and_files(tmp_path):
     assert not np.any(box.feasible & ~ws.feasible) and box.feasible.sum() < ws.feasible.sum()
     assert np.all(box.margin <= ws.margin + 1e-9)
     d = ws.save(tmp_path / "ws")
-    back = np.load(d / "workspace.npz")
-    assert np.array_equal(back["margin"], ws.margin) and np.array_equal(back["x"], ws.axes[0])
+    with np.load(d / "workspace.npz") as back:
+        assert np.array_equal(back["margin"], ws.margin) and np.array_equal(back["x"], ws.axes[0])
     assert "static" in (d / "workspace.md").read_text()
     with pytest.raises(ck.ShapeError):
         workspace(robot, lower=[0.0, 0.0, 0.0])

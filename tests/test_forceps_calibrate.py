@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cablekit.errors import DataError, ParameterError
+from cablekit.errors import DataError, DTypeError, ParameterError
 from cablekit.forceps import calibrate as cb
 from cablekit.forceps import davinci as dv
 from cablekit.forceps import paper as pp
@@ -119,7 +119,7 @@ def test_calibrate_refuses_bad_arguments_with_typed_errors(method, share, cal):
     )
     if good:
         return  # the real calibrations are tested on the bench below
-    with pytest.raises((DataError, ParameterError)):
+    with pytest.raises((DataError, DTypeError, ParameterError)):
         cb.calibrate(dv.Linear.fit, train, runs, method, share)  # type: ignore[arg-type]
 
 
@@ -175,7 +175,7 @@ def test_the_paper_protocol_and_the_strict_folds_on_the_papers_folder():
 @settings(max_examples=25, deadline=None)
 @given(root=st.one_of(st.integers(), st.none(), st.text(max_size=8), st.floats(allow_nan=True)))
 def test_the_calibration_cross_validation_refuses_what_is_not_a_bench(root, tmp_path_factory):
-    with pytest.raises(DataError):
+    with pytest.raises((DataError, DTypeError)):
         pr.calibration_cv(root if not isinstance(root, str) else f"/nonexistent/{root}")  # type: ignore[arg-type]
     one = tmp_path_factory.mktemp("bench")
     (one / "tool4_load_sweep").mkdir()

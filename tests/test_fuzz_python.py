@@ -9,8 +9,11 @@ bare ``TypeError``/``AttributeError`` from deep inside. Every draw either raises
 every number it was given is finite.
 
 File readers are fuzzed byte by byte in ``test_fuzz_loaders.py``; renderers of a result object
-(markdown tables, plots, reports) and the whole studies are listed in ``NOT_IN_TABLE`` with the
-reason; ``test_every_public_function_is_in_the_table`` keeps the two lists complete.
+(markdown tables, plots, reports) and the whole studies (minutes each) are listed in
+``NOT_IN_TABLE`` with the reason; ``test_every_public_function_is_in_the_table`` keeps the two
+lists complete. Every one of them — and every function of the table — is drawn against as well
+(the second half of this file): each argument replaced by a value its annotation does not admit
+is a typed error naming the argument, raised before any work is done.
 """
 
 from __future__ import annotations
@@ -75,6 +78,18 @@ def _drum_run() -> tuple[Any, ...]:
     )
 
 
+def _bench_run() -> Any:
+    """A da Vinci bench run of 600 samples: a jaw closing and opening, noise on the rest."""
+    from pathlib import Path
+
+    from cablekit.forceps.davinci import BenchRun
+
+    rng = np.random.default_rng(0)
+    signals = 0.01 * rng.standard_normal((600, 5))
+    signals[:, 0] += np.cos(np.linspace(0.0, 4.0 * np.pi, 600))
+    return BenchRun("00", Path("00"), 1e-3, signals, np.zeros(600), None, None)
+
+
 def _mlp_4_4() -> ck.Mlp:
     return _mlp(4, 3, 4)
 
@@ -96,6 +111,9 @@ def _factories() -> dict[str, Any]:
     from cablekit.forceps import bench, experiments, paper, posture, twin
 
     seed003 = Winch.seed003
+    mini = cablekit.cdpr.shipped("seed002_mini")
+    short = compensate.first_test_trajectory()
+    short = type(short)(short.name, short.dt, short.poses[:80], short.velocity[:80], short.acceleration[:80])
     return {
         "cablekit.cdpr.shipped": lambda: Call(cablekit.cdpr.shipped, ("seed003_planar",)),
         "cablekit.cdpr.shipped_names": lambda: Call(cablekit.cdpr.shipped_names),
@@ -103,6 +121,20 @@ def _factories() -> dict[str, Any]:
             compensate.path, ("p", [np.zeros(3), np.array([0.05, 0.02, 0.0])]), {"speed": 0.1, "dt": 0.01}
         ),
         "cablekit.cdpr.compensate.rmse": lambda: Call(compensate.rmse, (np.ones((6, 2)), np.zeros((6, 2)))),
+        "cablekit.cdpr.compensate.first_test_trajectory": lambda: Call(compensate.first_test_trajectory),
+        "cablekit.cdpr.compensate.second_test_trajectory": lambda: Call(
+            compensate.second_test_trajectory, (), {"seed": 2, "speed": 0.1}
+        ),
+        "cablekit.cdpr.compensate.training_trajectories": lambda: Call(compensate.training_trajectories),
+        "cablekit.cdpr.compensate.tensions": lambda: Call(
+            compensate.tensions, (mini, short), {"rng": np.random.default_rng(0)}
+        ),
+        "cablekit.cdpr.compensate.statics": lambda: Call(
+            compensate.statics, (mini, compensate.tensions(mini, short, rng=np.random.default_rng(0)))
+        ),
+        "cablekit.cdpr.force.mini_plant": lambda: Call(force.mini_plant),
+        "cablekit.cdpr.sensors.seed_calibrations": lambda: Call(sensors.seed_calibrations),
+        "cablekit.cdpr.winch.step_cases": lambda: Call(winch.step_cases, (seed003(),)),
         "cablekit.cdpr.diagnose.drum_residual": lambda: Call(cdiag.drum_residual, _drum_run()),
         "cablekit.cdpr.force.excitation": lambda: Call(
             force.excitation,
@@ -145,6 +177,10 @@ def _factories() -> dict[str, Any]:
         "cablekit.forceps.bench.condition": lambda: Call(bench.condition, ("31",)),
         "cablekit.forceps.experiments.neutral_physics": lambda: Call(experiments.neutral_physics, (_twin(),)),
         "cablekit.forceps.experiments.with_seed": lambda: Call(experiments.with_seed, (_twin(), 3)),
+        "cablekit.forceps.twin.another_instrument": lambda: Call(
+            twin.another_instrument, (_twin(), twin.TRANSFER_VARIATIONS[0])
+        ),
+        "cablekit.forceps.paper.closing_mask": lambda: Call(paper.closing_mask, (_bench_run(),)),
         "cablekit.forceps.paper.holoborodko": lambda: Call(paper.holoborodko, (_x(), 1e-3)),
         "cablekit.forceps.paper.lowpass_zero_phase": lambda: Call(
             paper.lowpass_zero_phase, (_x(), 1e-3), {"hz": 50.0, "order": 3}
@@ -199,21 +235,18 @@ NOT_IN_TABLE = {
     **{
         f"cablekit.{name}": "a whole study or the seed's fixed cases: asserted in its own test"
         for name in (
-            "cdpr.compensate.compensate cdpr.compensate.first_test_trajectory "
-            "cdpr.compensate.second_test_trajectory cdpr.compensate.training_trajectories "
-            "cdpr.compensate.statics cdpr.compensate.tensions cdpr.diagnose.diagnose "
+            "cdpr.compensate.compensate cdpr.diagnose.diagnose "
             "cdpr.diagnose.length_residual cdpr.diagnose.rest_from_first_sample "
             "cdpr.diagnose.self_test cdpr.diagnose.twin_run cdpr.force.force_control "
-            "cdpr.force.mini_plant cdpr.force.plant_network cdpr.planar.trajectory_response "
-            "cdpr.sensors.fig18 cdpr.sensors.seed_calibrations cdpr.winch.step_cases "
+            "cdpr.force.plant_network cdpr.planar.trajectory_response cdpr.sensors.fig18 "
             "cdpr.winch.step_table forceps.calibrate.calibrate forceps.davinci.estimator_fitters "
             "forceps.davinci.leave_one_out forceps.davinci.new_instrument forceps.davinci.score "
             "forceps.experiments.metrics forceps.experiments.pooled_rmse "
             "forceps.experiments.seed_experiments forceps.experiments.set_up "
             "forceps.experiments.train_free_motion_network forceps.experiments.transfer_study "
-            "forceps.paper.closing_mask forceps.paper.paper_protocol forceps.paper.strict_folds "
+            "forceps.paper.paper_protocol forceps.paper.strict_folds "
             "forceps.protocols.calibration_cv forceps.protocols.calibration_runs "
-            "forceps.protocols.protocols forceps.protocols.transfer forceps.twin.another_instrument "
+            "forceps.protocols.protocols forceps.protocols.transfer "
         ).split()
     },
 }  # fmt: skip
@@ -272,3 +305,118 @@ def test_a_bad_argument_is_a_typed_error_or_a_finite_result(name, data):
         return
     if finite:
         assert _finite_numbers(result), f"{name}{args, kwargs} returned non-finite numbers"
+
+
+# ---- every argument of every public function against its annotation -------------------------
+#
+# The table above calls the functions that are cheap to call with one argument replaced. Every
+# public function of the two packages — the studies and renderers too — checks its arguments
+# against its annotations before its body runs (``cablekit._args.checked``): a value its
+# annotation does not admit is a typed error that names the argument, at once. Which values an
+# annotation admits is judged here from the annotation's kinds alone, not by the checker.
+
+_POOL = st.one_of(
+    st.sampled_from(
+        [None, "abc", b"x", 7, 2.5, True, object(), [object()], np.array(["x"]), {"k": object()}]
+    ),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.integers(min_value=-(2**70), max_value=2**70),
+    st.text(max_size=8),
+    st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=4),
+    st.lists(st.text(max_size=3), min_size=1, max_size=3),
+)
+
+
+def _admits(tp: Any, value: Any) -> bool:
+    """Whether the annotation ``tp`` may admit ``value`` (generous: when unsure, it admits)."""
+    import collections.abc
+    import math
+    import os
+    import types
+    import typing
+
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin is typing.Annotated:  # a number with a range (cablekit._args.Range: .lo, .hi)
+        ranges = [(getattr(m, "lo", None), getattr(m, "hi", None)) for m in args[1:]]
+        if not _admits(args[0], value):
+            return False
+        return all((lo is None or value >= lo) and (hi is None or value <= hi) for lo, hi in ranges)
+    if origin in (typing.Union, types.UnionType):
+        return any(_admits(a, value) for a in args)
+    if tp in (Any, object) or isinstance(tp, typing.TypeVar):
+        return True
+    if tp is type(None):
+        return value is None
+    if origin is typing.Literal:
+        return value in args
+    if tp is bool:
+        return isinstance(value, bool)
+    if tp is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if tp is float:
+        return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    if tp is str:
+        return isinstance(value, str)
+    if isinstance(tp, type) and issubclass(tp, os.PathLike):
+        return isinstance(value, str | os.PathLike)
+    if tp is np.ndarray or origin is np.ndarray:
+        if isinstance(value, str | bytes | dict) or value is None or type(value) is object:
+            return False
+        try:
+            arr = np.asarray(value)
+        except (ValueError, TypeError, OverflowError):
+            return False
+        return arr.dtype.kind in "biu" or (arr.dtype.kind == "f" and bool(np.isfinite(arr).all()))
+    if origin is collections.abc.Callable or tp is collections.abc.Callable:
+        return callable(value)
+    if origin in (list, tuple, collections.abc.Sequence) or tp in (list, tuple, collections.abc.Sequence):
+        if not isinstance(value, collections.abc.Sequence):
+            return False
+        elem = args[0] if (args and origin is not tuple) or (len(args) == 2 and args[1] is Ellipsis) else None
+        return elem is None or all(_admits(elem, v) for v in value)
+    if origin in (dict, collections.abc.Mapping) or tp in (dict, collections.abc.Mapping):
+        return isinstance(value, collections.abc.Mapping)
+    if isinstance(tp, type):
+        return isinstance(value, tp)
+    return True
+
+
+def _slots(fn: Any) -> list[tuple[str, Any, bool]]:
+    """``(argument, annotation, is **kwargs)`` for every annotated argument but ``*args``."""
+    hints = fn.__cablekit_hints__()
+    sig = inspect.signature(fn)
+    return [
+        (p.name, hints[p.name], p.kind is inspect.Parameter.VAR_KEYWORD)
+        for p in sig.parameters.values()
+        if p.name in hints and p.kind is not inspect.Parameter.VAR_POSITIONAL
+    ]
+
+
+PUBLIC = sorted(_public_functions())
+
+
+def _function(name: str) -> Any:
+    module, attr = name.rsplit(".", 1)
+    return getattr(importlib.import_module(module), attr)
+
+
+@pytest.mark.parametrize("name", PUBLIC)
+def test_every_public_function_checks_its_arguments(name):
+    """Every public function is wrapped by the argument check, and every annotation resolves
+    (an annotation that names nothing would leave its argument unchecked)."""
+    fn = _function(name)
+    assert hasattr(fn, "__cablekit_hints__"), f"{name} is not wrapped by cablekit._args.checked"
+    assert _slots(fn) or not inspect.signature(fn).parameters
+
+
+@pytest.mark.parametrize("name", [n for n in PUBLIC if _slots(_function(n))])
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_a_value_its_annotation_does_not_admit_is_a_typed_error_naming_it(name, data):
+    fn = _function(name)
+    arg, tp, var_kw = data.draw(st.sampled_from(_slots(fn)))
+    value = data.draw(_POOL.filter(lambda v: not _admits(tp, v)))
+    key = "extra_argument" if var_kw else arg
+    with pytest.raises(ck.CablekitError) as err:
+        fn(**{key: value})
+    assert key in str(err.value), f"{name}({key}={value!r}): {err.value}"

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from cablekit._args import checked
 from cablekit._cablekit import (
     Calibration,
     CalibrationFit,
@@ -238,12 +239,14 @@ class Robot(_Robot):
         )
 
 
+@checked
 def shipped_names() -> list[str]:
     """The names of the shipped robots."""
     folder = resources.files("cablekit.cdpr") / "robots"
     return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
 
 
+@checked
 def shipped(name: str | None = None) -> Robot | list[str]:
     """The shipped robot ``name`` (``"seed002_mini"``, ``"seed003_planar"``, ``"ipanema_like"``),
     or the list of names without an argument."""

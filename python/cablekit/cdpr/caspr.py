@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from cablekit._args import checked
 from cablekit.errors import DataError
 
 __all__ = ["caspr_document"]
@@ -105,6 +106,7 @@ def _xyz(node: ET.Element, tag: str, where: str) -> list[float]:
     return v
 
 
+@checked
 def caspr_document(
     bodies: str | Path, cables: str | Path, cable_set: str | None = None, ea: float = 1e9
 ) -> dict[str, Any]:

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cablekit._args import instance, real, signal, text
+from cablekit._args import Epochs, Seed, Stride, Width, checked, instance, real, signal, text
 from cablekit._cablekit import Mlp
 from cablekit.cdpr import Robot, shipped
 from cablekit.errors import ParameterError, ShapeError
@@ -72,6 +72,7 @@ class Trajectory:
         return np.arange(self.poses.shape[0]) * self.dt
 
 
+@checked
 def path(name: str, points: list[np.ndarray], *, speed: float = 0.1, dt: float = 0.01) -> Trajectory:
     """Through ``points`` at ``speed`` m/s, corners rounded by a 0.25 s moving average."""
     text(name, "name")
@@ -113,6 +114,7 @@ class Cube:
     half: np.ndarray = field(default_factory=lambda: np.array([0.15, 0.10, 0.12]))
 
 
+@checked
 def training_trajectories(cube: Cube | None = None, **kw: float) -> list[Trajectory]:
     """Seed 002 Fig. 5's training paths: four cube diagonals, there and back, and circles in the
     xy, xz and yz planes."""
@@ -126,6 +128,7 @@ def training_trajectories(cube: Cube | None = None, **kw: float) -> list[Traject
     return out
 
 
+@checked
 def first_test_trajectory(cube: Cube | None = None, **kw: float) -> Trajectory:
     """Test 1: a circle in a plane tilted 30° about x (not a training plane), then a line in y."""
     c = cube or Cube()
@@ -139,7 +142,8 @@ def first_test_trajectory(cube: Cube | None = None, **kw: float) -> Trajectory:
     return path("test 1: tilted circle and y line", pts, **kw)
 
 
-def second_test_trajectory(cube: Cube | None = None, seed: int = 2, **kw: float) -> Trajectory:
+@checked
+def second_test_trajectory(cube: Cube | None = None, seed: Seed = 2, **kw: float) -> Trajectory:
     """Test 2: straight lines through 20 random points of the cube."""
     c = cube or Cube()
     rng = np.random.default_rng(seed)
@@ -162,6 +166,7 @@ class TensionRun:
         return np.column_stack([tr.poses[:, :3], tr.velocity, self.pul])
 
 
+@checked
 def tensions(
     robot: Robot, tr: Trajectory, *, rng: np.random.Generator, friction: dict | None = None
 ) -> TensionRun:
@@ -191,6 +196,7 @@ def tensions(
     return TensionRun(tr, dist.f.copy(), pul)
 
 
+@checked
 def rmse(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a, b = signal(a, "a"), signal(b, "b")
     if a.shape != b.shape or a.size == 0:
@@ -199,6 +205,7 @@ def rmse(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean((a - b) ** 2, axis=0))
 
 
+@checked
 def statics(robot: Robot, run: TensionRun) -> np.ndarray:
     """The PUL tensions moved to the nearest ones that hold the platform's weight and inertia
     (``Robot.project_tensions``, seed 002 eq. 10 with the measurement as reference): what
@@ -223,13 +230,14 @@ class Compensation:
     network: Mlp
 
 
+@checked
 def compensate(
     robot: Robot | None = None,
     *,
-    hidden: int = 20,
-    epochs: int = 150,
-    seed: int = 0,
-    every: int = 3,
+    hidden: Width = 20,
+    epochs: Epochs = 150,
+    seed: Seed = 0,
+    every: Stride = 3,
     progress: bool = False,
 ) -> Compensation:
     """Simulate the training and test trajectories, train the 14 → ``hidden`` → 8 network by
@@ -274,6 +282,7 @@ def compensate(
     return Compensation(hidden, x.shape[0], result.train_time_s, tables, runs, projected, net)
 
 
+@checked
 def table_markdown(
     name: str, pul: np.ndarray, nn: np.ndarray, seed: dict[str, tuple[float, ...]], statics: np.ndarray
 ) -> str:
@@ -288,6 +297,7 @@ def table_markdown(
     return "\n".join(lines)
 
 
+@checked
 def report(out: str | Path, comp: Compensation, plots: bool = True) -> str:
     """Tables 1–2 and a cable's tensions along test 1; returns the markdown."""
     out = Path(out)
@@ -317,6 +327,7 @@ def report(out: str | Path, comp: Compensation, plots: bool = True) -> str:
     return text
 
 
+@checked
 def plot_cable(path: str | Path, comp: Compensation, cable: int = 1) -> Path | None:
     """EE, PUL and NN tension of one cable along test 1, and the errors (seed 002 Fig. 6)."""
     from cablekit.plotting import pyplot_or_none, save_figure

@@ -71,7 +71,7 @@ from typing import Any
 import numpy as np
 
 from cablekit import _log
-from cablekit._args import instance, real, signal
+from cablekit._args import Seed, Stride, checked, instance, real, signal
 from cablekit._cablekit import PulleyFriction, SignalChain
 from cablekit.cdpr import Robot, Winch
 from cablekit.cdpr.formats import RunFile, load_cdpr_run
@@ -132,6 +132,7 @@ def _run_arrays(t: Any, *arrays: Any) -> tuple[np.ndarray, ...]:
     return (t, *out)
 
 
+@checked
 def drum_residual(
     winch: Winch,
     t: np.ndarray,
@@ -176,6 +177,7 @@ class Lengths:
     estimated_rest: bool = False
 
 
+@checked
 def length_residual(
     lengths: Lengths, winch: Winch, t: np.ndarray, alpha: np.ndarray, sensor: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -414,6 +416,7 @@ def _locate(
     return Channel(name, cands, rms, gap, significant, noise, found, res, half, explained)
 
 
+@checked
 def diagnose(
     winch: Winch,
     t: np.ndarray,
@@ -577,6 +580,7 @@ def _channels(
 # ---- a measured run --------------------------------------------------------------------------
 
 
+@checked
 def rest_from_first_sample(robot: Robot, winch: Winch, run: RunFile) -> np.ndarray:
     """The unstretched lengths at ``α = 0`` (m) taking the first sample as a rest: its pose, its
     drum angles and its sensors' tensions through the nominal elastic law. An error here is a
@@ -589,6 +593,7 @@ def rest_from_first_sample(robot: Robot, winch: Winch, run: RunFile) -> np.ndarr
     return l0 / (1 + run.sensor[0] / robot.ea) + r * run.alpha[0]
 
 
+@checked
 def diagnose_file(
     path: str | Path,
     robot: Robot,
@@ -610,6 +615,7 @@ def diagnose_file(
     return replace(d, notes=tuple(f"{Path(path).name}: {n}" for n in run.notes))
 
 
+@checked
 def diagnose_runs(
     fit: list[str | Path],
     holdout: list[str | Path],
@@ -638,7 +644,8 @@ def diagnose_runs(
     return replace(_checked(winch, segments, len(fit), effects, 0.01), notes=tuple(notes))
 
 
-def report(d: CdprDiagnosis, *, top: int = 5) -> str:
+@checked
+def report(d: CdprDiagnosis, *, top: Stride = 5) -> str:
     """Markdown: the loader's notes, each channel's verdict and its best candidates."""
     lines = [f"Note: {n}" for n in d.notes] + ([""] if d.notes else [])
     for ch in d.channels:
@@ -665,6 +672,7 @@ def report(d: CdprDiagnosis, *, top: int = 5) -> str:
     return "\n".join(lines)
 
 
+@checked
 def plot(d: CdprDiagnosis, path: str | Path) -> Path | None:
     """Per channel, the residual at the finding's cable (else at the largest gap) over the fit
     and held-out samples, with the finding's fitted signature."""
@@ -744,7 +752,8 @@ CREEP = (0.5, 5.0)
 WORN = 1.5
 
 
-def twin_run(effect: str | None, cable: int, *, seed: int = 0) -> TwinRun:
+@checked
+def twin_run(effect: str | None, cable: int, *, seed: Seed = 0) -> TwinRun:
     """One plant run along test 2's lines (30 s) with ``effect`` withheld at ``cable``: currents
     with 3 mA noise, sensors with 0.1 N noise and any sensor effect, poses through the tracker's
     noise; the nominal geometry is the Mini CDPR's with the twin's platform-side friction."""
@@ -802,7 +811,8 @@ WITHHELD = (
 )
 
 
-def self_test(*, cases: int = 2, seed: int = 0, progress: bool = False) -> list[SelfTestCase]:
+@checked
+def self_test(*, cases: Stride = 2, seed: Seed = 0, progress: bool = False) -> list[SelfTestCase]:
     """``cases`` runs per withheld effect (:data:`WITHHELD`) at drawn cables, and ``cases`` runs
     with none."""
     rng = np.random.default_rng(seed)
@@ -820,6 +830,7 @@ def self_test(*, cases: int = 2, seed: int = 0, progress: bool = False) -> list[
     return out
 
 
+@checked
 def markdown(cases: list[SelfTestCase]) -> str:
     """The self-test table and its totals."""
     lines = [

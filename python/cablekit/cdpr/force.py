@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from cablekit import _log
-from cablekit._args import instance, real, signal
+from cablekit._args import Epochs, Seed, Stride, Width, checked, instance, real, signal
 from cablekit._cablekit import CdprPlant, LoopRun, Mlp, PulleyFriction
 from cablekit.cdpr import Robot, Winch, shipped
 from cablekit.cdpr.compensate import TWIN_FRICTION, first_test_trajectory, training_trajectories
@@ -49,6 +49,7 @@ SEED_TABLE4 = {
 }
 
 
+@checked
 def mini_plant(
     robot: Robot | None = None,
     home: np.ndarray | None = None,
@@ -83,6 +84,7 @@ def mini_plant(
     )
 
 
+@checked
 def excitation(
     robot: Robot,
     poses: np.ndarray,
@@ -131,8 +133,9 @@ class PlantNetwork:
     train_time_s: float
 
 
+@checked
 def plant_network(
-    *, hidden: int = 20, epochs: int = 150, seed: int = 0, every: int = 10, progress: bool = False
+    *, hidden: Width = 20, epochs: Epochs = 150, seed: Seed = 0, every: Stride = 10, progress: bool = False
 ) -> PlantNetwork:
     """Train the 14 → ``hidden`` → 8 network (Bayesian regularisation) on the plant: the training
     trajectories at 1 kHz without a force loop, the internal forces excited (:func:`excitation`),
@@ -159,6 +162,7 @@ def plant_network(
     return PlantNetwork(to_mlp(result), x.shape[0], result.train_time_s)
 
 
+@checked
 def plant_robot() -> Robot:
     """The robot of :func:`mini_plant`."""
     return shipped("seed002_mini")
@@ -189,14 +193,15 @@ def _wrench_rmse(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean((a - b) ** 2, axis=0))
 
 
+@checked
 def force_control(
     quasi_static: Mlp | None = None,
     *,
     gains: tuple[float, ...] = (*SEED_TABLE3, 1.0, 1.5, 2.0, 3.0),
     gain: float = 0.70,
     delays: tuple[int, ...] = (2, 3),
-    seed: int = 0,
-    epochs: int = 150,
+    seed: Seed = 0,
+    epochs: Epochs = 150,
     progress: bool = False,
 ) -> ForceControl:
     """Tables 3–4 in simulation: the network trained on the plant (:func:`plant_network`)
@@ -256,6 +261,7 @@ def force_control(
     return ForceControl(tuple(gains), np.array(rmse), delayed, gain, pn, references, wrench, runs, tr.t)
 
 
+@checked
 def markdown(fc: ForceControl) -> str:
     """Tables 3 and 4, ours beside the seed's."""
     head = "| k_p | " + " | ".join(f"{k:.2f}" for k in fc.gains) + " |"
@@ -294,6 +300,7 @@ def markdown(fc: ForceControl) -> str:
     return "\n".join(lines)
 
 
+@checked
 def plot(path: str | Path, fc: ForceControl, cable: int = 3) -> Path | None:
     """One cable's tension with and without the force loop (seed 002 Fig. 10) and the force
     wrench errors (Fig. 8)."""

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cablekit._args import choice
+from cablekit._args import checked, choice
 from cablekit.cdpr import Robot
 from cablekit.errors import DataError
 
@@ -30,6 +30,7 @@ class Trajectory:
     t: np.ndarray | None
 
 
+@checked
 def read_trajectory(path: str | Path, motion: str) -> Trajectory:
     """A trajectory table (CSV, ``.csv.gz`` or Parquet, read like a run file): the pose columns
     (planar ``x, y, theta``; spatial ``x, y, z, roll, pitch, yaw``), optionally all the wrench
@@ -76,6 +77,7 @@ class RunFile:
     notes: tuple[str, ...] = ()
 
 
+@checked
 def load_cdpr_run(path: str | Path, robot: Robot) -> RunFile:
     """A run table (CSV, ``.csv.gz`` or Parquet) for ``robot``: ``t``; per cable ``j = 1..m``
     ``alpha_j``, ``current_j`` and ``sensor_j``; and, for the length channel, all the pose columns

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from cablekit._args import float_array, instance, real
+from cablekit._args import checked, float_array, instance, real
 from cablekit._cablekit import CdprPlant, LoopRun
 from cablekit.cdpr import Robot, Winch, shipped
 from cablekit.errors import ParameterError
@@ -34,6 +34,7 @@ MAX_SAMPLES = 2_000_000
 HOME = np.array([0.6, 0.5, 0.0])
 
 
+@checked
 def planar_plant(
     robot: Robot | None = None, home: np.ndarray | None = None, winch: Winch | None = None
 ) -> CdprPlant:
@@ -93,6 +94,7 @@ def _samples(t_end: float, dt: float, what: str) -> int:
     return k
 
 
+@checked
 def step_response(
     plant: CdprPlant | None = None, *, axis: int = 0, size: float = 0.02, t_end: float = 3.0, dt: float = 1e-3
 ) -> StepResponse:
@@ -131,6 +133,7 @@ class TrajectoryResponse:
     tension_rmse: tuple[float, float]
 
 
+@checked
 def circle(
     home: np.ndarray, radius: float = 0.1, period: float = 4.0, turns: float = 2.0, dt: float = 1e-3
 ) -> np.ndarray:
@@ -157,6 +160,7 @@ def circle(
     return poses
 
 
+@checked
 def trajectory_response(
     plant: CdprPlant | None = None, *, radius: float = 0.1, period: float = 4.0, dt: float = 1e-3
 ) -> TrajectoryResponse:
@@ -182,6 +186,7 @@ def trajectory_response(
     )
 
 
+@checked
 def markdown(steps: list[StepResponse], tr: TrajectoryResponse) -> str:
     """The step table and the trajectory comparison."""
     names = ("x", "y", "θ")
@@ -215,6 +220,7 @@ def markdown(steps: list[StepResponse], tr: TrajectoryResponse) -> str:
     return "\n".join(lines)
 
 
+@checked
 def plot(path: str | Path, steps: list[StepResponse], tr: TrajectoryResponse) -> Path | None:
     """Step responses and the circle's tensions."""
     from cablekit.plotting import pyplot_or_none, save_figure
@@ -244,6 +250,7 @@ def plot(path: str | Path, steps: list[StepResponse], tr: TrajectoryResponse) ->
     return save_figure(fig, path)
 
 
+@checked
 def report(out: str | Path, plots: bool = True) -> str:
     """Steps in x, y and θ and the circle on the shipped robot; writes ``planar.md``."""
     out = Path(out)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cablekit._args import count, float_array, real
+from cablekit._args import Seed, checked, count, float_array, real
 from cablekit._cablekit import Calibration, CalibrationFit, LoadCellPulley, SignalChain, Winch, WinchDrive
 from cablekit.errors import DTypeError, ParameterError
 from cablekit.simulation import simulate
@@ -39,6 +39,7 @@ class CalibrationRun:
     capstan: float
 
 
+@checked
 def calibrate(
     name: str,
     gain: float,
@@ -48,7 +49,7 @@ def calibrate(
     noise: float = 0.0,
     readings_per_mass: int = 5,
     masses: tuple[float, ...] = SEED_MASSES,
-    seed: int = 0,
+    seed: Seed = 0,
 ) -> CalibrationRun:
     """Hang ``masses`` up then down over the calibration rig's redirecting pulley, whose
     friction (``capstan`` = μ·φ) lowers the tension reaching the sensor while a mass settles
@@ -84,6 +85,7 @@ def calibrate(
     )
 
 
+@checked
 def calibration_table(runs: list[CalibrationRun]) -> str:
     """Markdown: per sensor the fitted line against the true one, correlation, residuals and the
     hysteresis the fit reports against what the pulley's friction puts there."""
@@ -104,6 +106,7 @@ def calibration_table(runs: list[CalibrationRun]) -> str:
     return "\n".join(lines)
 
 
+@checked
 def seed_calibrations() -> list[CalibrationRun]:
     """The four sensors of Figs 14–15: two inline (readings in raw HX711 counts per N, a choice)
     and two load-cell pulleys (their push through ``sin α₁ + sin α₂`` of 5° exits, a choice),
@@ -143,6 +146,7 @@ class CurrentSweep:
         return float(np.mean(diffs)) if diffs else 0.0
 
 
+@checked
 def current_sweep(
     position: float,
     *,
@@ -202,11 +206,13 @@ def current_sweep(
     )
 
 
+@checked
 def fig18(positions: tuple[float, ...] = (0.3, 0.4, 0.5, 0.6, 0.7)) -> list[CurrentSweep]:
     """Fig. 18's experiment at five EE positions (fractions of the cable from the driven drum)."""
     return [current_sweep(p) for p in positions]
 
 
+@checked
 def fig18_table(sweeps: list[CurrentSweep], w: Winch | None = None) -> str:
     """Markdown: per position the estimate's error loading and unloading and the hysteresis,
     against the static friction's band ``τ_st/r`` either way."""
@@ -232,6 +238,7 @@ def fig18_table(sweeps: list[CurrentSweep], w: Winch | None = None) -> str:
     return "\n".join(lines)
 
 
+@checked
 def plot_fig18(path: str | Path, sweeps: list[CurrentSweep]) -> Path | None:
     """Measured tension against the motor-current estimate, loading and unloading (Fig. 18)."""
     from cablekit.plotting import pyplot_or_none, save_figure

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cablekit._args import count, float_array, instance, real, text
+from cablekit._args import checked, count, float_array, instance, real, text
 from cablekit._cablekit import Winch, WinchDrive
 from cablekit.errors import ParameterError
 from cablekit.simulation import simulate
@@ -40,6 +40,7 @@ SEED_E = 48.9e9
 KP_SEED = 6.0
 
 
+@checked
 def with_modulus(w: Winch, youngs_modulus: float) -> Winch:
     """The same winch with both cables' stiffness scaled to another Young's modulus."""
     instance(w, "w", Winch)
@@ -76,6 +77,7 @@ def _complex(a: np.ndarray) -> np.ndarray:
     return z[np.argsort(np.abs(z), kind="stable")]
 
 
+@checked
 def table5(w: Winch | None = None) -> list[Column]:
     """The six columns of seed 003 Table 5 recomputed."""
     w = instance(w, "w", Winch, optional=True) or Winch.seed003()
@@ -108,6 +110,7 @@ def _fmt(z: complex) -> str:
     return f"{z.real:.2f} {'+' if z.imag > 0 else '−'} {abs(z.imag):.2f}i"
 
 
+@checked
 def table5_markdown(cols: list[Column]) -> str:
     """Ours beside the seed's, per column."""
     lines = [
@@ -127,6 +130,7 @@ def table5_markdown(cols: list[Column]) -> str:
     return "\n".join(lines)
 
 
+@checked
 def inconsistencies(w: Winch | None = None) -> list[str]:
     """Where seed 003's printed values disagree with its own equations, with the arithmetic."""
     w = instance(w, "w", Winch, optional=True) or Winch.seed003()
@@ -168,6 +172,7 @@ def inconsistencies(w: Winch | None = None) -> list[str]:
     ]
 
 
+@checked
 def plot_root_locus(path: str | Path, w: Winch | None = None) -> Path | None:
     """Closed-loop poles over ``K_p`` from 0.01 to 100 for the six columns, ``K_p = 6`` marked."""
     from cablekit.plotting import pyplot_or_none, save_figure
@@ -195,6 +200,7 @@ def plot_root_locus(path: str | Path, w: Winch | None = None) -> Path | None:
     return save_figure(fig, path)
 
 
+@checked
 def report(out: str | Path, plots: bool = True) -> str:
     """Table 5 ours vs the seed's, the inconsistencies, the root locus; returns the markdown."""
     out = Path(out)
@@ -300,6 +306,7 @@ class Linearised:
     poles: np.ndarray
 
 
+@checked
 def linearise(w: Winch | None = None, setup: str = "fixed", *, lpf: bool = True) -> Linearised:
     """The winch's open-loop transfer function about its working point (seed 003 eqs 26–27);
     the core's (``Winch.open_loop``, ``Winch.zeros_and_poles``)."""
@@ -311,6 +318,7 @@ def linearise(w: Winch | None = None, setup: str = "fixed", *, lpf: bool = True)
     return Linearised(setup, lpf, np.asarray(num), np.asarray(den), _complex(z), _complex(p))
 
 
+@checked
 def root_locus(
     w: Winch | None = None, setup: str = "fixed", *, lpf: bool = True, kps: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -324,6 +332,7 @@ def root_locus(
     return gains, poles[..., 0] + 1j * poles[..., 1]
 
 
+@checked
 def linearised_poles(drive: WinchDrive) -> np.ndarray:
     """Closed-loop poles of the model linearised at its working point without static friction
     (the eigenvalues of ``∂f/∂x`` at rest; for Setup 1 these are eq. 26 closed by the PID, a
@@ -337,6 +346,7 @@ def linearised_poles(drive: WinchDrive) -> np.ndarray:
     return ev[np.argsort(np.abs(ev), kind="stable")]
 
 
+@checked
 def step_response(
     drive: WinchDrive,
     step: float = 0.2,
@@ -397,6 +407,7 @@ def step_response(
     )
 
 
+@checked
 def step_cases(w: Winch | None = None) -> list[tuple[str, WinchDrive, float]]:
     """The steps of :func:`step_table`: the linear model's assumptions first (no static
     friction), then the seed's friction, the LPF left out, Setup 2 as built (the antagonist's
@@ -413,11 +424,13 @@ def step_cases(w: Winch | None = None) -> list[tuple[str, WinchDrive, float]]:
     ]
 
 
+@checked
 def step_table(w: Winch | None = None, *, duration: float = 4.0) -> list[StepResponse]:
     """Every case of :func:`step_cases` stepped."""
     return [step_response(d, s, duration=duration, label=name) for name, d, s in step_cases(w)]
 
 
+@checked
 def step_markdown(rows: list[StepResponse]) -> str:
     """The step responses as a Markdown table."""
 
@@ -440,6 +453,7 @@ def step_markdown(rows: list[StepResponse]) -> str:
     return "\n".join(lines)
 
 
+@checked
 def plot_steps(path: str | Path, rows: list[StepResponse]) -> Path | None:
     """α/step and T_A over time for every step."""
     from cablekit.plotting import pyplot_or_none, save_figure

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from cablekit._args import count, float_array
+from cablekit._args import checked, count, float_array
 from cablekit._cablekit import Robot
 from cablekit.errors import DTypeError, ParameterError, ShapeError
 
@@ -123,6 +123,7 @@ def _axis(lo: float, hi: float, count: int) -> np.ndarray:
     return np.linspace(lo, hi, count) if count > 1 else np.array([(lo + hi) / 2])
 
 
+@checked
 def workspace(
     robot: Robot,
     *,
@@ -195,6 +196,7 @@ def workspace(
     )
 
 
+@checked
 def plot_workspace(ws: Workspace, out: str | Path, robot: Robot | None = None) -> list[Path]:
     """Slices of the margin (planar: the plane; spatial: three heights and the x–z plane
     through the middle) with the workspace's edge, and a 3-D view of the feasible poses;

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cablekit._args import instance
+from cablekit._args import checked, instance
 from cablekit._cablekit import (
     ClampRun,
     ClampStep,
@@ -68,6 +68,7 @@ __all__ = [
 ]
 
 
+@checked
 def free_motion_tensions(model: Mlp, motors: np.ndarray) -> np.ndarray:
     """The free-motion tensions ``F̂_E`` ``(T, 4)`` a network predicts from the motor motion
     ``motors`` ``(T, 4)`` (``[x_a, v_a, x_b, v_b]``, m and m/s)."""

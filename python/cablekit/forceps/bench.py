@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from cablekit._args import text
+from cablekit._args import checked, text
 from cablekit._files import check_counts
 from cablekit.errors import DataError
 
@@ -126,6 +126,7 @@ class RawRun:
         return self.data[:, 8] * (2 * np.pi / MOTOR_COUNTS)
 
 
+@checked
 def condition(name: str) -> tuple[int | None, int | None]:
     """The frequency and load indices of a run named ``FL`` (or ``ZFL`` with a wrist stop ``Z``);
     ``None`` for what the name does not give."""
@@ -191,6 +192,7 @@ def _checked(path: Path, d: F64, rows: list[int] | None) -> F64:
     return d
 
 
+@checked
 def read_raw(path: str | Path, columns: int = 6) -> RawRun:
     """One bench file with at least ``columns`` numeric columns (6 for the diagnosis, 9 for the
     motor encoder): a :class:`RawRun`, or a ``DataError`` naming the file and, for a malformed

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cablekit._args import checked
 from cablekit.errors import DataError, ParameterError
 from cablekit.forceps.davinci import BenchRun, Estimator, Physics, _skip, score
 
@@ -165,6 +166,7 @@ def _calibrated(
     raise ParameterError(f"method must be one of {METHODS}, got {method!r}")
 
 
+@checked
 def calibrate(
     fit: Callable[[Sequence[BenchRun]], Estimator],
     train: Sequence[BenchRun],

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from cablekit._args import checked
 from cablekit._cablekit import DriveModel
 from cablekit._files import bench_runs, text_runs
 from cablekit.errors import DataError
@@ -77,6 +78,7 @@ class BenchRun:
         return f"{self.name} ({FREQS[self.frequency]} Hz, {LOADS[self.load]} %)"
 
 
+@checked
 def read_bench_file(path: str | Path) -> BenchRun:
     """One run of the bench format (:func:`cablekit.forceps.bench.read_raw`, with the motor
     encoder's ninth column)."""
@@ -91,6 +93,7 @@ def read_bench_file(path: str | Path) -> BenchRun:
     return BenchRun(raw.name, raw.path, dt, signals, raw.motor_current, freq, load, raw.notes)
 
 
+@checked
 def bench_folder(directory: str | Path) -> Path:
     """The folder holding the runs: ``directory`` or its ``tool4_load_sweep``."""
     p = Path(directory)
@@ -101,6 +104,7 @@ def bench_folder(directory: str | Path) -> Path:
     return p
 
 
+@checked
 def read_bench_folder(directory: str | Path, names: Sequence[str] | None = None) -> list[BenchRun]:
     """The runs of a folder (``XY.TXT`` / ``XY.TXT.gz``, :func:`cablekit._files.bench_runs`), all
     or the stems ``names`` (any stem)."""
@@ -313,6 +317,7 @@ class Jtdo(Estimator):
 
 
 #: estimator name → fit(runs); the networks need torch (the ``train`` extra)
+@checked
 def estimator_fitters(
     networks: bool = True, friction: bool = False
 ) -> dict[str, Callable[[Sequence[BenchRun]], Estimator]]:
@@ -339,6 +344,7 @@ class Score:
     outside_share: float
 
 
+@checked
 def score(est: Estimator, runs: Sequence[BenchRun], angle_offset: bool = True) -> Score:
     """Pooled over ``runs`` after each run's warm-up. The jaw encoder is not zeroed between runs
     by the bench, so with ``angle_offset`` each run's angle error is taken about its mean (the
@@ -384,6 +390,7 @@ def _folds(runs: Sequence[BenchRun], key: str) -> dict[str, list[BenchRun]]:
     return dict(sorted(groups.items()))
 
 
+@checked
 def leave_one_out(
     runs: Sequence[BenchRun],
     key: str,
@@ -408,6 +415,7 @@ def leave_one_out(
     return res
 
 
+@checked
 def new_instrument(
     train: Sequence[BenchRun],
     calibration: BenchRun | Sequence[BenchRun],

@@ -31,7 +31,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from cablekit._args import count, instance
+from cablekit._args import Seed, checked, count, instance
 from cablekit._cablekit import ClampRun, Jtdo, Mlp, PhysicsObserver, Twin, TwinRun
 from cablekit.diagnose.progress import Progress
 from cablekit.forceps.twin import TRANSFER_VARIATIONS, Variation, another_instrument
@@ -82,6 +82,7 @@ def _triple(x: np.ndarray) -> tuple[float, float, float]:
     return (float(x[0]), float(x[1]), float(x[2]))
 
 
+@checked
 def metrics(run: TwinRun, est: ClampRun, threshold: float = SEED_THRESHOLD) -> Metrics:
     """The seed's figures of merit for ``est`` on ``run`` (see the module docs)."""
     meas = np.column_stack([run.external, 0.5 * np.abs(run.external).sum(axis=1)])
@@ -114,7 +115,8 @@ def metrics(run: TwinRun, est: ClampRun, threshold: float = SEED_THRESHOLD) -> M
     )
 
 
-def with_seed(twin: Twin, seed: int) -> Twin:
+@checked
+def with_seed(twin: Twin, seed: Seed) -> Twin:
     """The same bench with another noise realisation."""
     instance(twin, "twin", Twin)
     seed = count(seed, "seed", hi=2**63 - 1)
@@ -122,7 +124,8 @@ def with_seed(twin: Twin, seed: int) -> Twin:
     return Twin(twin.a, twin.b, tension_noise=tn, pressure_noise=pn, seed=seed, sample_time=dt, substeps=sub)
 
 
-def train_free_motion_network(free: TwinRun, seed: int = 0, progress: bool = False) -> Mlp:
+@checked
+def train_free_motion_network(free: TwinRun, seed: Seed = 0, progress: bool = False) -> Mlp:
     """Seed 000's free-motion tension model: a PSO-BPNN 4-10-4 (Table 1) from
     ``[x_a, v_a, x_b, v_b]`` to the four measured tensions, loaded into Rust."""
     from cablekit.nn import to_mlp, train_mlp
@@ -143,6 +146,7 @@ def _geometry(twin: Twin) -> dict[str, float]:
                 arm_b=float(twin.b[names.index("arm")]))  # fmt: skip
 
 
+@checked
 def neutral_physics(twin: Twin) -> PhysicsObserver:
     """A physics estimator with the core's neutral start (``Losses::START``) for ``twin``'s
     lever geometry."""
@@ -171,6 +175,7 @@ class Instrument:
         }
 
 
+@checked
 def set_up(
     twin: Twin,
     network: Mlp,
@@ -210,6 +215,7 @@ class SeedReport:
         return pooled_rmse(self.instrument, estimator, [n for n in EXPERIMENTS if n != CALIBRATION])
 
 
+@checked
 def pooled_rmse(inst: Instrument, estimator: str, names: list[str]) -> float:
     """``F_CF`` RMSE of ``estimator`` pooled over the runs ``names`` of ``inst`` (N)."""
     sq, n = 0.0, 0
@@ -222,6 +228,7 @@ def pooled_rmse(inst: Instrument, estimator: str, names: list[str]) -> float:
     return math.sqrt(sq / n)
 
 
+@checked
 def seed_experiments(twin: Twin, progress: bool = True) -> SeedReport:
     """Seed 000's pipeline and experiments on ``twin`` beside the physics estimator."""
     with Progress(7, "forceps experiments", enabled=progress) as bar:
@@ -248,6 +255,7 @@ class TransferRow:
     ratio: dict[str, float]
 
 
+@checked
 def transfer_study(report: SeedReport, progress: bool = True) -> list[TransferRow]:
     """Trained on the first instrument (the network; the physics fits as starting points),
     set up on one calibration run of each other instrument (group 1 for the JTDO's bias and the
@@ -271,6 +279,7 @@ def _fmt(x: float, digits: int = 3) -> str:
     return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
 
 
+@checked
 def seed_table(report: SeedReport) -> str:
     """The seed-vs-cablekit table (markdown)."""
     lines = [
@@ -304,6 +313,7 @@ def seed_table(report: SeedReport) -> str:
     return "\n".join(lines)
 
 
+@checked
 def transfer_table(report: SeedReport, rows: list[TransferRow]) -> str:
     """The transfer table (markdown): held-out ``F_CF`` RMSE per instrument and the ratio."""
     head = "| instrument | " + " | ".join(ESTIMATORS) + " |"
@@ -319,6 +329,7 @@ def transfer_table(report: SeedReport, rows: list[TransferRow]) -> str:
     return "\n".join(lines)
 
 
+@checked
 def as_dict(report: SeedReport, rows: list[TransferRow]) -> dict[str, object]:
     """Everything measured, for results.json."""
     return {

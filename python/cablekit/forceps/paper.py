@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from cablekit._args import count, instance, real, signal
+from cablekit._args import Epochs, Seed, checked, count, instance, real, signal
 from cablekit.errors import CablekitError, DataError, ParameterError
 from cablekit.forceps.davinci import PUBLISHED_RMSE, BenchRun, Estimator, Physics, _skip, score
 
@@ -62,6 +62,7 @@ SPLIT = (0.70, 0.15, 0.15)
 NET_ROWS = 20_000
 
 
+@checked
 def lowpass_zero_phase(x: F64, dt: float, hz: float = FILTER_HZ, order: int = FILTER_ORDER) -> F64:
     """``x`` (1-D or ``(T, k)`` columns) through a Butterworth low-pass of ``order`` and 3 dB
     frequency ``hz``, forwards and backwards: the gain ``1 / (1 + (tan(ω/2) / tan(ω_c/2))^{2N})``
@@ -90,6 +91,7 @@ def lowpass_zero_phase(x: F64, dt: float, hz: float = FILTER_HZ, order: int = FI
     return np.ascontiguousarray(out[pad : pad + n])
 
 
+@checked
 def holoborodko(x: F64, dt: float) -> F64:
     """Derivative of ``x`` by the 11-point smooth noise-robust differentiator (Holoborodko), ends
     mirrored about the first and last sample as ``filteredDerivative.m`` does."""
@@ -125,6 +127,7 @@ def _filtered(run: BenchRun) -> _Filtered:
     return _Filtered(run, cols[:, 0], v, cols[:, 1], cols[:, 2], closing_mask(run, v))
 
 
+@checked
 def closing_mask(run: BenchRun, velocity: F64 | None = None) -> NDArray[np.bool_]:
     """The samples ``segmentData.m`` keeps: 1 s in from both ends, filtered spindle velocity at
     most −0.25 rad/s."""
@@ -133,7 +136,8 @@ def closing_mask(run: BenchRun, velocity: F64 | None = None) -> NDArray[np.bool_
     return (t >= TRIM_S) & (t <= t[-1] - TRIM_S) & (v <= -CLOSING_SPEED)
 
 
-def paper_split(masks: Sequence[NDArray[np.bool_]], seed: int = 0) -> list[NDArray[np.int8]]:
+@checked
+def paper_split(masks: Sequence[NDArray[np.bool_]], seed: Seed = 0) -> list[NDArray[np.int8]]:
     """dividerand over the concatenated kept samples: per run, ``0`` not kept, ``1`` train,
     ``2`` validation, ``3`` test."""
     instance(masks, "masks", list | tuple)
@@ -189,8 +193,9 @@ def _their_inputs(f: _Filtered) -> F64:
     return np.column_stack([f.angle, f.velocity, f.torque])
 
 
+@checked
 def paper_protocol(
-    runs: Sequence[BenchRun], seed: int = 0, networks: bool = True, epochs: int = 200
+    runs: Sequence[BenchRun], seed: Seed = 0, networks: bool = True, epochs: Epochs = 200
 ) -> list[PaperRow]:
     """Their experiment on ``runs`` (one folder): our estimators and a network of theirs, each
     trained on the training samples and scored on the test samples (see the module docs)."""
@@ -265,6 +270,7 @@ def _digit(run: BenchRun, position: int) -> int | None:
     return int(name[position]) if name.isdigit() and len(name) >= 2 else None
 
 
+@checked
 def strict_folds(
     runs: Sequence[BenchRun], fitters: dict[str, Callable[[Sequence[BenchRun]], Estimator]]
 ) -> list[PaperRow]:

@@ -18,7 +18,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from cablekit._args import instance, text
+from cablekit._args import checked, instance, text
 from cablekit.errors import DataError
 
 __all__ = ["Posture", "folder_posture", "parse_posture", "posture_from_text", "run_posture"]
@@ -92,6 +92,7 @@ class Posture:
         return ", ".join(parts)
 
 
+@checked
 def posture_from_text(text: str, source: str) -> Posture:
     """The pitch and roll a README's text states (the first angle after each word); a text that
     states neither gives an unstated posture, one that states an angle twice differently is a
@@ -109,6 +110,7 @@ def posture_from_text(text: str, source: str) -> Posture:
     return Posture(found.get("pitch"), found.get("roll"), None, source)
 
 
+@checked
 def parse_posture(text: str) -> Posture:
     """A posture the user gives: ``"pitch=30,roll=-45"`` (degrees; either may be left out and is
     then 0)."""
@@ -129,6 +131,7 @@ def parse_posture(text: str) -> Posture:
     return Posture(values.get("pitch", 0.0), values.get("roll", 0.0), None, "given")
 
 
+@checked
 def folder_posture(folder: str | Path) -> Posture:
     """The posture a bench folder's README (``README.txt``, ``ReadME.txt.gz``, any case) states;
     unstated when there is none or it names no angle."""
@@ -154,6 +157,7 @@ def folder_posture(folder: str | Path) -> Posture:
     return Posture(source="not stated")
 
 
+@checked
 def run_posture(folder_posture: Posture, stem: str) -> Posture:
     """The posture of the run named ``stem`` in a folder of ``folder_posture``: a ``ZXY`` name
     adds the jaw stopping position ``Z``."""

@@ -29,6 +29,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from cablekit._args import checked
 from cablekit.errors import DataError
 from cablekit.forceps.calibrate import DEFAULT_SHARE, _calibrated
 from cablekit.forceps.davinci import (
@@ -102,6 +103,7 @@ def _check_runs(runs: object, what: str) -> None:
         raise DataError(f"{what} needs a sequence of bench runs, got {type(runs).__name__}")
 
 
+@checked
 def calibration_runs(runs: Sequence[BenchRun]) -> list[BenchRun]:
     """The calibration recording among a folder's runs: the load step — the runs named all zeros
     (``00``, ``000``) and the same with a last digit 3 (``03``, ``003``) — and, where the folder
@@ -127,6 +129,7 @@ def calibration_runs(runs: Sequence[BenchRun]) -> list[BenchRun]:
     )
 
 
+@checked
 def transfer(
     protocol: str,
     train: tuple[str, Sequence[BenchRun]],
@@ -183,6 +186,7 @@ def _pairs(root: Path) -> list[tuple[str, Path, Path]]:
     return pairs
 
 
+@checked
 def protocols_present(root: str | Path, only: Sequence[str] | None = None) -> list[tuple[str, Path, Path]]:
     """The (protocol, trained-on folder, scored-on folder) pairs of :data:`FOLDERS` present under
     ``root``, or only those of the protocols named in ``only``; a ``DataError`` for a root that is
@@ -209,6 +213,7 @@ def protocols_present(root: str | Path, only: Sequence[str] | None = None) -> li
     return pairs
 
 
+@checked
 def protocols(
     root: str | Path,
     fitters: dict[str, Callable[[Sequence[BenchRun]], Estimator]],
@@ -242,6 +247,7 @@ def protocols(
     return out
 
 
+@checked
 def markdown(rows: Sequence[Transfer]) -> str:
     """The table: per protocol, folder pair and estimator, each calibration's pooled RMSE and
     worst run (mN·m; ✗ where a run is above the published 4.42)."""
@@ -301,6 +307,7 @@ class CvRow:
         return math.exp(sum(g.pairs * math.log(g.gmean) for g in groups) / n) if n else math.nan
 
 
+@checked
 def calibration_cv(
     root: str | Path,
     shares: Sequence[float] = CV_SHARES,
@@ -351,6 +358,7 @@ def calibration_cv(
     return out
 
 
+@checked
 def cv_markdown(rows: Sequence[CvRow]) -> str:
     """The cross-validation table, the chosen calibration marked."""
     best = min(rows, key=lambda r: r.overall)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cablekit._args import checked
 from cablekit._cablekit import Twin
 from cablekit._files import parse_toml, read_text
 from cablekit.errors import DataError
@@ -36,6 +37,7 @@ def _number(where: str, key: str, value: object, integer: bool = False) -> float
     return value
 
 
+@checked
 def twin_from_toml(text: str, source: str = "<twin>") -> Twin:
     """A twin from TOML text (see the module docs)."""
     doc = parse_toml(text, source)
@@ -70,6 +72,7 @@ def twin_from_toml(text: str, source: str = "<twin>") -> Twin:
     return Twin(jaws[0], jaws[1], **b)
 
 
+@checked
 def load_twin(path: str | Path | None = None) -> Twin:
     """The twin of a TOML file; the seed 000 bench without one."""
     p = Path(path) if path is not None else SEED_FILE
@@ -101,6 +104,7 @@ TRANSFER_VARIATIONS = (
 )
 
 
+@checked
 def another_instrument(twin: Twin, v: Variation) -> Twin:
     """``twin`` with cable stiffness, pretension and friction (joint Dahl level and viscous
     friction, capstan exponent, pulley drag) scaled by ``v``'s factors, and its own noise."""
