@@ -48,6 +48,19 @@ class Call:
     kwargs: dict[str, Any] | None = None
 
 
+def _from_functions(x0: Any, p0: Any, q: Any, r: Any, dt: Any = 0.01) -> tuple[np.ndarray, np.ndarray]:
+    """A filter over a user's callbacks (a contraction, the first state squared), one step;
+    an overflow in the callbacks is an inf they return (NotFiniteError), not a warning."""
+
+    def hx(x: np.ndarray) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            return x[:1] ** 2
+
+    f = ck.SrUkf.from_functions(lambda x, _dt: 0.9 * x, hx, x0, p0, q, r, dt=dt)
+    f.step(np.zeros(0), np.ones(1))
+    return f.x, f.P
+
+
 def _srukf() -> ck.SrUkf:
     return ck.SrUkf(R1, np.zeros(4), np.eye(4), 1e-6 * np.eye(4), np.eye(2), dt=1e-3, states=[0, 2])
 
@@ -114,6 +127,9 @@ def _calls() -> dict[str, Call]:
         "SrUkf.reset": Call(lambda x, p: _srukf().reset(x, p), (_arr(4), np.eye(4))),
         "SrUkf.linear": Call(
             ck.SrUkf.linear, (np.eye(2), np.eye(1, 2), _arr(2), np.eye(2), np.eye(2), np.eye(1))
+        ),
+        "SrUkf.from_functions": Call(
+            _from_functions, (_arr(2), np.eye(2), 1e-3 * np.eye(2), np.eye(1)), {"dt": 0.01}
         ),
         "JointProblem.residuals": Call(lambda th: _problem().residuals(th), (_problem().reference(),)),
         "JointProblem.predict": Call(lambda th, r: _problem().predict(th, r), (_problem().reference(), 0)),

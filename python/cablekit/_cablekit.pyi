@@ -1,11 +1,11 @@
 """Type stub of the compiled core (checked against the built module by mypy.stubtest in .ci/run)."""
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, ClassVar, final
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from typing_extensions import disjoint_base
 
 __all__ = [
@@ -329,6 +329,22 @@ class SrUkf:
         R: _F,
         *,
         B: _F | None = None,
+        alpha: float = 1e-3,
+        beta: float = 2.0,
+        kappa: float = 0.0,
+    ) -> SrUkf: ...
+    @staticmethod
+    def from_functions(
+        fx: Callable[..., ArrayLike],
+        hx: Callable[..., ArrayLike],
+        x0: _F,
+        P0: _F,
+        Q: _F,
+        R: _F,
+        *,
+        dt: float,
+        n_inputs: int = 0,
+        vectorized: bool = False,
         alpha: float = 1e-3,
         beta: float = 2.0,
         kappa: float = 0.0,

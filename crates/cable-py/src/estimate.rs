@@ -1,11 +1,12 @@
 //! `SrUkf`: the square-root UKF over a cablekit model or a discrete linear system.
 
 use cable_core::estimate::{self as core, DynSrUkf as Filter, Measure, Moments, ProcessKind};
-use std::sync::{Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard};
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
+use crate::callback::{Failure, PyObserve, PyProcess};
 use crate::convert::{matrix, opt_tuples, rows, square, to_matrix, to_vector, vector};
 use crate::dynamics::Model;
 use crate::errors::{arg_error, guarded, lock, Class};
@@ -24,6 +25,8 @@ type WeightTuple = (f64, (f64, f64), (f64, f64));
 pub struct SrUkf {
     inner: Mutex<Filter>,
     m: usize,
+    /// A user model's callback error of the running call (`from_functions` only).
+    failure: Option<Arc<Failure>>,
 }
 
 /// `x0`, `P0`, `Q`, `R` as the core's moments (sizes checked there).
@@ -43,6 +46,15 @@ fn moments(
 #[allow(non_snake_case)]
 fn h_rows(H: Option<&Bound<'_, PyAny>>) -> PyResult<Option<(Vec<f64>, usize)>> {
     H.filter(|h| !h.is_none()).map(|h| rows(h, "H")).transpose()
+}
+
+/// `f`, a callable (a `DTypeError` naming `name` otherwise).
+fn callable(f: &Bound<'_, PyAny>, name: &str) -> PyResult<Py<PyAny>> {
+    if f.is_callable() {
+        return Ok(f.clone().unbind());
+    }
+    let msg = format!("{name} must be callable, got {}", f.get_type().name()?);
+    Err(arg_error(Class::DType, name, msg))
 }
 
 fn mask_vec(obj: Option<&Bound<'_, PyAny>>, p: usize) -> PyResult<Option<Vec<bool>>> {
@@ -69,7 +81,17 @@ impl SrUkf {
         Ok(Self {
             inner: Mutex::new(inner),
             m,
+            failure: None,
         })
+    }
+
+    /// `result`, unless a user model's callback raised during the call: then its exception
+    /// (the filter has undone the step).
+    fn callbacks<T>(&self, result: PyResult<T>) -> PyResult<T> {
+        match self.failure.as_ref().and_then(|f| f.take()) {
+            Some(err) => Err(err),
+            None => result,
+        }
     }
 
     /// The filter, for this call only (`ConcurrentUseError` if another thread is in a call).
@@ -228,6 +250,48 @@ impl SrUkf {
         Self::build(kind, measure, moments(x0, P0, Q, R)?, [alpha, beta, kappa])
     }
 
+    /// Filter over your own model: `fx(x, dt)` (or `fx(x, dt, u)` with `n_inputs` inputs)
+    /// returns the state one period `dt` later and `hx(x)` the measurement, NumPy arrays in
+    /// and out (filterpy's convention). `vectorized=True`: both take all sigma points at once,
+    /// `(k, n)` in, `(k, n)` / `(k, p)` out. Sizes come from `x0` (`n`) and `R` (`p`). The same
+    /// filter as the built-in models: recovery, masks, gating, health, typed errors; an
+    /// exception raised by a callback is raised by the call that ran it, the step undone.
+    #[staticmethod]
+    #[pyo3(signature = (fx, hx, x0, P0, Q, R, *, dt, n_inputs = 0, vectorized = false, alpha = 1e-3, beta = 2.0, kappa = 0.0))]
+    #[allow(non_snake_case, clippy::too_many_arguments)]
+    fn from_functions(
+        fx: &Bound<'_, PyAny>,
+        hx: &Bound<'_, PyAny>,
+        x0: &Bound<'_, PyAny>,
+        P0: &Bound<'_, PyAny>,
+        Q: &Bound<'_, PyAny>,
+        R: &Bound<'_, PyAny>,
+        dt: f64,
+        n_inputs: usize,
+        vectorized: bool,
+        alpha: f64,
+        beta: f64,
+        kappa: f64,
+    ) -> PyResult<Self> {
+        let (fx, hx) = (callable(fx, "fx")?, callable(hx, "hx")?);
+        let init = moments(x0, P0, Q, R)?;
+        let (n, p) = (init.x0.len(), init.r.len().isqrt());
+        let failure = Arc::new(Failure::default());
+        let process = PyProcess::new(fx, dt, n, n_inputs, vectorized, failure.clone());
+        let observe = PyObserve::new(hx, n, p, vectorized, failure.clone());
+        let scaling = core::SigmaScaling { alpha, beta, kappa };
+        let inner = guarded(|| {
+            cable_core::error::check::positive("dt", dt)?;
+            core::custom_filter(Box::new(process), Box::new(observe), &init, scaling)
+        })?;
+        let (inner, m) = (Mutex::new(inner), n_inputs);
+        Ok(Self {
+            inner,
+            m,
+            failure: Some(failure),
+        })
+    }
+
     /// Number of states the filter estimates.
     #[getter]
     fn n_states(&self) -> PyResult<usize> {
@@ -291,7 +355,7 @@ impl SrUkf {
     fn predict(&self, u: &Bound<'_, PyAny>) -> PyResult<()> {
         let u = vector(u, "u", self.m)?;
         let mut f = self.filter()?;
-        guarded(|| f.predict(&u))
+        self.callbacks(guarded(|| f.predict(&u)))
     }
 
     /// Measurement update with `y` (entries where `mask` is true; all without a mask).
@@ -304,7 +368,7 @@ impl SrUkf {
     ) -> PyResult<()> {
         let (u, y, mask) = self.measurement(u, y, mask)?;
         let mut f = self.filter()?;
-        guarded(|| f.update(&u, &y, mask.as_deref()))
+        self.callbacks(guarded(|| f.update(&u, &y, mask.as_deref())))
     }
 
     /// Predict with `u`, then update with `y` (see `update`). Bad input raises before
@@ -318,7 +382,7 @@ impl SrUkf {
     ) -> PyResult<()> {
         let (u, y, mask) = self.measurement(u, y, mask)?;
         let mut f = self.filter()?;
-        guarded(|| f.step(&u, &y, mask.as_deref()))
+        self.callbacks(guarded(|| f.step(&u, &y, mask.as_deref())))
     }
 
     /// Replace the mean and covariance.
@@ -350,7 +414,7 @@ impl SrUkf {
         let (y, u, mk) = log_arrays(U, Y, mask, m, p)?;
         let mut guard = self.filter()?;
         let f: &mut Filter = &mut guard; // a plain borrow crosses into the GIL-free closure
-        let run = py.detach(|| guarded(|| f.run(&u, &y, mk.as_deref(), smooth)))?;
+        let run = self.callbacks(py.detach(|| guarded(|| f.run(&u, &y, mk.as_deref(), smooth))))?;
         Ok(FilterRun::new(py, run))
     }
 }

@@ -3,6 +3,7 @@
 //! Each file mirrors a core module and only converts, releases the GIL, calls the core and
 //! converts back. No algorithm lives here.
 
+mod callback;
 mod cdpr;
 mod convert;
 mod dynamics;

@@ -124,8 +124,10 @@ pub struct Moments {
     pub r: Vec<f64>,
 }
 
-type DynProcess = Box<dyn Process + Send + Sync>;
-type DynObserve = Box<dyn Observe + Send + Sync>;
+/// A process model chosen at run time (a built-in one, or a front end's own).
+pub type DynProcess = Box<dyn Process + Send + Sync>;
+/// A measurement model chosen at run time.
+pub type DynObserve = Box<dyn Observe + Send + Sync>;
 
 fn process(kind: ProcessKind) -> Result<(DynProcess, Option<AnyModel>)> {
     Ok(match kind {
@@ -204,6 +206,19 @@ pub fn filter(
             })
         }
     };
+    SrUkf::new(
+        process, observe, &init.x0, &init.p0, &init.q, &init.r, scaling,
+    )
+}
+
+/// A square-root UKF over a front end's own process and measurement models (a user's
+/// `fx`/`hx`): the same filter, recovery, masks, gating and health as the built-in models.
+pub fn custom_filter(
+    process: DynProcess,
+    observe: DynObserve,
+    init: &Moments,
+    scaling: SigmaScaling,
+) -> Result<DynSrUkf> {
     SrUkf::new(
         process, observe, &init.x0, &init.p0, &init.q, &init.r, scaling,
     )

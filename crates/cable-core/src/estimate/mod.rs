@@ -24,7 +24,10 @@ mod params;
 mod run;
 mod srukf;
 
-pub use build::{dual_filter, filter, DynSrUkf, Measure, Moments, ProcessKind};
+pub use build::{
+    custom_filter, dual_filter, filter, DynObserve, DynProcess, DynSrUkf, Measure, Moments,
+    ProcessKind,
+};
 pub use models::{
     InputStates, LinearObserve, LinearProcess, LinearRows, ModelOutputs, ModelProcess, Observe,
     Process,

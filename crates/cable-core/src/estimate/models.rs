@@ -25,6 +25,11 @@ pub trait Process {
     }
     /// Projects a mean onto the admissible set (bounded parameters); identity by default.
     fn project(&self, _x: &mut [f64]) {}
+    /// Whether a propagation since the step began could not be computed (a front end's
+    /// callback raised): the filter then undoes the step and reports it. Never by default.
+    fn failed(&self) -> bool {
+        false
+    }
 }
 
 /// A measurement `y = H(x, u)`.
@@ -33,6 +38,21 @@ pub trait Observe {
     fn n_outputs(&self) -> usize;
     /// Writes `H(x, u)` into `y`.
     fn observe(&mut self, x: &[f64], u: &[f64], y: &mut [f64]);
+    /// Measures the consecutive states of `xs` (length a multiple of `n`, e.g. all sigma
+    /// points) into the consecutive `p`-long rows of `ys`, each exactly as
+    /// [`Observe::observe`] would. The default calls it per state; a model that is cheaper
+    /// measured all at once (a user's vectorised callback) overrides it.
+    fn observe_many(&mut self, xs: &[f64], u: &[f64], ys: &mut [f64]) {
+        let p = self.n_outputs();
+        if p == 0 {
+            return;
+        }
+        let k = ys.len() / p;
+        let n = xs.len().checked_div(k).unwrap_or(0);
+        for (x, y) in xs.chunks_exact(n.max(1)).zip(ys.chunks_exact_mut(p)) {
+            self.observe(x, u, y);
+        }
+    }
     /// `Some` when `H(x, u) = H·x` is linear (and ignores `u`). Sigma points through a
     /// linear map reproduce `H·x̂`, `H·P·Hᵀ` and `P·Hᵀ` exactly, so the filter then forms
     /// the measurement update's sums (eqs 3.17–3.21) in closed form from `S`: the same
@@ -40,6 +60,11 @@ pub trait Observe {
     /// sigma-point update.
     fn linear(&self) -> Option<LinearRows<'_>> {
         None
+    }
+    /// Whether a measurement since the step began could not be computed (see
+    /// [`Process::failed`]). Never by default.
+    fn failed(&self) -> bool {
+        false
     }
 }
 
@@ -475,6 +500,9 @@ impl<T: Process + ?Sized> Process for Box<T> {
     fn project(&self, x: &mut [f64]) {
         (**self).project(x)
     }
+    fn failed(&self) -> bool {
+        (**self).failed()
+    }
 }
 
 impl<T: Observe + ?Sized> Observe for Box<T> {
@@ -485,8 +513,14 @@ impl<T: Observe + ?Sized> Observe for Box<T> {
     fn observe(&mut self, x: &[f64], u: &[f64], y: &mut [f64]) {
         (**self).observe(x, u, y)
     }
+    fn observe_many(&mut self, xs: &[f64], u: &[f64], ys: &mut [f64]) {
+        (**self).observe_many(xs, u, ys)
+    }
     fn linear(&self) -> Option<LinearRows<'_>> {
         (**self).linear()
+    }
+    fn failed(&self) -> bool {
+        (**self).failed()
     }
 }
 

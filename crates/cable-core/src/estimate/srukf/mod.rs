@@ -126,6 +126,8 @@ pub struct SrUkf<P: Process, H: Observe> {
     // workspaces
     chi: Aligned,
     ysig: Aligned,
+    /// Every sigma point's whole measurement, `ns × p` (the mask picks from it).
+    yall: Aligned,
     comp: Aligned,
     lqv: Aligned,
     ucols: Aligned,
@@ -227,6 +229,7 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
             },
             chi: Aligned::zeros(n * ns),
             ysig: Aligned::zeros(p * ns),
+            yall: Aligned::zeros(p * ns),
             comp: Aligned::zeros(padded(n.max(p)) * cols),
             lqv: Aligned::zeros(padded(n.max(p))),
             ucols: Aligned::zeros(n * (p + 1)),
@@ -340,6 +343,13 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     /// divergence with the step's number.
     #[inline(always)]
     fn settle(&mut self, done: Result<()>) -> Result<()> {
+        // a model that could not be evaluated (a user's callback raised) fails the step too
+        let failed = self.process.failed() || self.observe.failed();
+        let done = if failed {
+            Err(CableError::FilterDiverged { step: 0 })
+        } else {
+            done
+        };
         match done {
             Ok(()) => {
                 self.health.steps += 1;
@@ -493,15 +503,13 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
         let ns = 2 * n + 1;
         // redraw sigma points from the predicted (x, S) (eq 3.16) and measure them (eq 3.17)
         self.sigma_points::<0>();
-        let mut full = std::mem::take(&mut self.nu); // p-long scratch
+        self.observe
+            .observe_many(&self.chi[..ns * n], u, &mut self.yall[..ns * p]);
         for i in 0..ns {
-            self.observe
-                .observe(&self.chi[i * n..(i + 1) * n], u, &mut full[..p]);
             for (a, &k) in self.obs.iter().enumerate() {
-                self.ysig[a + i * q] = full[k];
+                self.ysig[a + i * q] = self.yall[k + i * p];
             }
         }
-        self.nu = full;
         let wmi = self.w.wm.1;
         for a in 0..q {
             let y0 = self.ysig[a];

@@ -542,3 +542,121 @@ fn specialised_steps_equal_the_general_build_bit_for_bit() {
         three_builds_agree(mk(n, &a, &x0, p, Opaque(picked)), 20, |_| vec![], measure);
     }
 }
+
+/// A process that fails (as a front end's callback that raised) at one call.
+struct Flaky {
+    inner: LinearProcess,
+    calls: usize,
+    fail_at: usize,
+    failed: bool,
+}
+
+impl Process for Flaky {
+    fn n_states(&self) -> usize {
+        self.inner.n_states()
+    }
+    fn n_inputs(&self) -> usize {
+        self.inner.n_inputs()
+    }
+    fn propagate(&mut self, x: &mut [f64], u: &[f64]) {
+        self.calls += 1;
+        if self.calls == self.fail_at {
+            self.failed = true; // the state is left as it came: only the flag says so
+        } else {
+            self.inner.propagate(x, u);
+        }
+    }
+    fn failed(&self) -> bool {
+        self.failed
+    }
+}
+
+/// Measures `x[0]²` row by row in [`Observe::observe`], and all points at once (in reverse
+/// order, to tell the two paths apart) in [`Observe::observe_many`].
+struct Square {
+    many: bool,
+}
+
+impl Observe for Square {
+    fn n_outputs(&self) -> usize {
+        1
+    }
+    fn observe(&mut self, x: &[f64], _u: &[f64], y: &mut [f64]) {
+        y[0] = x[0] * x[0];
+    }
+    fn observe_many(&mut self, xs: &[f64], u: &[f64], ys: &mut [f64]) {
+        if !self.many {
+            for (x, y) in xs.chunks_exact(2).zip(ys.chunks_exact_mut(1)) {
+                self.observe(x, u, y);
+            }
+            return;
+        }
+        let k = ys.len();
+        for i in (0..k).rev() {
+            ys[i] = xs[2 * i] * xs[2 * i];
+        }
+    }
+}
+
+#[test]
+fn a_model_that_reports_a_failure_fails_the_step_and_the_filter_undoes_it() {
+    let inner = LinearProcess::new(2, 0, coupled(2, 0.1), vec![]).unwrap();
+    let process = Flaky {
+        inner,
+        calls: 0,
+        fail_at: 8, // in the second step's five sigma points
+        failed: false,
+    };
+    let h = LinearObserve::new(1, 2, vec![1.0, 0.0]).unwrap();
+    let s = SigmaScaling::default();
+    let mut f = SrUkf::new(
+        process,
+        h,
+        &[0.1, 0.0],
+        &diag(2, 0.1),
+        &diag(2, 1e-4),
+        &[1e-3],
+        s,
+    )
+    .unwrap();
+    f.step(&[], &[0.2], None).unwrap();
+    let (x, sq) = (f.x().to_vec(), f.sqrt_covariance().to_vec());
+    let err = f.step(&[], &[0.2], None).unwrap_err();
+    assert!(
+        matches!(err, CableError::FilterDiverged { step: 1 }),
+        "{err}"
+    );
+    assert_eq!((f.x(), f.sqrt_covariance()), (&x[..], &sq[..]));
+    assert_eq!(f.health().steps, 1);
+    f.process.failed = false;
+    f.step(&[], &[0.2], None).unwrap();
+    assert_eq!(f.health().steps, 2);
+}
+
+#[test]
+fn a_model_measured_all_at_once_gives_the_per_point_filter() {
+    let s = SigmaScaling {
+        alpha: 0.5,
+        beta: 2.0,
+        kappa: 0.0,
+    };
+    let run = |many: bool| {
+        let process = LinearProcess::new(2, 0, coupled(2, 0.2), vec![]).unwrap();
+        let mut f = SrUkf::new(
+            process,
+            Square { many },
+            &[0.5, 0.1],
+            &diag(2, 0.05),
+            &diag(2, 1e-4),
+            &[1e-3],
+            s,
+        )
+        .unwrap();
+        for k in 0..50 {
+            f.step(&[], &[0.25 + 0.01 * (k as f64).sin()], None)
+                .unwrap();
+        }
+        (f.x().to_vec(), f.sqrt_covariance().to_vec())
+    };
+    assert_eq!(run(true), run(false));
+}
