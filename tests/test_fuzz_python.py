@@ -252,17 +252,20 @@ NOT_IN_TABLE = {
 }  # fmt: skip
 
 
-def _public_functions() -> set[str]:
-    names = set()
+def _members() -> list[tuple[str, str, Any]]:
+    """``(module, name, object)`` for the public names of every module of the two packages."""
+    out = []
     for pkg in (cablekit.cdpr, cablekit.forceps):
         mods = [pkg.__name__] + [f"{pkg.__name__}.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)]
         for m in mods:
             mod = importlib.import_module(m)
             for n in getattr(mod, "__all__", None) or [n for n in dir(mod) if not n.startswith("_")]:
-                f = getattr(mod, n, None)
-                if inspect.isfunction(f) and f.__module__ == m:
-                    names.add(f"{m}.{n}")
-    return names
+                out.append((m, n, getattr(mod, n, None)))
+    return out
+
+
+def _public_functions() -> set[str]:
+    return {f"{m}.{n}" for m, n, f in _members() if inspect.isfunction(f) and f.__module__ == m}
 
 
 @functools.cache
@@ -392,12 +395,32 @@ def _slots(fn: Any) -> list[tuple[str, Any, bool]]:
     ]
 
 
-PUBLIC = sorted(_public_functions())
+def _public_methods() -> set[str]:
+    """``module.Class.method`` for the public methods of the public classes written in Python
+    (properties and the bindings' classes aside)."""
+    names = set()
+    for m, n, cls in _members():
+        if not (inspect.isclass(cls) and cls.__module__ == m):
+            continue
+        for a, v in vars(cls).items():
+            f = v.__func__ if isinstance(v, staticmethod | classmethod) else v
+            if not a.startswith("_") and inspect.isfunction(f):
+                names.add(f"{m}.{n}.{a}")
+    return names
+
+
+PUBLIC = sorted(_public_functions() | _public_methods())
 
 
 def _function(name: str) -> Any:
+    """The function behind ``name`` (a method's, unbound: its ``self``/``cls`` is not drawn)."""
     module, attr = name.rsplit(".", 1)
-    return getattr(importlib.import_module(module), attr)
+    try:
+        return getattr(importlib.import_module(module), attr)
+    except ModuleNotFoundError:
+        module, cls = module.rsplit(".", 1)
+        v = inspect.getattr_static(getattr(importlib.import_module(module), cls), attr)
+        return v.__func__ if isinstance(v, staticmethod | classmethod) else v
 
 
 @pytest.mark.parametrize("name", PUBLIC)
@@ -406,7 +429,9 @@ def test_every_public_function_checks_its_arguments(name):
     (an annotation that names nothing would leave its argument unchecked)."""
     fn = _function(name)
     assert hasattr(fn, "__cablekit_hints__"), f"{name} is not wrapped by cablekit._args.checked"
-    assert _slots(fn) or not inspect.signature(fn).parameters
+    hints = fn.__cablekit_hints__()
+    args = [p.name for p in inspect.signature(fn).parameters.values() if p.name not in ("self", "cls")]
+    assert not [a for a in args if a not in hints], f"{name}: arguments without an annotation"
 
 
 @pytest.mark.parametrize("name", [n for n in PUBLIC if _slots(_function(n))])

@@ -146,16 +146,19 @@ class Robot(_Robot):
     robot (:func:`shipped`); the keyword constructor takes the arrays the file describes."""
 
     @classmethod
+    @checked
     def load(cls, path: str | Path) -> Robot:
         """A robot from a TOML robot file (format: docs/cdpr.md)."""
         return cls.from_toml(read_text(path, "robot file"), source=str(path))
 
     @classmethod
+    @checked
     def from_toml(cls, text: str, source: str = "<robot>") -> Robot:
         """A robot from the text of a TOML robot file."""
         return cls.from_dict(parse_toml(text, source), source)
 
     @classmethod
+    @checked
     def from_dict(cls, doc: dict[str, Any], source: str = "<robot>") -> Robot:
         """A robot from the parsed robot file."""
         doc = _keys(doc, _TOP, source)
@@ -207,6 +210,7 @@ class Robot(_Robot):
         )
 
     @classmethod
+    @checked
     def from_caspr(
         cls,
         bodies: str | Path,
@@ -224,6 +228,7 @@ class Robot(_Robot):
         ea = real(ea, "ea", lo=0.0, lo_open=True)
         return cls.from_dict(caspr_document(bodies, cables, cable_set, ea), str(cables))
 
+    @checked
     def workspace(
         self,
         *,

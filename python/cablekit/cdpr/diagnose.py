@@ -295,6 +295,7 @@ class Channel:
             return "found"
         return "unexplained" if self.significant.any() else "no gap"
 
+    @checked
     def summary(self) -> str:
         """One line."""
         unit, scale = ("N", 1.0) if self.name == "force" else ("µm", 1e6)
@@ -338,6 +339,7 @@ class CdprDiagnosis:
         states = [c.status for c in self.channels]
         return next((s for s in ("found", "unexplained") if s in states), "no gap")
 
+    @checked
     def summary(self) -> str:
         """One line per channel, joined."""
         return "; ".join(c.summary() for c in self.channels)
@@ -737,6 +739,7 @@ class TwinRun:
     sensor: np.ndarray
     lengths: Lengths
 
+    @checked
     def diagnose(self) -> CdprDiagnosis:
         """:func:`diagnose` on this run, both channels."""
         return diagnose(self.winch, self.t, self.alpha, self.current, self.sensor, lengths=self.lengths)

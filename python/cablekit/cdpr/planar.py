@@ -294,6 +294,7 @@ class PlanarRobot:
         """The home pose ``[x, y, θ]``."""
         return np.asarray(self.plant.home)
 
+    @checked
     def step(
         self, axis: int = 0, size: float = 0.02, *, t_end: float = 3.0, dt: float = 1e-3
     ) -> StepResponse:
@@ -303,11 +304,13 @@ class PlanarRobot:
             raise ParameterError(f"axis must be 0 (x), 1 (y) or 2 (θ), got {axis!r}")
         return step_response(self.plant, axis=axis, size=size, t_end=t_end, dt=dt)
 
+    @checked
     def circle(self, radius: float = 0.1, period: float = 4.0, *, dt: float = 1e-3) -> TrajectoryResponse:
         """Two turns of a circle through home with and without the tension distribution in the
         loop; see :func:`trajectory_response`."""
         return trajectory_response(self.plant, radius=radius, period=period, dt=dt)
 
+    @checked
     def follow(self, poses: np.ndarray, dt: float = 1e-3, **loop_options: Any) -> LoopRun:
         """Desired ``poses`` ``(T, 3)`` every ``dt`` s through the trajectory controller with the
         tension distribution in the loop (:meth:`CdprPlant.closed_loop` and its options)."""

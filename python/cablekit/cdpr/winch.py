@@ -67,6 +67,7 @@ class Column:
     omega_d: float | None
     peak_time: float | None
 
+    @checked
     def label(self) -> str:
         setup = "Setup 1 (antagonist fixed)" if self.setup == "fixed" else "Setup 2 (synchronized)"
         return f"{setup}, E = {self.modulus_gpa:g} GPa, {'with' if self.lpf else 'without'} LPF"

@@ -82,6 +82,7 @@ class Workspace:
         """Workspace area (planar, m²) or volume (spatial, m³): feasible cells × cell size."""
         return float(self.feasible.sum()) * self.cell
 
+    @checked
     def table(self) -> str:
         """A Markdown summary."""
         inside = self.margin[self.feasible]
@@ -102,6 +103,7 @@ class Workspace:
         ]
         return "| quantity | value |\n|---|---|\n" + "\n".join(f"| {k} | {v} |" for k, v in rows) + "\n"
 
+    @checked
     def save(self, out: str | Path) -> Path:
         """``workspace.npz`` (axes, margin, feasible, degenerate) and ``workspace.md`` in ``out``."""
         d = Path(out)

@@ -87,6 +87,7 @@ class CalibrationCheck:
     def ok(self) -> bool:
         return not self.problems
 
+    @checked
     def message(self) -> str:
         head = (
             f"calibration on {', '.join(self.runs)}: RMSE {self.rmse_mnm:.2f} mN·m on its own runs "

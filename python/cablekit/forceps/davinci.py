@@ -72,6 +72,7 @@ class BenchRun:
     def jaw_angle(self) -> F64:
         return self.signals[:, 4]
 
+    @checked
     def label(self) -> str:
         if self.frequency is None or self.load is None:
             return self.name
@@ -143,13 +144,16 @@ class Estimator:
 
     name = ""
 
+    @checked
     def predict(self, run: BenchRun) -> tuple[F64, F64 | None, float]:
         raise NotImplementedError
 
+    @checked
     def recalibrated(self, run: BenchRun) -> Estimator:
         """The default: remove the mean torque error on the calibration run (an offset)."""
         return self.recalibrated_on([run])
 
+    @checked
     def recalibrated_on(self, runs: Sequence[BenchRun]) -> Estimator:
         """:meth:`recalibrated` on several runs of the new instrument, their samples pooled."""
         err = [r.jaw_torque[_skip(r) :] - self.predict(r)[0][_skip(r) :] for r in runs]
@@ -178,6 +182,7 @@ class Physics(Estimator):
     name: str = "physics (drive model, Rust)"
 
     @classmethod
+    @checked
     def fit(
         cls, runs: Sequence[BenchRun], friction: bool = False, weights: Sequence[F64 | float] | None = None
     ) -> Physics:
@@ -204,10 +209,12 @@ class Physics(Estimator):
         )
         return cls(model, friction)
 
+    @checked
     def predict(self, run: BenchRun) -> tuple[F64, F64 | None, float]:
         e = self.model.estimate(run.signals[:, :3].copy(), dt=run.dt)
         return e.torque, e.angle, e.outside_share
 
+    @checked
     def recalibrated_on(self, runs: Sequence[BenchRun]) -> Estimator:
         dts = {round(r.dt, 9) for r in runs}
         if len(dts) != 1:
@@ -238,11 +245,13 @@ class Linear(Estimator):
     name: str = "linear map of drive-side signals"
 
     @classmethod
+    @checked
     def fit(cls, runs: Sequence[BenchRun]) -> Linear:
         x = np.vstack([_drive_features(r)[_skip(r) :] for r in runs])
         y = np.concatenate([r.jaw_torque[_skip(r) :] for r in runs])
         return cls(np.linalg.lstsq(x, y, rcond=None)[0], x.min(axis=0), x.max(axis=0))
 
+    @checked
     def predict(self, run: BenchRun) -> tuple[F64, F64 | None, float]:
         x = _drive_features(run)
         return x @ self.coef, None, _outside(x, self.lo, self.hi)
@@ -259,11 +268,13 @@ class Network(Estimator):
     name: str = "network 4-10-1 of drive-side signals"
 
     @classmethod
+    @checked
     def fit(cls, runs: Sequence[BenchRun], every: int = 20, seed: int = 0) -> Network:
         x = np.vstack([_drive_features(r)[_skip(r) :: every, 1:] for r in runs])
         y = np.concatenate([r.jaw_torque[_skip(r) :: every] for r in runs])[:, None] * 1e3
         return cls(_train(x, y, seed), x.min(axis=0), x.max(axis=0))
 
+    @checked
     def predict(self, run: BenchRun) -> tuple[F64, F64 | None, float]:
         x = np.ascontiguousarray(_drive_features(run)[:, 1:])
         return self.mlp.predict(x)[:, 0] * 1e-3, None, _outside(x, self.lo, self.hi)  # type: ignore[attr-defined]
@@ -291,6 +302,7 @@ class Jtdo(Estimator):
     name: str = "JTDO with a learned low-load model"
 
     @classmethod
+    @checked
     def fit(cls, runs: Sequence[BenchRun], every: int = 20, seed: int = 0) -> Jtdo:
         light = min(r.load if r.load is not None else 0 for r in runs)
         low = [r for r in runs if (r.load if r.load is not None else 0) == light]
@@ -310,6 +322,7 @@ class Jtdo(Estimator):
         xs = np.vstack([kin(r) for r in runs])
         return cls(mlp, ratio, base, xs.min(axis=0), xs.max(axis=0))
 
+    @checked
     def predict(self, run: BenchRun) -> tuple[F64, F64 | None, float]:
         x = np.column_stack([run.signals[:, 0], _velocity(run)])
         free = self.mlp.predict(np.ascontiguousarray(x))[:, 0] * 1e-3  # type: ignore[attr-defined]

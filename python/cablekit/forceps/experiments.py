@@ -165,6 +165,7 @@ class Instrument:
     physics_loaded: PhysicsObserver
     runs: dict[str, TwinRun] = field(default_factory=dict)
 
+    @checked
     def estimates(self, run: TwinRun) -> dict[str, ClampRun]:
         free = self.network.predict(run.motors)
         return {
@@ -210,6 +211,7 @@ class SeedReport:
     free_samples: int
     instrument: Instrument
 
+    @checked
     def held_out_rmse(self, estimator: str) -> float:
         """Clamping-force RMSE pooled over the runs no estimator was set up on (N)."""
         return pooled_rmse(self.instrument, estimator, [n for n in EXPERIMENTS if n != CALIBRATION])

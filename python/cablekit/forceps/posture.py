@@ -64,6 +64,7 @@ class Posture:
         """Whether pitch or roll was stated (by a README or the user)."""
         return self.pitch_deg is not None or self.roll_deg is not None
 
+    @checked
     def attributes(self) -> dict[str, float]:
         """The run attributes of this posture: ``pitch_deg`` and ``roll_deg`` when stated (an
         unstated one is 0 when the other is stated: the upstream READMEs name only the angle
@@ -76,9 +77,11 @@ class Posture:
             out["yaw_index"] = float(self.yaw_index)
         return out
 
+    @checked
     def with_yaw(self, yaw_index: int | None) -> Posture:
         return Posture(self.pitch_deg, self.roll_deg, yaw_index, self.source)
 
+    @checked
     def describe(self) -> str:
         parts = []
         if self.stated:

@@ -88,6 +88,7 @@ class Variation:
     friction: float
     seed: int
 
+    @checked
     def label(self) -> str:
         def pct(f: float) -> str:
             return f"{(f - 1) * 100:+.0f} %"
