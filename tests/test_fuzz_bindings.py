@@ -61,6 +61,19 @@ def _from_functions(x0: Any, p0: Any, q: Any, r: Any, dt: Any = 0.01) -> tuple[n
     return f.x, f.P
 
 
+def _dual_from_functions(x0: Any, theta0: Any, r: Any, dt: Any = 0.01) -> Any:
+    """A dual filter over a user's callbacks (a contraction scaled by the parameter), 3 steps."""
+
+    def fx(x: np.ndarray, theta: np.ndarray, _dt: float) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            return x / (1.0 + theta[0] ** 2)
+
+    f = ck.DualSrUkf.from_functions(
+        fx, lambda x: x[:1], x0, np.eye(2), 1e-3 * np.eye(2), theta0, np.eye(1), 1e-3 * np.eye(1), r, dt=dt
+    )
+    return f.run(np.zeros((3, 0)), np.ones((3, 1)))
+
+
 def _srukf() -> ck.SrUkf:
     return ck.SrUkf(R1, np.zeros(4), np.eye(4), 1e-6 * np.eye(4), np.eye(2), dt=1e-3, states=[0, 2])
 
@@ -128,6 +141,7 @@ def _calls() -> dict[str, Call]:
         "SrUkf.linear": Call(
             ck.SrUkf.linear, (np.eye(2), np.eye(1, 2), _arr(2), np.eye(2), np.eye(2), np.eye(1))
         ),
+        "DualSrUkf.from_functions": Call(_dual_from_functions, (_arr(2), _arr(1), np.eye(1)), {"dt": 0.01}),
         "SrUkf.from_functions": Call(
             _from_functions, (_arr(2), np.eye(2), 1e-3 * np.eye(2), np.eye(1)), {"dt": 0.01}
         ),

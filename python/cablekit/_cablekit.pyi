@@ -505,6 +505,25 @@ class DualSrUkf:
         beta: float = 2.0,
         kappa: float = 0.0,
     ) -> DualSrUkf: ...
+    @staticmethod
+    def from_functions(
+        fx: Callable[..., ArrayLike],
+        hx: Callable[..., ArrayLike],
+        x0: _F,
+        P0: _F,
+        Q: _F,
+        theta0: _F,
+        P0_theta: _F,
+        Q_theta: _F,
+        R: _F,
+        *,
+        dt: float,
+        n_inputs: int = 0,
+        bounds: list[tuple[float, float]] | None = None,
+        alpha: float = 1e-3,
+        beta: float = 2.0,
+        kappa: float = 0.0,
+    ) -> DualSrUkf: ...
     def run(self, U: _F, Y: _F, mask: NDArray[np.bool_] | None = None) -> DualRun: ...
 
 @disjoint_base

@@ -6,7 +6,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use cable_core::estimate::{Observe, Process};
+use cable_core::estimate::{Observe, ParamModel, Process};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 
@@ -233,6 +233,63 @@ impl Observe for PyObserve {
                 self.observe(x, u, y);
             }
         }
+    }
+    fn failed(&self) -> bool {
+        self.failure.is_set()
+    }
+}
+
+/// `fx(x, theta, dt)` (no inputs) or `fx(x, theta, dt, u)`: a dual filter's model, per point.
+pub struct PyParamModel {
+    fx: Py<PyAny>,
+    dt: f64,
+    /// States `n`, parameters `p`, inputs `m`.
+    sizes: (usize, usize, usize),
+    failure: Arc<Failure>,
+}
+
+impl PyParamModel {
+    /// The model `fx` over `sizes = (n, p, m)` at period `dt`.
+    pub fn new(
+        fx: Py<PyAny>,
+        dt: f64,
+        sizes: (usize, usize, usize),
+        failure: Arc<Failure>,
+    ) -> Self {
+        Self {
+            fx,
+            dt,
+            sizes,
+            failure,
+        }
+    }
+
+    fn call(&self, x: &mut [f64], theta: &[f64], u: &[f64]) -> PyResult<()> {
+        Python::attach(|py| {
+            let (xa, th) = (PyArray1::from_slice(py, x), PyArray1::from_slice(py, theta));
+            let fx = self.fx.bind(py);
+            let ret = if self.sizes.2 == 0 {
+                fx.call1((xa, th, self.dt))?
+            } else {
+                fx.call1((xa, th, self.dt, PyArray1::from_slice(py, u)))?
+            };
+            read_back(ret, "fx", self.sizes.0, 1, false, x)
+        })
+    }
+}
+
+impl ParamModel for PyParamModel {
+    fn n_states(&self) -> usize {
+        self.sizes.0
+    }
+    fn n_params(&self) -> usize {
+        self.sizes.1
+    }
+    fn n_inputs(&self) -> usize {
+        self.sizes.2
+    }
+    fn propagate(&mut self, x: &mut [f64], theta: &[f64], u: &[f64]) {
+        guard(&self.failure, x, |x| self.call(x, theta, u));
     }
     fn failed(&self) -> bool {
         self.failure.is_set()

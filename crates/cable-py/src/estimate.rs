@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::callback::{Failure, PyObserve, PyProcess};
+use crate::callback::{Failure, PyObserve, PyParamModel, PyProcess};
 use crate::convert::{matrix, opt_tuples, rows, square, to_matrix, to_vector, vector};
 use crate::dynamics::Model;
 use crate::errors::{arg_error, guarded, lock, Class};
@@ -447,8 +447,38 @@ fn log_arrays(
 /// and a parameter filter over the named parameters, run side by side.
 #[pyclass(frozen, module = "cablekit._cablekit")]
 pub struct DualSrUkf {
-    inner: Mutex<core::DualSrUkf>,
+    inner: Mutex<Dual>,
     m: usize,
+    /// A user model's callback error of the running call (`from_functions` only).
+    failure: Option<Arc<Failure>>,
+}
+
+/// The two filters of a `DualSrUkf`: over a transmission's named parameters, or a user's model.
+enum Dual {
+    Transmission(Box<core::DualSrUkf>),
+    User(Box<core::DualFilter<PyParamModel, PyObserve>>),
+}
+
+impl Dual {
+    /// States `n`, measured channels `q`, parameters `p`.
+    fn sizes(&self) -> (usize, usize, usize) {
+        match self {
+            Self::Transmission(d) => (d.state.n_states(), d.state.n_outputs(), d.params.n_states()),
+            Self::User(d) => (d.state.n_states(), d.state.n_outputs(), d.params.n_states()),
+        }
+    }
+
+    fn run(
+        &mut self,
+        u: &[f64],
+        y: &[f64],
+        mask: Option<&[bool]>,
+    ) -> cable_core::Result<core::DualRun> {
+        match self {
+            Self::Transmission(d) => d.run(u, y, mask),
+            Self::User(d) => d.run(u, y, mask),
+        }
+    }
 }
 
 #[pymethods]
@@ -486,8 +516,57 @@ impl DualSrUkf {
         })?;
         let m = inner.state.n_inputs();
         Ok(Self {
-            inner: Mutex::new(inner),
+            inner: Mutex::new(Dual::Transmission(Box::new(inner))),
             m,
+            failure: None,
+        })
+    }
+
+    /// Dual filter over your own model: `fx(x, theta, dt)` (or `fx(x, theta, dt, u)` with
+    /// `n_inputs` inputs) returns the state one period later with parameters `theta`, `hx(x)`
+    /// the measurement (one point per call). The state filter runs the model at the current
+    /// parameter estimate; the parameter filter (a random walk from `theta0`, kept within
+    /// `bounds`) measures the last state estimate propagated with each parameter sigma point.
+    #[staticmethod]
+    #[pyo3(signature = (fx, hx, x0, P0, Q, theta0, P0_theta, Q_theta, R, *, dt, n_inputs = 0, bounds = None, alpha = 1e-3, beta = 2.0, kappa = 0.0))]
+    #[allow(non_snake_case, clippy::too_many_arguments)]
+    fn from_functions(
+        fx: &Bound<'_, PyAny>,
+        hx: &Bound<'_, PyAny>,
+        x0: &Bound<'_, PyAny>,
+        P0: &Bound<'_, PyAny>,
+        Q: &Bound<'_, PyAny>,
+        theta0: &Bound<'_, PyAny>,
+        P0_theta: &Bound<'_, PyAny>,
+        Q_theta: &Bound<'_, PyAny>,
+        R: &Bound<'_, PyAny>,
+        dt: f64,
+        n_inputs: usize,
+        bounds: Option<&Bound<'_, PyAny>>,
+        alpha: f64,
+        beta: f64,
+        kappa: f64,
+    ) -> PyResult<Self> {
+        let (fx, hx) = (callable(fx, "fx")?, callable(hx, "hx")?);
+        let init = core::DualMoments {
+            state: moments(x0, P0, Q, R)?,
+            theta0: crate::convert::any_vector(theta0, "theta0")?,
+            p0_theta: square(P0_theta, "P0_theta")?,
+            q_theta: square(Q_theta, "Q_theta")?,
+        };
+        let bounds = opt_tuples(bounds, "bounds", BOUNDS)?;
+        let failure = Arc::new(Failure::default());
+        let models = user_models(&fx, &hx, dt, (&init, n_inputs), &failure);
+        let scaling = core::SigmaScaling { alpha, beta, kappa };
+        let inner = guarded(|| {
+            cable_core::error::check::positive("dt", dt)?;
+            core::DualFilter::new(models.0, models.1, &init, bounds, scaling)
+        })?;
+        let (inner, m) = (Mutex::new(Dual::User(Box::new(inner))), n_inputs);
+        Ok(Self {
+            inner,
+            m,
+            failure: Some(failure),
         })
     }
 
@@ -503,12 +582,35 @@ impl DualSrUkf {
         mask: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<DualRun> {
         let mut f = lock(&self.inner, "DualSrUkf")?;
-        let (n, q, p) = (f.state.n_states(), f.state.n_outputs(), f.params.n_states());
+        let (n, q, p) = f.sizes();
         let (y, u, mk) = log_arrays(U, Y, mask, self.m, q)?;
-        let fr: &mut core::DualSrUkf = &mut f; // a plain borrow crosses into the closure
-        let run = py.detach(|| guarded(|| fr.run(&u, &y, mk.as_deref())))?;
+        let fr: &mut Dual = &mut f; // a plain borrow crosses into the closure
+        let run = py.detach(|| guarded(|| fr.run(&u, &y, mk.as_deref())));
+        let run = match self.failure.as_ref().and_then(|e| e.take()) {
+            Some(err) => Err(err),
+            None => run,
+        }?;
         Ok(DualRun::new(py, run, n, p))
     }
+}
+
+/// Two copies (one per filter) of a user's dual model and measurement, sharing one failure slot.
+type UserModels = ((PyParamModel, PyParamModel), (PyObserve, PyObserve));
+
+fn user_models(
+    fx: &Py<PyAny>,
+    hx: &Py<PyAny>,
+    dt: f64,
+    (init, m): (&core::DualMoments, usize),
+    failure: &Arc<Failure>,
+) -> UserModels {
+    let sizes = (init.state.x0.len(), init.theta0.len(), m);
+    let p = init.state.r.len().isqrt();
+    Python::attach(|py| {
+        let model = || PyParamModel::new(fx.clone_ref(py), dt, sizes, failure.clone());
+        let observe = || PyObserve::new(hx.clone_ref(py), sizes.0, p, false, failure.clone());
+        ((model(), model()), (observe(), observe()))
+    })
 }
 
 /// An optional `(t, q)` boolean numpy mask.

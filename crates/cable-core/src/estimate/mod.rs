@@ -18,6 +18,7 @@
 //! square roots it returns are lower-triangular, column-major.
 
 mod build;
+mod dual;
 pub mod linalg;
 mod models;
 mod params;
@@ -28,6 +29,7 @@ pub use build::{
     custom_filter, dual_filter, filter, DynObserve, DynProcess, DynSrUkf, Measure, Moments,
     ProcessKind,
 };
+pub use dual::{AtParams, DualFilter, DualMoments, ParamModel, Through};
 pub use models::{
     InputStates, LinearObserve, LinearProcess, LinearRows, ModelOutputs, ModelProcess, Observe,
     Process,

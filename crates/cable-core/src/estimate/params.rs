@@ -361,6 +361,30 @@ pub struct RandomWalk {
     bounds: Vec<(f64, f64)>,
 }
 
+impl RandomWalk {
+    /// A random walk of `p` parameters kept within `bounds` (`lower ≤ upper`, either may be
+    /// infinite).
+    pub fn new(bounds: Vec<(f64, f64)>, p: usize) -> Result<Self> {
+        if bounds.len() != p {
+            return Err(CableError::Shape {
+                what: "bounds".into(),
+                expected: format!("{p} (lower, upper) pairs"),
+                got: format!("{}", bounds.len()),
+            });
+        }
+        for (i, &(lo, hi)) in bounds.iter().enumerate() {
+            if lo.is_nan() || hi.is_nan() || lo > hi {
+                return Err(CableError::InvalidParameter {
+                    name: format!("bounds[{i}]"),
+                    value: lo,
+                    requirement: "lower <= upper, not NaN",
+                });
+            }
+        }
+        Ok(Self { bounds })
+    }
+}
+
 impl Process for RandomWalk {
     fn n_states(&self) -> usize {
         self.bounds.len()

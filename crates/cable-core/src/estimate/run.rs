@@ -49,7 +49,13 @@ pub struct DualRun {
 }
 
 /// The rows `T` of a log: `Y` `(T, p)`, `U` `(T, m)` finite, `mask` `(T, p)` if given.
-fn log_rows(us: &[f64], ys: &[f64], mask: Option<&[bool]>, m: usize, p: usize) -> Result<usize> {
+pub(crate) fn log_rows(
+    us: &[f64],
+    ys: &[f64],
+    mask: Option<&[bool]>,
+    m: usize,
+    p: usize,
+) -> Result<usize> {
     let t = ys.len() / p.max(1);
     rows("U", us, t, m)?;
     check::len("Y", ys, t * p)?;
@@ -77,7 +83,7 @@ fn rows(what: &str, data: &[f64], t: usize, width: usize) -> Result<()> {
 
 /// The error of row `k`'s step, located in the log: a NaN measurement by its row and column, a
 /// divergence by its row.
-fn at_row(e: CableError, k: usize, p: usize) -> CableError {
+pub(crate) fn at_row(e: CableError, k: usize, p: usize) -> CableError {
     match e {
         CableError::FilterDiverged { .. } => CableError::FilterDiverged { step: k },
         CableError::NotFinite { index, value, .. } => CableError::NotFinite {
@@ -158,33 +164,75 @@ impl<P: Process, H: Observe> SrUkf<P, H> {
     }
 }
 
+impl DualRun {
+    /// Row `k`: the state mean, the parameter mean and their standard deviations from the
+    /// parameter filter's square root `s` (column-major).
+    pub(crate) fn record(&mut self, k: usize, x: &[f64], theta: &[f64], s: &[f64]) {
+        let (n, p) = (x.len(), theta.len());
+        self.x[k * n..(k + 1) * n].copy_from_slice(x);
+        self.theta[k * p..(k + 1) * p].copy_from_slice(theta);
+        for i in 0..p {
+            self.theta_std[k * p + i] = (0..p).map(|j| s[i + j * p].powi(2)).sum::<f64>().sqrt();
+        }
+    }
+}
+
+/// What the log runner needs of a dual filter (the transmission's and a user model's).
+pub(crate) trait DualSteps {
+    /// States `n`, measured channels `q`, inputs `m`.
+    fn sizes(&self) -> (usize, usize, usize);
+    /// One step (see [`DualSrUkf::step`]).
+    fn step(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) -> Result<()>;
+    /// The state filter's mean, the parameter filter's mean and square root.
+    fn estimates(&self) -> (&[f64], &[f64], &[f64]);
+}
+
+/// Filter a whole log through both filters of `d`; a failing row's error names its row.
+pub(crate) fn run_dual<D: DualSteps>(
+    d: &mut D,
+    us: &[f64],
+    ys: &[f64],
+    mask: Option<&[bool]>,
+) -> Result<DualRun> {
+    let (n, q, m) = d.sizes();
+    let t = log_rows(us, ys, mask, m, q)?;
+    let p = d.estimates().1.len();
+    let mut out = DualRun {
+        len: t,
+        x: vec![0.0; t * n],
+        theta: vec![0.0; t * p],
+        theta_std: vec![0.0; t * p],
+    };
+    for k in 0..t {
+        let mk = mask.map(|v| &v[k * q..(k + 1) * q]);
+        d.step(&us[k * m..(k + 1) * m], &ys[k * q..(k + 1) * q], mk)
+            .map_err(|e| at_row(e, k, q))?;
+        let (x, theta, s) = d.estimates();
+        out.record(k, x, theta, s);
+    }
+    Ok(out)
+}
+
+impl DualSteps for DualSrUkf {
+    fn sizes(&self) -> (usize, usize, usize) {
+        let (n, q) = (self.state.n_states(), self.state.n_outputs());
+        (n, q, self.base_inputs())
+    }
+    fn step(&mut self, u: &[f64], y: &[f64], mask: Option<&[bool]>) -> Result<()> {
+        DualSrUkf::step(self, u, y, mask)
+    }
+    fn estimates(&self) -> (&[f64], &[f64], &[f64]) {
+        (
+            self.state.x(),
+            self.params.x(),
+            self.params.sqrt_covariance(),
+        )
+    }
+}
+
 impl DualSrUkf {
     /// Filter a whole log through both filters (see the module header).
     pub fn run(&mut self, us: &[f64], ys: &[f64], mask: Option<&[bool]>) -> Result<DualRun> {
-        let (n, q, m) = (
-            self.state.n_states(),
-            self.state.n_outputs(),
-            self.base_inputs(),
-        );
-        let p = self.params.n_states();
-        let t = log_rows(us, ys, mask, m, q)?;
-        let mut out = DualRun {
-            len: t,
-            x: vec![0.0; t * n],
-            theta: vec![0.0; t * p],
-            theta_std: vec![0.0; t * p],
-        };
-        for k in 0..t {
-            let mk = mask.map(|v| &v[k * q..(k + 1) * q]);
-            self.step(&us[k * m..(k + 1) * m], &ys[k * q..(k + 1) * q], mk)
-                .map_err(|e| at_row(e, k, q))?;
-            out.x[k * n..(k + 1) * n].copy_from_slice(self.state.x());
-            out.theta[k * p..(k + 1) * p].copy_from_slice(self.params.x());
-            let s = self.params.sqrt_covariance();
-            for i in 0..p {
-                out.theta_std[k * p + i] = (0..p).map(|j| s[i + j * p].powi(2)).sum::<f64>().sqrt();
-            }
-        }
-        Ok(out)
+        run_dual(self, us, ys, mask)
     }
 }
