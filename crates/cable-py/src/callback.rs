@@ -1,5 +1,5 @@
-//! A user's own process and measurement models for `SrUkf.from_functions`: Python callables in
-//! filterpy's convention, called with the GIL taken back for the call. They only convert: the
+//! A user's own process and measurement models for `SrUkf.from_functions` and
+//! `DualSrUkf.from_functions`: Python callables in filterpy's convention, called with the GIL taken back for the call. They only convert: the
 //! state goes out as a NumPy array and comes back as floats. An exception inside a callback (or a
 //! return value of the wrong shape) is kept, the step fails and the filter undoes it, and the
 //! call that ran the step raises it.
