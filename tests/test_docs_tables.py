@@ -4,11 +4,8 @@ documented peak error of 0.108° had drifted from the 0.319° the example printe
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests.examples import ROOT, run_example
 
 
 def _rows(text: str, head: str) -> dict[tuple[str, str], list[float]]:
@@ -23,13 +20,7 @@ def _rows(text: str, head: str) -> dict[tuple[str, str], list[float]]:
 
 
 def test_the_joint_state_table_in_the_docs_is_what_the_example_prints(tmp_path):
-    done = subprocess.run(
-        [sys.executable, str(ROOT / "examples" / "joint_states.py"), "--out", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        cwd=tmp_path,
-    )
+    done = run_example("joint_states.py", tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
     head = "| exp. | joint | UKF MAE | kinematics MAE | UKF peak | kinematics peak | unit |"
     printed = _rows((tmp_path / "table.md").read_text(), head)

@@ -233,18 +233,9 @@ def test_from_functions_refuses_bad_arguments_with_typed_errors(slot, bad):
 def test_the_migration_example_runs_and_agrees(tmp_path):
     """`examples/filterpy_migration.py` (the docs' migration guide): agreement with filterpy
     (exit 0 only below 1e-9), filterpy's failure and cablekit's recovery in its table."""
-    import subprocess
-    import sys
-    from pathlib import Path
+    from tests.examples import run_example
 
-    root = Path(__file__).resolve().parents[1]
-    done = subprocess.run(
-        [sys.executable, str(root / "examples" / "filterpy_migration.py"), "--out", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
+    done = run_example("filterpy_migration.py", tmp_path, timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
     table = (tmp_path / "table.md").read_text()
     assert "LinAlgError" in table and "covariance recoveries" in table
