@@ -18,6 +18,8 @@ import typing
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
+import numpy as np
+
 from cablekit._arrays import float_array
 from cablekit.errors import CablekitError, DTypeError, ParameterError
 
@@ -118,8 +120,6 @@ def signal(value: Any, name: str, ndim: int | tuple[int, ...] | None = None) -> 
     """``value`` as a finite float64 array (:func:`float_array`) whose every sample is within
     ``±SIGNAL_LIMIT``: NaN/inf are a :class:`ParameterError` naming the argument, as are
     magnitudes no measurement has."""
-    import numpy as np
-
     arr = float_array(value, name, ndim)
     if not np.isfinite(arr).all():
         raise ParameterError(f"{name} has NaN or inf samples")
@@ -160,8 +160,6 @@ _WORDS = {type(None): "None", float: "a real number", int: "an integer", bool: "
 
 def _describe(tp: Any) -> str:
     """``tp`` in a user's words: "a string", "a path or None", "a list of BenchRun"."""
-    import numpy as np
-
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (typing.Union, types.UnionType):
         paths = [a for a in args if a is str or (isinstance(a, type) and issubclass(a, os.PathLike))]
@@ -191,8 +189,6 @@ def _wrong(value: Any, name: str, tp: Any) -> DTypeError:
 def _array_like(value: Any, name: str) -> None:
     """An array argument: an ndarray, a (nested) list or tuple of numbers, or a number; a float
     array with NaN or inf samples is a :class:`ParameterError`. Shapes are the function's own."""
-    import numpy as np
-
     if isinstance(value, str | bytes) or value is None:
         raise DTypeError(f"{name} must be an array, got {type(value).__name__}")
     if not isinstance(value, np.ndarray | list | tuple | numbers.Number | np.generic):
@@ -212,8 +208,6 @@ def check_value(value: Any, tp: Any, name: str) -> None:
     :class:`DTypeError` naming ``name`` and the type; a ``float`` that is NaN or infinite, and a
     float array with such entries, a :class:`ParameterError`. Containers are checked element by
     element; what an annotation cannot say (shapes, ranges) is the function's own check."""
-    import numpy as np
-
     if tp is Any or tp is object or isinstance(tp, TypeVar):
         return
     origin, args = typing.get_origin(tp), typing.get_args(tp)

@@ -9,6 +9,7 @@ use std::sync::{Arc, Mutex};
 use cable_core::estimate::{Observe, ParamModel, Process};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
 
 use crate::convert::{matrix, vector};
 use crate::errors::{arg_error, Class};
@@ -36,6 +37,15 @@ impl Failure {
     }
 }
 
+/// `result`, unless a user model's callback raised during the call (`failure`, when the filter
+/// has user models): then its exception — the filter has undone the step.
+pub fn raised<T>(failure: Option<&Arc<Failure>>, result: PyResult<T>) -> PyResult<T> {
+    match failure.and_then(|f| f.take()) {
+        Some(err) => Err(err),
+        None => result,
+    }
+}
+
 /// `values` unless one is NaN or inf: a `NotFiniteError` naming `what` (a user's model that
 /// returned them, not the filter, diverged).
 fn finite(values: &[f64], what: &str) -> PyResult<()> {
@@ -50,8 +60,10 @@ fn finite(values: &[f64], what: &str) -> PyResult<()> {
 
 /// `obj` as a float64 NumPy array (a list, another dtype), or a `DTypeError` naming `what`.
 fn floats<'py>(obj: Bound<'py, PyAny>, what: &str) -> PyResult<Bound<'py, PyAny>> {
-    let np = obj.py().import("numpy")?;
-    np.getattr("ascontiguousarray")?
+    // looked up once: this runs for every sigma point
+    static CONTIGUOUS: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    CONTIGUOUS
+        .import(obj.py(), "numpy", "ascontiguousarray")?
         .call1((obj, "float64"))
         .map_err(|_| {
             let msg = format!("{what} must return an array of numbers");

@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::callback::{Failure, PyObserve, PyParamModel, PyProcess};
+use crate::callback::{raised, Failure, PyObserve, PyParamModel, PyProcess};
 use crate::convert::{matrix, opt_tuples, rows, square, to_matrix, to_vector, vector};
 use crate::dynamics::Model;
 use crate::errors::{arg_error, guarded, lock, Class};
@@ -88,10 +88,7 @@ impl SrUkf {
     /// `result`, unless a user model's callback raised during the call: then its exception
     /// (the filter has undone the step).
     fn callbacks<T>(&self, result: PyResult<T>) -> PyResult<T> {
-        match self.failure.as_ref().and_then(|f| f.take()) {
-            Some(err) => Err(err),
-            None => result,
-        }
+        raised(self.failure.as_ref(), result)
     }
 
     /// The filter, for this call only (`ConcurrentUseError` if another thread is in a call).
@@ -586,10 +583,7 @@ impl DualSrUkf {
         let (y, u, mk) = log_arrays(U, Y, mask, self.m, q)?;
         let fr: &mut Dual = &mut f; // a plain borrow crosses into the closure
         let run = py.detach(|| guarded(|| fr.run(&u, &y, mk.as_deref())));
-        let run = match self.failure.as_ref().and_then(|e| e.take()) {
-            Some(err) => Err(err),
-            None => run,
-        }?;
+        let run = raised(self.failure.as_ref(), run)?;
         Ok(DualRun::new(py, run, n, p))
     }
 }
