@@ -16,8 +16,16 @@ from cablekit._cablekit import effect_catalogue
 from cablekit.diagnose import Options, diagnose
 from cablekit.diagnose.benchmark import _score, _truth, format_benchmark, run_benchmark
 from cablekit.diagnose.data import write_csv
-from cablekit.diagnose.discover import KINDS, describe_remaining, discover, signature_missing
-from cablekit.diagnose.fit import baseline
+from cablekit.diagnose.discover import (
+    KINDS,
+    MEASUREMENT_SIGNATURES,
+    DiscoveredTerm,
+    describe_remaining,
+    discover,
+    revealed,
+    signature_missing,
+)
+from cablekit.diagnose.fit import baseline, fit_many
 from cablekit.diagnose.localise import smooth_velocity
 from cablekit.diagnose.prepare import prepare
 from cablekit.diagnose.report import to_json, validate
@@ -205,10 +213,41 @@ def test_discovery_finds_the_kind_it_was_given_and_nothing_in_noise(control_prep
     assert not signature_missing("coulomb_friction", [])  # only flexible effects need one
 
 
+def test_a_lag_behind_dry_friction_shows_on_the_friction_models_predictions():
+    """A force-sensor lag behind a dominant Coulomb friction: the gap the friction fit leaves
+    follows the rate of change of the *friction model's* tension (the lag of its reversal
+    steps), which the nominal model's tension does not have. Discovery on the fitted model's
+    predictions reveals the lag (and forward selection offers it again); on the nominal
+    predictions it does not; and behind friction alone nothing is revealed."""
+    from cablekit.diagnose.selftest import PAIRS, SINGLE
+
+    pair = make_case(PAIRS[0], seed=2026 + 97 * len(SINGLE), duration=4.0)
+    assert set(PAIRS[0]) == {"coulomb_friction", "sensor_lag"}
+    alone = make_case(("coulomb_friction",), seed=2026 + 97 * len(SINGLE), duration=4.0)
+    opts = Options(progress=False)
+    shown = {}
+    for name, case in (("pair", pair), ("alone", alone)):
+        prep = prepare(case.spec, case.fit, case.hold)
+        (friction,) = fit_many(prep, [(["coulomb_friction@joint"], None)], opts, "test")
+        assert friction.error is None
+        shown[name] = (
+            revealed(discover(prep, friction.fit_resid, friction.hold_resid, model=friction)),
+            revealed(discover(prep, friction.fit_resid, friction.hold_resid)),
+        )
+    assert "sensor_lag" in shown["pair"][0], shown
+    assert "sensor_lag" not in shown["pair"][1], shown  # the nominal predictions hide it
+    assert not shown["alone"][0], shown
+
+
+@given(st.lists(st.tuples(st.sampled_from(sorted(KINDS)), st.floats(allow_nan=True)), max_size=6))
+def test_revealed_names_only_measurement_effects_whose_signature_is_found(items):
+    terms = [DiscoveredTerm("ch", k, v, KINDS[k]) for k, v in items]
+    kinds = {k for k, v in items if v >= 0.2}
+    assert revealed(terms) == {e for e, sig in MEASUREMENT_SIGNATURES.items() if sig & kinds}
+
+
 @given(st.lists(st.tuples(st.sampled_from(sorted(KINDS)), st.floats(allow_nan=True)), max_size=6))
 def test_remaining_structure_is_described_only_above_its_share(items):
-    from cablekit.diagnose.discover import DiscoveredTerm
-
     terms = [DiscoveredTerm("ch", k, v, KINDS[k]) for k, v in items]
     out = describe_remaining(terms)
     assert len(out) == sum(1 for _, v in items if v >= 0.2)

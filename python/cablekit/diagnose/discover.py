@@ -33,10 +33,19 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from cablekit.diagnose.fit import CandidateFit
 from cablekit.diagnose.localise import smooth_velocity
 from cablekit.diagnose.prepare import Prepared
 
-__all__ = ["KINDS", "DiscoveredTerm", "describe_remaining", "discover", "signature_missing"]
+__all__ = [
+    "KINDS",
+    "MEASUREMENT_SIGNATURES",
+    "DiscoveredTerm",
+    "describe_remaining",
+    "discover",
+    "revealed",
+    "signature_missing",
+]
 
 _F = NDArray[np.float64]
 
@@ -45,7 +54,7 @@ KINDS: dict[str, str] = {
     "offset": "a constant offset",
     "level": "the channel's own level (a gain or a stiffness error)",
     "curvature": "the square and cube of the channel's level (a nonlinear law)",
-    "rate": "the channel's rate of change (a lag or a delay)",
+    "rate": "the channel's rate of change or a lag of it (a sensor lag, a hold or a delay)",
     "velocity": "the velocity (viscous damping)",
     "acceleration": "the acceleration (an inertia error)",
     "reversal_step": "a step at every reversal of the motion (dry friction)",
@@ -59,6 +68,20 @@ KINDS: dict[str, str] = {
 #: kinds a flexible candidate can produce: creep relaxes over seconds (memory), over a run
 #: (drift), or has relaxed before the held-out run starts (an offset, a changed level)
 SIGNATURES: dict[str, set[str]] = {"creep": {"memory", "drift", "offset", "level"}}
+
+#: kinds an effect of the measurement path leaves behind *whatever model* predicts the channel:
+#: a lag, a hold or a delay the rate of change of the prediction, a gain or bias its level. They
+#: follow the prediction, so a dominant plant effect hides them until it is in the model; once
+#: it is, :func:`discover` on that model's predictions (``model=``) shows them
+MEASUREMENT_SIGNATURES: dict[str, set[str]] = {
+    "sensor_lag": {"rate"},
+    "sensor_sampling": {"rate"},
+    "time_delay": {"rate"},
+    "sensor_gain_bias": {"level", "offset"},
+}
+
+#: time constants (s) of the lag columns of the "rate" kind: sensor filters, converters, holds
+LAG_TIMES = (0.005, 0.02, 0.08)
 
 #: share of a channel's held-out excess a kind must remove to count as the gap's structure
 DOMINANT = 0.3
@@ -109,16 +132,20 @@ def _presliding(u: _F, width: float) -> _F:
     return z
 
 
-def _features(prep: Prepared, hold: bool) -> list[dict[str, list[_F]]]:
+def _features(prep: Prepared, hold: bool, model: CandidateFit | None = None) -> list[dict[str, list[_F]]]:
     """Per run: kind → feature columns (each over the scored samples), per channel where the
-    kind depends on the channel (keys ``kind`` or ``kind:channel``)."""
+    kind depends on the channel (keys ``kind`` or ``kind:channel``). The channel features come
+    from the nominal model's predictions, or from ``model``'s (the effects selected so far)."""
     runs = prep.hold_runs if hold else prep.fit_runs
     problem = prep.hold0 if hold else prep.fit0
+    theta = np.zeros(0)
+    if model is not None and model.effects:
+        problem, theta = problem.with_effects(model.effects, model.substeps), model.params
     out = []
     angle_cols = [c for o, c in zip(prep.channel_names, prep.columns, strict=True) if o in ("theta", "q_l1")]
     for i, run in enumerate(runs):
         start = round(prep.spec.warmup / run.dt)
-        pred = np.asarray(problem.predict(np.zeros(0), i))
+        pred = np.asarray(problem.predict(theta, i))
         t = run.t - run.t[0]
         inputs = [run.column(c) for c in prep.spec.inputs][:4]
         feats: dict[str, list[_F]] = {}
@@ -148,7 +175,13 @@ def _features(prep: Prepared, hold: bool) -> list[dict[str, list[_F]]]:
             z = yc / sd
             feats[f"level:{name}"] = [z]
             feats[f"curvature:{name}"] = [z * z, z**3]
-            feats[f"rate:{name}"] = [np.gradient(y, run.dt) * (run.dt / sd) * 100.0]
+            # a lag of the channel: its rate of change (a short lag of a smooth signal) and the
+            # first-order lags of the prediction over the time constants of sensors and
+            # converters (a lag of the steps a dry-friction model puts in the tension is an
+            # exponential after each step, not a derivative)
+            feats[f"rate:{name}"] = [np.gradient(y, run.dt) * (run.dt / sd) * 100.0] + [
+                (_lowpass(z, tau, run.dt) - z) for tau in LAG_TIMES if tau > 2.0 * run.dt
+            ]
             feats[f"tension_direction:{name}"] = [z * d for d in dry]
             feats[f"memory:{name}"] = [(_lowpass(z, tau, run.dt) - z) for tau in (1.0, 3.0, 10.0)]
         out.append({k: [np.asarray(col[start:], dtype=float) for col in v] for k, v in feats.items()})
@@ -176,11 +209,15 @@ def discover(
     hold_resid: list[_F],
     min_share: float = 0.05,
     max_kinds: int = 4,
+    model: CandidateFit | None = None,
 ) -> list[DiscoveredTerm]:
     """Kinds of term each channel's gap needs (greedy group selection, fitted on the fit runs,
-    kept while each removes at least ``min_share`` of the channel's held-out excess)."""
-    f_fit = _features(prep, hold=False)
-    f_hold = _features(prep, hold=True)
+    kept while each removes at least ``min_share`` of the channel's held-out excess). With
+    ``model`` (the residuals are then its residuals) the channel features follow its
+    predictions: a sensor lag behind a dry-friction model is the rate of change of the friction
+    model's output, which the nominal output does not have."""
+    f_fit = _features(prep, hold=False, model=model)
+    f_hold = _features(prep, hold=True, model=model)
     out: list[DiscoveredTerm] = []
     for c, name in enumerate(prep.channel_names):
         y_fit = np.concatenate([r[:, c] for r in fit_resid])
@@ -227,6 +264,13 @@ def signature_missing(effect: str, terms: list[DiscoveredTerm]) -> bool:
         return False
     other = any(t.kind not in need and t.held_out_share >= DOMINANT for t in terms)
     return other and not any(t.kind in need for t in terms)
+
+
+def revealed(terms: list[DiscoveredTerm], min_share: float = 0.2) -> set[str]:
+    """Measurement-path effects whose signature (:data:`MEASUREMENT_SIGNATURES`) removes at
+    least ``min_share`` of some channel's remaining held-out excess."""
+    kinds = {t.kind for t in terms if t.held_out_share >= min_share}
+    return {e for e, sig in MEASUREMENT_SIGNATURES.items() if sig & kinds}
 
 
 def describe_remaining(terms: list[DiscoveredTerm], min_share: float = 0.2) -> list[str]:

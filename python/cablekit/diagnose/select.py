@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from cablekit.diagnose.discover import discover, revealed
 from cablekit.diagnose.fit import NESTED, CandidateFit, carried, combinable, fit_many, n_free, warm_start
 from cablekit.diagnose.prepare import MIN_CLOSED, NOISE_LEVEL, Options, Prepared
 from cablekit.diagnose.screen import Screening, shortlist
@@ -404,6 +405,12 @@ def forward_select(
         else:
             # screen every remaining candidate with a few iterations from a warm start, then
             # refine the most promising ones (by fit cost: held-out data stays for scoring)
+            if round_ == 1:
+                # a measurement-path effect hidden behind the first pick (its signature follows
+                # the prediction) is offered again when the residual of the model with the pick
+                # in follows that signature (discrepancy discovery on the pick's predictions)
+                shown = revealed(discover(prep, current.fit_resid, current.hold_resid, model=current))
+                second_chance = second_chance | {k for k in screened_out if prep.info[k]["effect"] in shown}
             others = [
                 k
                 for k in ranked
