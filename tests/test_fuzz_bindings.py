@@ -16,6 +16,7 @@ The contract asserted for every draw:
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -32,6 +33,15 @@ from cablekit._cablekit import JointProblem, JointRun
 R1 = ck.CableTransmission.raven2(1)
 R3 = ck.CableTransmission.raven2(3)
 AJ = ck.AntagonisticJoint.forceps_example()
+
+
+def _finger_doc() -> dict[str, Any]:
+    from cablekit.network import shipped_document
+
+    return shipped_document("tendon_finger")
+
+
+FINGER = ck.CableNetwork.from_json(json.dumps(_finger_doc()))
 DAHL = ck.DahlElement(sigma0=1e3, coulomb=0.5)
 
 
@@ -123,6 +133,10 @@ def _calls() -> dict[str, Call]:
         ),
         "DahlElement": Call(ck.DahlElement, (), dict(sigma0=1e3, coulomb=0.5)),
         "CableTransmission.energy": Call(R3.energy, (_arr(12),)),
+        "CableNetwork.from_json": Call(ck.CableNetwork.from_json, (json.dumps(_finger_doc()),)),
+        "CableNetwork.length_change": Call(FINGER.length_change, (_arr(3),)),
+        "CableNetwork.joint_torques": Call(FINGER.joint_torques, (_arr(4),)),
+        "CableNetwork.energy": Call(FINGER.energy, (_arr(FINGER.n_states), _arr(FINGER.n_inputs))),
         "CableTransmission.motor_to_joint": Call(R3.motor_to_joint, (_arr(3),)),
         "CableTransmission.joint_to_motor": Call(R3.joint_to_motor, (_arr(3),)),
         "kinematic_joint_angles": Call(ck.kinematic_joint_angles, (R3, _arr(5, 3))),
@@ -365,10 +379,12 @@ def _calls_beyond_the_first_campaign(k: float, drive: Any, jtdo: Any, seed: Any)
 
 CALLS = _calls()
 
-#: public callables outside the table, and why: no arguments to mutate, or (Mlp.load/save) a path
+#: public callables outside the table, and why: no arguments to mutate (or only a model object,
+#: whose wrong type is PyO3's TypeError as for every model argument), or (Mlp.load/save) a path
 #: whose OS errors are Python's own (documented in docs/networks.md, tested in test_nn.py)
 NOT_IN_TABLE = {
     "AntagonisticJoint.forceps_example", "AntagonisticJoint.params", "CableTransmission.params",
+    "CableNetwork.from_joint", "CableNetwork.from_transmission",
     "JawObserver.reset", "JointProblem.candidate_library", "JointProblem.hold_from_updates",
     "JointProblem.param_specs", "JointProblem.reference", "Mlp.input_range", "Mlp.layers",
     "Mlp.output_range", "Mlp.to_bytes", "Mlp.load", "Mlp.save", "Model.rest_state",

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from cablekit._cablekit import (
     AntagonisticJoint,
+    CableNetwork,
     CableTransmission,
     DahlElement,
     DualSrUkf,
@@ -53,6 +54,7 @@ export_to_rayon()  # CABLEKIT_THREADS reaches the core's rayon pool (started laz
 
 __all__ = [
     "AntagonisticJoint",
+    "CableNetwork",
     "CableTransmission",
     "CablekitError",
     "ConcurrentUseError",

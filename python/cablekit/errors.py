@@ -63,6 +63,12 @@ class DataError(CablekitError, ValueError):
     """A data file (CSV, TOML) is malformed: missing column, bad time base, unknown unit."""
 
 
+class NetworkError(DataError):
+    """A cable network (a network model file's mechanism) is not a valid mechanism: a cable over
+    no pulley, a disconnected body, a negative wrap angle, a singular coupling, an unknown
+    pulley or motor. ``element`` names the element at fault (``cable "flexor"``)."""
+
+
 class WeightsFormatError(CablekitError, ValueError):
     """A weight file is not a valid cablekit network. ``item`` names the tensor or metadata key."""
 
@@ -100,6 +106,7 @@ __all__ = [
     "FilterDivergedError",
     "InternalError",
     "LayoutError",
+    "NetworkError",
     "NonFiniteResultError",
     "NotFiniteError",
     "OnnxExportError",

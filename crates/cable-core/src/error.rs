@@ -120,6 +120,15 @@ pub enum CableError {
         /// was built or reset.
         step: usize,
     },
+    /// A cable network (a model file's mechanism) is not a valid mechanism; `element` names the
+    /// body, joint, pulley, cable or motor at fault.
+    #[error("invalid cable network: {element} {reason}")]
+    Network {
+        /// The element at fault (`cable "flexor"`, `joint "mcp"`, `cable "a".routing[1]`).
+        element: String,
+        /// What is wrong, in words.
+        reason: String,
+    },
     /// A weight file is unreadable or does not describe a valid network.
     #[error("invalid weight file ({kind}) at {item}: {reason}")]
     Weights {

@@ -142,6 +142,12 @@ impl Model {
             AnyModel::Cdpr(p) => {
                 format!("CdprPlant(robot={:?}, home={:?})", p.robot().name, p.home())
             }
+            AnyModel::Network(n) => format!(
+                "CableNetwork(joints={:?}, cables={:?}, motors={:?})",
+                n.joint_names(),
+                n.cable_names(),
+                n.motor_names()
+            ),
         }
     }
 }
@@ -347,5 +353,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<CableTransmission>()?;
     m.add_class::<AntagonisticJoint>()?;
     m.add_class::<DahlElement>()?;
+    m.add_class::<crate::network::CableNetwork>()?;
     Ok(())
 }

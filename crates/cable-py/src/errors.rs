@@ -30,7 +30,7 @@ macro_rules! classes {
 }
 
 classes! {
-    Cablekit, ConcurrentUse, Convergence, DType, Data, FilterDiverged, Internal, Layout,
+    Cablekit, ConcurrentUse, Convergence, DType, Data, FilterDiverged, Internal, Layout, Network,
     NonFiniteResult, NotFinite, Parameter, Shape, SimulationDiverged, WeightsCorrupt,
     WeightsFormat, WeightsMetadata, WeightsShape, WeightsValue,
 }
@@ -123,6 +123,7 @@ fn classify(err: &CableError) -> (Class, Vec<(&'static str, Attr<'_>)>) {
             vec![("argument", Str(what)), ("limit", Int(*limit))],
         ),
         CableError::Weights { kind, item, .. } => (weights_class(*kind), vec![("item", Str(item))]),
+        CableError::Network { element, .. } => (Class::Network, vec![("element", Str(element))]),
         _ => (Class::Cablekit, vec![]),
     }
 }

@@ -13,6 +13,7 @@ mod forceps;
 mod friction;
 mod identify;
 mod integrate;
+mod network;
 mod nn;
 mod plant;
 mod results;

@@ -22,6 +22,8 @@ pub enum AnyModel {
     Winch(WinchDrive),
     /// A cable-driven parallel robot with its winches and pulleys.
     Cdpr(CdprPlant),
+    /// A cable network from a model file.
+    Network(crate::dynamics::network::Network),
 }
 
 /// Evaluate `$body` with `$m` bound to the concrete model inside an [`AnyModel`]
@@ -35,6 +37,7 @@ macro_rules! with_model {
             $crate::dynamics::AnyModel::Dahl($m) => $body,
             $crate::dynamics::AnyModel::Winch($m) => $body,
             $crate::dynamics::AnyModel::Cdpr($m) => $body,
+            $crate::dynamics::AnyModel::Network($m) => $body,
         }
     };
 }
@@ -60,6 +63,7 @@ impl AnyModel {
             Self::Dahl(_) => "DahlElement",
             Self::Winch(_) => "WinchDrive",
             Self::Cdpr(_) => "CdprPlant",
+            Self::Network(_) => "CableNetwork",
         }
     }
 }

@@ -15,6 +15,7 @@ mod winch;
 
 pub use antagonistic::{AntagonisticJoint, Contact, OUTPUT_NAMES as ANTAGONISTIC_OUTPUTS};
 pub use any::AnyModel;
+pub mod network;
 pub use cdpr::{CdprPlant, Creep, PlantOptions};
 pub use dahl::DahlElement;
 pub use raven2::raven2;

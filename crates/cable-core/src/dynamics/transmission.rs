@@ -104,7 +104,7 @@ impl Gravity {
     }
 
     #[inline]
-    fn load(&self, kind: JointKind, q: f64) -> f64 {
+    pub(crate) fn load(&self, kind: JointKind, q: f64) -> f64 {
         // exact zero is the "no gravity" setting (the Raven-II default): skip the cosine,
         // a tenth of an RK4 step
         #[allow(clippy::float_cmp)]
@@ -117,7 +117,7 @@ impl Gravity {
         }
     }
 
-    fn potential(&self, kind: JointKind, q: f64) -> f64 {
+    pub(crate) fn potential(&self, kind: JointKind, q: f64) -> f64 {
         match kind {
             JointKind::Revolute => self.amplitude * (q + self.offset).sin(),
             JointKind::Prismatic => self.amplitude * self.offset.cos() * q,

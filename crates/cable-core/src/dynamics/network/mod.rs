@@ -1,0 +1,1022 @@
+//! A cable network: any mechanism of revolute or prismatic joints driven by cables routed over
+//! pulleys and pulled by motors, described element by element (issue #39 §1).
+//!
+//! **Elements.** Bodies (each moved by one joint, its inertia about that joint's axis); joints
+//! (revolute or prismatic, a parent body or the base, friction, a gravity load); pulleys (on a
+//! joint's axis, turning with it — a joint pulley or an idler whose wrap changes with the joint —
+//! or fixed to the base); cables (a routing: the ordered pulleys they pass, with the sense of
+//! the wrap and its angle; a pretension, an elastic law, damping; the motor that hauls them in);
+//! motors (torque- or position-driven, a capstan of radius `r_m` behind a gear ratio `N`).
+//!
+//! **Length map and coupling.** A contact `k` of cable `c` on a pulley of radius `r_k` on the
+//! axis of joint `j_k`, with sense `s_k = ±1` (+1: turning the joint positively winds the cable
+//! on the pulley), shortens the cable's path by `s_k·r_k·q_j` (revolute; for a prismatic joint
+//! `r_k` is the metres of cable per metre of travel). So
+//!
+//! ```text
+//! l(q) = l(0) − J·q,        J_cj = Σ_{k of c on joint j} s_k·r_k        (m × n, constant)
+//! τ    = Jᵀ·T                                                           joint torques from tensions
+//! ```
+//!
+//! `J` is the routing's moment-arm (coupling) matrix; `Jᵀ` is the structure matrix of tendon-
+//! driven manipulators (Tsai & Lee 1989; Salisbury & Craig 1982). A network whose `J` has rank
+//! below the number of joints cannot move every joint independently: refused.
+//!
+//! **Dynamics** (state `[q_j, q̇_j]` per joint, then `[q_m, q̇_m]` per torque-driven motor):
+//!
+//! ```text
+//! ρ_m  = r_m / N_m                                 capstan metres per motor radian
+//! e_c  = σ_c·ρ_m(c)·q_m(c) − (J·q)_c                cable elongation from pretension (m)
+//! T_c  = max(0, T₀,c + F_c(e_c) + b_c·ė_c)          joint-side tension (crate::cable)
+//! I_j·q̈_j = (Jᵀ·T)_j − F_f,j(q̇_j) − g_j(q_j) + τ_ext,j
+//! I_m·q̈_m = τ_m − F_f,m(q̇_m) − ρ_m·Σ_{c on m} σ_c·T_c
+//! T_m,c = T_c·exp(μφ_c·σ_ε(σ_c·q̇_m))               motor-side tension: capstan losses of the
+//!                                                  routing (Σ μ_k·φ_k), lumped at the motor
+//! ```
+//!
+//! `σ_c = ±1` is the sense in which the motor hauls cable `c` in. A position-driven motor takes
+//! `q_m`, `q̇_m` as inputs instead of states. The antagonistic joint of seed 000
+//! ([`AntagonisticJoint`](crate::dynamics::AntagonisticJoint)) is one joint, one position motor
+//! (`r_m = N = 1`: `q_m` is the displacement `x_m`) and two cables of senses `±1`; the coupled
+//! transmission of seed 001 ([`CableTransmission`](crate::dynamics::CableTransmission)) is one
+//! torque motor and one antagonistic pair per link, the distal pairs passing idlers on the
+//! proximal axes (`r = C_ij·r_l,i`). Both are tested equal to the built-in models.
+//!
+//! **Not modelled** (said where it matters): inertial coupling between joints (each joint's
+//! inertia is its body's, about its axis — as in the transmission model), friction distributed
+//! along the routing (the capstan losses change the motor-side tensions, not the dynamics),
+//! wrap angles that change with the configuration (the wrap is its value at `q = 0`).
+
+use crate::cable::{CableLaw, CableRun};
+use crate::dynamics::{Gravity, JointKind, Model};
+use crate::error::{check, CableError, Result};
+use crate::friction::{smooth_sign, StaticFriction};
+
+mod file;
+#[cfg(test)]
+mod tests;
+
+/// Relative size of the smallest singular value of `J` below which the coupling is singular.
+pub const SINGULAR_COUPLING: f64 = 1e-9;
+
+/// How a motor is driven.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Drive {
+    /// A torque input `τ_m` (N·m) drives the motor's inertia (two states).
+    Torque,
+    /// The motor angle and rate are inputs (`q_m`, `q̇_m`): a stiff position servo.
+    Position,
+}
+
+impl Drive {
+    /// Parse `"torque"` / `"position"`.
+    pub fn from_name(name: &str, field: &str) -> Result<Self> {
+        match name {
+            "torque" => Ok(Self::Torque),
+            "position" => Ok(Self::Position),
+            _ => Err(CableError::InvalidOption {
+                name: field.to_owned(),
+                value: name.to_owned(),
+                allowed: "torque, position".into(),
+            }),
+        }
+    }
+}
+
+/// A body: what one joint moves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodySpec {
+    /// Its name (unique).
+    pub name: String,
+    /// Inertia about its joint's axis (kg·m²; kg for a prismatic joint), > 0.
+    pub inertia: f64,
+}
+
+/// A joint: moves `child` relative to `parent` (a body or `"base"`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointSpec {
+    /// Its name (unique).
+    pub name: String,
+    /// `"revolute"` or `"prismatic"`.
+    pub kind: String,
+    /// The body it is mounted on, or `"base"`.
+    pub parent: String,
+    /// The body it moves.
+    pub child: String,
+    /// Coulomb friction (N·m or N), viscous (N·m·s/rad or N·s/m), sign smoothing (rad/s or m/s).
+    pub coulomb: f64,
+    /// See `coulomb`.
+    pub viscous: f64,
+    /// See `coulomb`.
+    pub smoothing: f64,
+    /// Gravity load `A·cos(q + φ)` (revolute) or `A·cos φ` (prismatic).
+    pub gravity: Gravity,
+}
+
+/// A pulley: on a joint's axis (turns with the joint) or fixed to the base (`joint` `None`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PulleySpec {
+    /// Its name (unique).
+    pub name: String,
+    /// The joint on whose axis it turns, if any.
+    pub joint: Option<String>,
+    /// Radius (m), > 0; on a prismatic joint's axis, metres of cable per metre of travel.
+    pub radius: f64,
+}
+
+/// One contact of a cable's routing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactSpec {
+    /// The pulley.
+    pub pulley: String,
+    /// Wrap angle (rad), ≥ 0.
+    pub wrap: f64,
+    /// +1: turning the pulley's joint positively winds the cable on it; −1 the other way.
+    pub sense: f64,
+    /// Capstan friction coefficient of the contact, ≥ 0.
+    pub mu: f64,
+}
+
+/// A cable.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CableSpec {
+    /// Its name (unique).
+    pub name: String,
+    /// The ordered pulleys it passes, from the motor to its termination.
+    pub routing: Vec<ContactSpec>,
+    /// Elastic law, damping, pretension.
+    pub run: CableRun,
+    /// The motor that hauls it in; `None`: both ends are anchored (to the base or to a pulley
+    /// it is wound on, a contact of sense −1 on a driven stage's pulley).
+    pub motor: Option<String>,
+    /// +1: the motor hauls it in when `q_m` increases; −1 the other way.
+    pub motor_sense: f64,
+}
+
+/// A motor with its capstan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MotorSpec {
+    /// Its name (unique).
+    pub name: String,
+    /// Torque or position driven.
+    pub drive: Drive,
+    /// Rotor inertia (kg·m²), > 0 for a torque-driven motor (unused when position driven).
+    pub inertia: f64,
+    /// Gear ratio `N` (motor rad per capstan rad), > 0.
+    pub gear_ratio: f64,
+    /// Capstan radius `r_m` (m), > 0.
+    pub capstan_radius: f64,
+    /// Motor friction.
+    pub friction: StaticFriction,
+}
+
+/// A sensor: which output of the network a measured channel is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorSpec {
+    /// Its name (unique): the channel's name.
+    pub name: String,
+    /// `"encoder"` (a joint's or a motor's angle), `"tension"` (a cable's, `at` the motor or
+    /// the joint), `"joint_torque"`, `"motor_current"` (the cable load on a motor, in N·m).
+    pub kind: String,
+    /// The joint, motor or cable it measures.
+    pub target: String,
+    /// For a tension: `"motor"` (after the routing's capstan losses) or `"joint"`.
+    pub at: String,
+}
+
+/// A whole network, as a model file describes it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NetworkSpec {
+    /// Bodies.
+    pub bodies: Vec<BodySpec>,
+    /// Joints.
+    pub joints: Vec<JointSpec>,
+    /// Pulleys.
+    pub pulleys: Vec<PulleySpec>,
+    /// Cables.
+    pub cables: Vec<CableSpec>,
+    /// Motors.
+    pub motors: Vec<MotorSpec>,
+    /// Sensors (may be empty: every output is then a channel).
+    pub sensors: Vec<SensorSpec>,
+    /// Smoothing of the sign of the cable's speed in the capstan losses (m/s of cable), > 0.
+    pub capstan_smoothing: f64,
+}
+
+/// One joint of a built network.
+#[derive(Debug, Clone, PartialEq)]
+struct Joint {
+    kind: JointKind,
+    inv_inertia: f64,
+    inertia: f64,
+    friction: StaticFriction,
+    gravity: Gravity,
+}
+
+/// One cable of a built network.
+#[derive(Debug, Clone, PartialEq)]
+struct Cable {
+    run: CableRun,
+    motor: Option<usize>,
+    sense: f64,
+    /// `Σ μ_k·φ_k` over its routing.
+    capstan: f64,
+}
+
+/// One motor of a built network.
+#[derive(Debug, Clone, PartialEq)]
+struct Motor {
+    drive: Drive,
+    rho: f64,
+    inertia: f64,
+    friction: StaticFriction,
+    /// Index of its `q_m` in the state (torque) or the input (position).
+    slot: usize,
+}
+
+/// A validated cable network; a [`Model`] (see the module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Network {
+    joints: Vec<Joint>,
+    cables: Vec<Cable>,
+    motors: Vec<Motor>,
+    /// `J`, row-major `m × n`.
+    arms: Vec<f64>,
+    joint_names: Vec<String>,
+    cable_names: Vec<String>,
+    motor_names: Vec<String>,
+    /// Per sensor: its name and the output it reads.
+    sensors: Vec<(String, usize)>,
+    capstan_smoothing: f64,
+    n_states: usize,
+    n_inputs: usize,
+}
+
+fn invalid(element: String, reason: impl Into<String>) -> CableError {
+    CableError::Network {
+        element,
+        reason: reason.into(),
+    }
+}
+
+/// Index of `name` among `names`, or a network error naming `element`.
+fn lookup(names: &[&str], name: &str, element: &str, what: &str) -> Result<usize> {
+    names
+        .iter()
+        .position(|n| *n == name)
+        .ok_or_else(|| invalid(element.to_owned(), format!("no {what} named {name:?}")))
+}
+
+fn unique(kind: &str, names: &[&str]) -> Result<()> {
+    for (i, n) in names.iter().enumerate() {
+        if n.is_empty() {
+            return Err(invalid(format!("{kind}[{i}]"), "has no name"));
+        }
+        if names[..i].contains(n) {
+            return Err(invalid(format!("{kind} {n:?}"), "is named twice"));
+        }
+    }
+    Ok(())
+}
+
+impl Network {
+    /// Validate and build; every defect is a [`CableError::Network`] naming the element (a
+    /// cable over no pulley, an unknown pulley or motor, a negative wrap angle, a body no chain
+    /// of joints connects to the base, a joint no cable moves, a singular coupling) or a
+    /// parameter error naming the field.
+    pub fn new(spec: &NetworkSpec) -> Result<Self> {
+        let body_names: Vec<&str> = spec.bodies.iter().map(|b| b.name.as_str()).collect();
+        let joint_names: Vec<&str> = spec.joints.iter().map(|j| j.name.as_str()).collect();
+        let pulley_names: Vec<&str> = spec.pulleys.iter().map(|p| p.name.as_str()).collect();
+        let motor_names: Vec<&str> = spec.motors.iter().map(|m| m.name.as_str()).collect();
+        let cable_names: Vec<&str> = spec.cables.iter().map(|c| c.name.as_str()).collect();
+        for (kind, names) in [
+            ("body", &body_names),
+            ("joint", &joint_names),
+            ("pulley", &pulley_names),
+            ("motor", &motor_names),
+            ("cable", &cable_names),
+        ] {
+            unique(kind, names)?;
+        }
+        if spec.joints.is_empty() {
+            return Err(invalid(
+                "joints".into(),
+                "a network needs at least one joint",
+            ));
+        }
+        if body_names.contains(&"base") {
+            return Err(invalid(
+                "body \"base\"".into(),
+                "\"base\" is the ground, not a body",
+            ));
+        }
+        check::positive("capstan_smoothing", spec.capstan_smoothing)?;
+        let joints = Self::joints(spec, &body_names)?;
+        let (motors, n_states, n_inputs) = Self::motors(spec)?;
+        let n = joints.len();
+        let mut arms = vec![0.0; spec.cables.len() * n];
+        let mut cables = Vec::with_capacity(spec.cables.len());
+        for (c, cs) in spec.cables.iter().enumerate() {
+            let el = format!("cable {:?}", cs.name);
+            if cs.routing.is_empty() {
+                return Err(invalid(el, "passes over no pulley"));
+            }
+            cs.run.validate(&format!("cable {:?}", cs.name))?;
+            let motor = cs
+                .motor
+                .as_ref()
+                .map(|m| lookup(&motor_names, m, &el, "motor"))
+                .transpose()?;
+            let sense = Self::sense(cs.motor_sense, &format!("{el}.motor_sense"))?;
+            let mut capstan = 0.0;
+            for (k, ct) in cs.routing.iter().enumerate() {
+                let ctx = format!("{el}.routing[{k}]");
+                let p = lookup(&pulley_names, &ct.pulley, &ctx, "pulley")?;
+                if !(ct.wrap.is_finite() && ct.wrap >= 0.0) {
+                    return Err(invalid(
+                        format!("{ctx} (pulley {:?})", ct.pulley),
+                        format!("wrap angle must be finite and >= 0 rad, got {}", ct.wrap),
+                    ));
+                }
+                check::non_negative(&format!("{ctx}.mu"), ct.mu)?;
+                let s = Self::sense(ct.sense, &format!("{ctx}.sense"))?;
+                capstan += ct.mu * ct.wrap;
+                let pulley = &spec.pulleys[p];
+                check::positive(&format!("pulley {:?}.radius", pulley.name), pulley.radius)?;
+                if let Some(j) = &pulley.joint {
+                    let j = lookup(
+                        &joint_names,
+                        j,
+                        &format!("pulley {:?}", pulley.name),
+                        "joint",
+                    )?;
+                    arms[c * n + j] += s * pulley.radius;
+                }
+            }
+            cables.push(Cable {
+                run: cs.run,
+                motor,
+                sense,
+                capstan,
+            });
+        }
+        for (i, name) in motor_names.iter().enumerate() {
+            if !cables.iter().any(|c| c.motor == Some(i)) {
+                return Err(invalid(format!("motor {name:?}"), "hauls no cable"));
+            }
+        }
+        for p in &spec.pulleys {
+            if let Some(j) = &p.joint {
+                lookup(&joint_names, j, &format!("pulley {:?}", p.name), "joint")?;
+            }
+        }
+        Self::controllable(&arms, spec.cables.len(), &joint_names)?;
+        let sensors = Self::sensors(spec, &joint_names, &motor_names, &cable_names)?;
+        Ok(Self {
+            sensors,
+            joints,
+            cables,
+            motors,
+            arms,
+            joint_names: joint_names.iter().map(|s| (*s).to_owned()).collect(),
+            cable_names: cable_names.iter().map(|s| (*s).to_owned()).collect(),
+            motor_names: motor_names.iter().map(|s| (*s).to_owned()).collect(),
+            capstan_smoothing: spec.capstan_smoothing,
+            n_states,
+            n_inputs,
+        })
+    }
+
+    /// Each sensor's output index (layout of [`Model::output`]).
+    fn sensors(
+        spec: &NetworkSpec,
+        joints: &[&str],
+        motors: &[&str],
+        cables: &[&str],
+    ) -> Result<Vec<(String, usize)>> {
+        let names: Vec<&str> = spec.sensors.iter().map(|s| s.name.as_str()).collect();
+        unique("sensor", &names)?;
+        let (n, p, m) = (joints.len(), motors.len(), cables.len());
+        let mut out = Vec::with_capacity(spec.sensors.len());
+        for s in &spec.sensors {
+            let el = format!("sensor {:?}", s.name);
+            let find = |names: &[&str], what: &str| lookup(names, &s.target, &el, what);
+            let index = match (s.kind.as_str(), s.at.as_str()) {
+                ("encoder", _) => find(joints, "joint").or_else(|_| Ok::<_, CableError>(n + find(motors, "joint or motor")?))?,
+                ("tension", "joint") => n + p + find(cables, "cable")?,
+                ("tension", "motor") => n + p + m + find(cables, "cable")?,
+                ("tension", at) => {
+                    return Err(invalid(el, format!("at must be \"motor\" or \"joint\", got {at:?}")))
+                }
+                ("joint_torque", _) => n + p + 2 * m + find(joints, "joint")?,
+                ("motor_current", _) => 2 * n + p + 2 * m + find(motors, "motor")?,
+                (kind, _) => {
+                    return Err(invalid(
+                        el,
+                        format!(
+                            "kind must be encoder, tension, joint_torque or motor_current, got {kind:?}"
+                        ),
+                    ))
+                }
+            };
+            out.push((s.name.clone(), index));
+        }
+        Ok(out)
+    }
+
+    /// The sensors: each channel's name and the output it reads.
+    pub fn sensor_outputs(&self) -> &[(String, usize)] {
+        &self.sensors
+    }
+
+    fn sense(v: f64, name: &str) -> Result<f64> {
+        #[allow(clippy::float_cmp)]
+        if v == 1.0 || v == -1.0 {
+            Ok(v)
+        } else {
+            Err(CableError::InvalidParameter {
+                name: name.to_owned(),
+                value: v,
+                requirement: "+1 or -1",
+            })
+        }
+    }
+
+    /// The joints, with every body moved by exactly one joint and connected to the base.
+    fn joints(spec: &NetworkSpec, body_names: &[&str]) -> Result<Vec<Joint>> {
+        let mut mover: Vec<Option<usize>> = vec![None; body_names.len()];
+        let mut joints = Vec::with_capacity(spec.joints.len());
+        for (j, js) in spec.joints.iter().enumerate() {
+            let el = format!("joint {:?}", js.name);
+            let child = lookup(body_names, &js.child, &el, "body")?;
+            if js.parent != "base" {
+                lookup(body_names, &js.parent, &el, "body")?;
+            }
+            if js.parent == js.child {
+                return Err(invalid(el, "moves the body it is mounted on"));
+            }
+            if let Some(other) = mover[child] {
+                return Err(invalid(
+                    format!("body {:?}", js.child),
+                    format!(
+                        "is moved by two joints ({:?} and {:?})",
+                        spec.joints[other].name, js.name
+                    ),
+                ));
+            }
+            mover[child] = Some(j);
+            let kind = JointKind::from_name(&js.kind, &format!("{el}.kind"))?;
+            let friction =
+                StaticFriction::coulomb_viscous(&el, js.coulomb, js.viscous, js.smoothing)?;
+            check::finite(&format!("{el}.gravity_amplitude"), js.gravity.amplitude)?;
+            check::finite(&format!("{el}.gravity_offset"), js.gravity.offset)?;
+            let inertia = spec.bodies[child].inertia;
+            check::positive(&format!("body {:?}.inertia", js.child), inertia)?;
+            joints.push(Joint {
+                kind,
+                inv_inertia: 1.0 / inertia,
+                inertia,
+                friction,
+                gravity: js.gravity,
+            });
+        }
+        // every body reaches the base through the joints that move it (no cycle, no orphan)
+        for (b, name) in body_names.iter().enumerate() {
+            let (mut at, mut steps) = (b, 0);
+            loop {
+                let Some(j) = mover[at] else {
+                    return Err(invalid(
+                        format!("body {name:?}"),
+                        "is disconnected: no joint moves it",
+                    ));
+                };
+                let parent = &spec.joints[j].parent;
+                if parent == "base" {
+                    break;
+                }
+                at = body_names.iter().position(|n| n == parent).unwrap_or(at);
+                steps += 1;
+                if steps > body_names.len() {
+                    return Err(invalid(
+                        format!("body {name:?}"),
+                        "is on a loop of joints that never reaches the base",
+                    ));
+                }
+            }
+        }
+        Ok(joints)
+    }
+
+    fn motors(spec: &NetworkSpec) -> Result<(Vec<Motor>, usize, usize)> {
+        let n = spec.joints.len();
+        let (mut n_states, mut n_inputs) = (2 * n, 0);
+        let mut motors = Vec::with_capacity(spec.motors.len());
+        for ms in &spec.motors {
+            let el = format!("motor {:?}", ms.name);
+            check::positive(&format!("{el}.gear_ratio"), ms.gear_ratio)?;
+            check::positive(&format!("{el}.capstan_radius"), ms.capstan_radius)?;
+            ms.friction.validate(&el)?;
+            let slot = match ms.drive {
+                Drive::Torque => {
+                    check::positive(&format!("{el}.inertia"), ms.inertia)?;
+                    n_states += 2;
+                    n_states - 2
+                }
+                Drive::Position => {
+                    n_inputs += 2;
+                    n_inputs - 2
+                }
+            };
+            motors.push(Motor {
+                drive: ms.drive,
+                rho: ms.capstan_radius / ms.gear_ratio,
+                inertia: ms.inertia,
+                friction: ms.friction,
+                slot,
+            });
+        }
+        // inputs: the position motors' [q_m, q̇_m], one torque per torque motor, the joint loads
+        let torques = motors.iter().filter(|m| m.drive == Drive::Torque).count();
+        Ok((motors, n_states, n_inputs + torques + n))
+    }
+
+    /// Refuse a coupling that cannot move every joint independently (rank of `J` below `n`).
+    fn controllable(arms: &[f64], m: usize, joint_names: &[&str]) -> Result<()> {
+        let n = joint_names.len();
+        for (j, name) in joint_names.iter().enumerate() {
+            #[allow(clippy::float_cmp)]
+            if (0..m).all(|c| arms[c * n + j] == 0.0) {
+                return Err(invalid(
+                    format!("joint {name:?}"),
+                    "no cable passes a pulley on its axis: nothing moves it",
+                ));
+            }
+        }
+        if m < n {
+            return Err(invalid(
+                "cables".into(),
+                format!("{m} cables cannot move {n} joints independently"),
+            ));
+        }
+        let a = nalgebra::DMatrix::from_row_slice(m, n, arms);
+        let svd = a.svd(false, true);
+        let s = &svd.singular_values;
+        let (smax, smin) = (s.max(), s.min());
+        if smin <= SINGULAR_COUPLING * smax {
+            let v = svd.v_t.as_ref().map(|vt| {
+                let k = s.imin();
+                vt.row(k).iter().map(|x| x.abs()).collect::<Vec<_>>()
+            });
+            let j = v.map_or(0, |v| {
+                v.iter()
+                    .enumerate()
+                    .max_by(|a, b| a.1.total_cmp(b.1))
+                    .map_or(0, |(j, _)| j)
+            });
+            return Err(invalid(
+                format!("joint {:?}", joint_names[j]),
+                format!(
+                    "the coupling matrix is singular (smallest singular value {smin:.3e} of \
+                     {smax:.3e}): no combination of cable tensions moves this joint on its own"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Number of joints `n`.
+    pub fn n_joints(&self) -> usize {
+        self.joints.len()
+    }
+    /// Number of cables `m`.
+    pub fn n_cables(&self) -> usize {
+        self.cables.len()
+    }
+    /// Number of motors.
+    pub fn n_motors(&self) -> usize {
+        self.motors.len()
+    }
+    /// Joint names, in order.
+    pub fn joint_names(&self) -> &[String] {
+        &self.joint_names
+    }
+    /// Cable names, in order.
+    pub fn cable_names(&self) -> &[String] {
+        &self.cable_names
+    }
+    /// Motor names, in order.
+    pub fn motor_names(&self) -> &[String] {
+        &self.motor_names
+    }
+
+    /// The moment-arm (coupling) matrix `J = −∂l/∂q`, row-major `m × n`.
+    pub fn moment_arms(&self) -> &[f64] {
+        &self.arms
+    }
+
+    /// Change of every cable's path length from `q = 0`: `l(q) − l(0) = −J·q` (m).
+    pub fn length_change(&self, q: &[f64]) -> Result<Vec<f64>> {
+        let n = self.n_joints();
+        check::len("q", q, n)?;
+        check::all_finite("q", q, n)?;
+        let out: Vec<f64> = self.arms.chunks_exact(n).map(|row| -dot(row, q)).collect();
+        check::result_finite("length_change", &out, 1, "the joint values are too large")?;
+        Ok(out)
+    }
+
+    /// Joint torques (N·m or N) of cable tensions `t` (N): `τ = Jᵀ·T`.
+    pub fn joint_torques(&self, tensions: &[f64]) -> Result<Vec<f64>> {
+        let (m, n) = (self.n_cables(), self.n_joints());
+        check::len("tensions", tensions, m)?;
+        check::all_finite("tensions", tensions, m)?;
+        let mut tau = vec![0.0; n];
+        for (row, t) in self.arms.chunks_exact(n).zip(tensions) {
+            for (o, a) in tau.iter_mut().zip(row) {
+                *o += a * t;
+            }
+        }
+        check::result_finite("joint_torques", &tau, 1, "the tensions are too large")?;
+        Ok(tau)
+    }
+
+    /// Motor angle of motor `i` and its rate, from the state or the input.
+    #[inline]
+    fn motor_at(&self, i: usize, x: &[f64], u: &[f64]) -> (f64, f64) {
+        let m = &self.motors[i];
+        match m.drive {
+            Drive::Torque => (x[m.slot], x[m.slot + 1]),
+            Drive::Position => (u[m.slot], u[m.slot + 1]),
+        }
+    }
+
+    /// Elongation and its rate of cable `c`.
+    #[inline]
+    fn elongation(&self, c: usize, x: &[f64], u: &[f64]) -> (f64, f64) {
+        let n = self.n_joints();
+        let cable = &self.cables[c];
+        let (mut e, mut de) = match cable.motor {
+            Some(i) => {
+                let (qm, wm) = self.motor_at(i, x, u);
+                let rho = self.motors[i].rho;
+                (cable.sense * rho * qm, cable.sense * rho * wm)
+            }
+            None => (0.0, 0.0),
+        };
+        let row = &self.arms[c * n..(c + 1) * n];
+        for (j, a) in row.iter().enumerate() {
+            e -= a * x[2 * j];
+            de -= a * x[2 * j + 1];
+        }
+        (e, de)
+    }
+
+    /// Joint-side tension of every cable (N) at state `x`, input `u`.
+    pub fn tensions(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
+        for (c, o) in out.iter_mut().enumerate() {
+            let (e, de) = self.elongation(c, x, u);
+            *o = self.cables[c].run.tension(e, de);
+        }
+    }
+
+    /// Total mechanical energy (J) at `x` (inputs `u` for position-driven motors): kinetic of
+    /// the joints and torque-driven motors, elastic of every cable while taut (pretension work
+    /// included), gravity. Conserved by the exact flow without friction, damping or slack.
+    pub fn energy(&self, x: &[f64], u: &[f64]) -> f64 {
+        let mut e = 0.0;
+        for (j, joint) in self.joints.iter().enumerate() {
+            e += 0.5 * joint.inertia * x[2 * j + 1].powi(2)
+                + joint.gravity.potential(joint.kind, x[2 * j]);
+        }
+        for m in &self.motors {
+            if m.drive == Drive::Torque {
+                e += 0.5 * m.inertia * x[m.slot + 1].powi(2);
+            }
+        }
+        for (c, cable) in self.cables.iter().enumerate() {
+            let (s, _) = self.elongation(c, x, u);
+            e += cable.run.pretension * s + cable.run.law.energy(s);
+        }
+        e
+    }
+
+    /// Index of the torque input of motor `i` (torque-driven).
+    fn torque_input(&self, i: usize) -> usize {
+        let positions = 2 * self
+            .motors
+            .iter()
+            .filter(|m| m.drive == Drive::Position)
+            .count();
+        positions
+            + self.motors[..i]
+                .iter()
+                .filter(|m| m.drive == Drive::Torque)
+                .count()
+    }
+
+    /// Index of the first external joint load input.
+    fn load_input(&self) -> usize {
+        self.n_inputs - self.n_joints()
+    }
+}
+
+impl NetworkSpec {
+    /// The antagonistic joint as a network: one joint `"joint"` moving body `"link"`, its
+    /// pulley, a fixed idler carrying the routing's capstan wrap, a position-driven motor
+    /// (`r_m = N = 1`, so `q_m` is the displacement `x_m`) and the cables `"drive"` and
+    /// `"return"`. Contact, Dahl and creep (states the network does not have) are refused.
+    pub fn from_joint(joint: &crate::dynamics::AntagonisticJoint) -> Result<Self> {
+        if joint.contact.is_some() || joint.dahl.is_some() || joint.creep.is_some() {
+            return Err(invalid(
+                "antagonistic joint".into(),
+                "has a contact, a Dahl or a creep state, which a network does not model",
+            ));
+        }
+        let contact = |pulley: &str, sense: f64, wrap: f64, mu: f64| ContactSpec {
+            pulley: pulley.into(),
+            wrap,
+            sense,
+            mu,
+        };
+        let cable = |name: &str, run: CableRun, sense: f64| CableSpec {
+            name: name.into(),
+            routing: vec![
+                contact("routing", sense, joint.capstan_wrap, joint.capstan_mu),
+                contact("joint_pulley", sense, std::f64::consts::PI, 0.0),
+            ],
+            run,
+            motor: Some("motor".into()),
+            motor_sense: sense,
+        };
+        Ok(Self {
+            bodies: vec![BodySpec {
+                name: "link".into(),
+                inertia: joint.inertia,
+            }],
+            joints: vec![JointSpec {
+                name: "joint".into(),
+                kind: "revolute".into(),
+                parent: "base".into(),
+                child: "link".into(),
+                coulomb: joint.friction.coulomb,
+                viscous: joint.friction.viscous,
+                smoothing: joint.friction.smoothing,
+                gravity: Gravity::NONE,
+            }],
+            pulleys: vec![
+                PulleySpec {
+                    name: "joint_pulley".into(),
+                    joint: Some("joint".into()),
+                    radius: joint.radius,
+                },
+                PulleySpec {
+                    name: "routing".into(),
+                    joint: None,
+                    radius: joint.radius,
+                },
+            ],
+            cables: vec![
+                cable("drive", joint.drive, 1.0),
+                cable("return", joint.ret, -1.0),
+            ],
+            sensors: Vec::new(),
+            motors: vec![MotorSpec {
+                name: "motor".into(),
+                drive: Drive::Position,
+                inertia: 0.0,
+                gear_ratio: 1.0,
+                capstan_radius: 1.0,
+                friction: StaticFriction::NONE,
+            }],
+            capstan_smoothing: joint.capstan_smoothing,
+        })
+    }
+
+    /// The coupled transmission as a network: per link `i` a torque motor `motor{i}`, a joint
+    /// `joint{i}` moving body `link{i}` with its pulley, and the pair `drive{i}` / `return{i}`
+    /// passing an idler on every proximal axis `j` it couples into (radius `|C_ij|·r_l,i`).
+    pub fn from_transmission(tx: &crate::dynamics::CableTransmission) -> Result<Self> {
+        let n = tx.n_links();
+        let coupling = tx.coupling();
+        let mut spec = Self {
+            bodies: Vec::new(),
+            joints: Vec::new(),
+            pulleys: Vec::new(),
+            cables: Vec::new(),
+            motors: Vec::new(),
+            sensors: Vec::new(),
+            capstan_smoothing: 1e-3,
+        };
+        for (i, l) in tx.links().iter().enumerate() {
+            let k = i + 1;
+            spec.bodies.push(BodySpec {
+                name: format!("link{k}"),
+                inertia: l.link_inertia,
+            });
+            #[allow(clippy::float_cmp)] // exact: coulomb_viscous sets one level to the other
+            if l.link_friction.static_level != l.link_friction.coulomb {
+                return Err(invalid(
+                    format!("link {k}"),
+                    "has a Stribeck friction, which a network joint does not model",
+                ));
+            }
+            spec.joints.push(JointSpec {
+                name: format!("joint{k}"),
+                kind: l.kind.name().into(),
+                parent: if i == 0 {
+                    "base".into()
+                } else {
+                    format!("link{i}")
+                },
+                child: format!("link{k}"),
+                coulomb: l.link_friction.coulomb,
+                viscous: l.link_friction.viscous,
+                smoothing: l.link_friction.smoothing,
+                gravity: l.gravity,
+            });
+            spec.pulleys.push(PulleySpec {
+                name: format!("pulley{k}"),
+                joint: Some(format!("joint{k}")),
+                radius: l.joint_radius,
+            });
+            spec.motors.push(MotorSpec {
+                name: format!("motor{k}"),
+                drive: Drive::Torque,
+                inertia: l.motor_inertia,
+                gear_ratio: l.gear_ratio,
+                capstan_radius: l.capstan_radius,
+                friction: l.motor_friction,
+            });
+            let mut routing = Vec::new();
+            for j in 0..i {
+                let c = coupling[i * n + j];
+                #[allow(clippy::float_cmp)] // exact zero: no routing over that axis
+                if c != 0.0 {
+                    let name = format!("idler{k}_{}", j + 1);
+                    spec.pulleys.push(PulleySpec {
+                        name: name.clone(),
+                        joint: Some(format!("joint{}", j + 1)),
+                        radius: c.abs() * l.joint_radius,
+                    });
+                    routing.push((name, c.signum()));
+                }
+            }
+            routing.push((format!("pulley{k}"), 1.0));
+            for (name, side) in [("drive", 1.0), ("return", -1.0)] {
+                spec.cables.push(CableSpec {
+                    name: format!("{name}{k}"),
+                    routing: routing
+                        .iter()
+                        .map(|(p, s)| ContactSpec {
+                            pulley: p.clone(),
+                            wrap: std::f64::consts::FRAC_PI_2,
+                            sense: s * side,
+                            mu: 0.0,
+                        })
+                        .collect(),
+                    run: l.cable.run,
+                    motor: Some(format!("motor{k}")),
+                    motor_sense: side,
+                });
+            }
+        }
+        Ok(spec)
+    }
+}
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Elastic law by name (for the file loaders): `"linear"` or `"exponential"`.
+pub fn law(name: &str, stiffness: f64, length_scale: f64, prefix: &str) -> Result<CableLaw> {
+    CableLaw::from_name(name, stiffness, length_scale, prefix)
+}
+
+impl Model for Network {
+    fn n_states(&self) -> usize {
+        self.n_states
+    }
+    fn n_inputs(&self) -> usize {
+        self.n_inputs
+    }
+    fn n_outputs(&self) -> usize {
+        2 * self.n_joints() + 2 * self.n_motors() + 2 * self.n_cables()
+    }
+
+    fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
+        let n = self.n_joints();
+        let load = self.load_input();
+        for (j, joint) in self.joints.iter().enumerate() {
+            dx[2 * j] = x[2 * j + 1];
+            dx[2 * j + 1] = -joint.friction.force(x[2 * j + 1])
+                - joint.gravity.load(joint.kind, x[2 * j])
+                + u[load + j];
+        }
+        for m in &self.motors {
+            if m.drive == Drive::Torque {
+                dx[m.slot] = x[m.slot + 1];
+                dx[m.slot + 1] = -m.friction.force(x[m.slot + 1]);
+            }
+        }
+        for (c, cable) in self.cables.iter().enumerate() {
+            let (e, de) = self.elongation(c, x, u);
+            let t = cable.run.tension(e, de);
+            for (j, a) in self.arms[c * n..(c + 1) * n].iter().enumerate() {
+                dx[2 * j + 1] += a * t;
+            }
+            if let Some(m) = cable.motor.map(|i| &self.motors[i]) {
+                if m.drive == Drive::Torque {
+                    dx[m.slot + 1] -= m.rho * cable.sense * t;
+                }
+            }
+        }
+        for (j, joint) in self.joints.iter().enumerate() {
+            dx[2 * j + 1] *= joint.inv_inertia;
+        }
+        for (i, m) in self.motors.iter().enumerate() {
+            if m.drive == Drive::Torque {
+                dx[m.slot + 1] = (dx[m.slot + 1] + u[self.torque_input(i)]) / m.inertia;
+            }
+        }
+    }
+
+    /// `y = [q_j…, q_m…, T_c (joint side)…, T_m,c (motor side)…, τ_j…, load_m…]`, the
+    /// motor's cable load `ρ_m·Σ σ_c·T_m,c` (N·m) being what its current measures.
+    fn output(&self, x: &[f64], u: &[f64], y: &mut [f64]) {
+        let (n, p, m) = (self.n_joints(), self.n_motors(), self.n_cables());
+        for j in 0..n {
+            y[j] = x[2 * j];
+            y[n + p + 2 * m + j] = 0.0;
+        }
+        for i in 0..p {
+            y[n + i] = self.motor_at(i, x, u).0;
+            y[2 * n + p + 2 * m + i] = 0.0;
+        }
+        for (c, cable) in self.cables.iter().enumerate() {
+            let (e, de) = self.elongation(c, x, u);
+            let t = cable.run.tension(e, de);
+            y[n + p + c] = t;
+            // the capstan losses follow the cable's speed at its motor end (the elongation's
+            // rate when both ends are anchored)
+            let (speed, motor) = match cable.motor {
+                Some(i) => (
+                    self.motor_at(i, x, u).1 * self.motors[i].rho * cable.sense,
+                    Some(i),
+                ),
+                None => (self.elongation(c, x, u).1, None),
+            };
+            let a = cable.capstan * smooth_sign(speed, self.capstan_smoothing);
+            y[n + p + m + c] = t * a.exp();
+            if let Some(i) = motor {
+                y[2 * n + p + 2 * m + i] += self.motors[i].rho * cable.sense * y[n + p + m + c];
+            }
+            for (j, arm) in self.arms[c * n..(c + 1) * n].iter().enumerate() {
+                y[n + p + 2 * m + j] += arm * t;
+            }
+        }
+    }
+
+    fn state_names(&self) -> Vec<String> {
+        let mut out = Vec::with_capacity(self.n_states);
+        for j in &self.joint_names {
+            out.push(format!("q:{j}"));
+            out.push(format!("dq:{j}"));
+        }
+        for (m, name) in self.motors.iter().zip(&self.motor_names) {
+            if m.drive == Drive::Torque {
+                out.push(format!("q_m:{name}"));
+                out.push(format!("dq_m:{name}"));
+            }
+        }
+        out
+    }
+
+    fn input_names(&self) -> Vec<String> {
+        let mut out = Vec::with_capacity(self.n_inputs);
+        for (m, name) in self.motors.iter().zip(&self.motor_names) {
+            if m.drive == Drive::Position {
+                out.push(format!("q_m:{name}"));
+                out.push(format!("dq_m:{name}"));
+            }
+        }
+        for (m, name) in self.motors.iter().zip(&self.motor_names) {
+            if m.drive == Drive::Torque {
+                out.push(format!("tau_m:{name}"));
+            }
+        }
+        out.extend(self.joint_names.iter().map(|j| format!("tau_ext:{j}")));
+        out
+    }
+
+    fn output_names(&self) -> Vec<String> {
+        let mut out: Vec<String> = self.joint_names.iter().map(|j| format!("q:{j}")).collect();
+        out.extend(self.motor_names.iter().map(|m| format!("q_m:{m}")));
+        out.extend(self.cable_names.iter().map(|c| format!("T:{c}")));
+        out.extend(self.cable_names.iter().map(|c| format!("T_motor:{c}")));
+        out.extend(self.joint_names.iter().map(|j| format!("tau:{j}")));
+        out.extend(self.motor_names.iter().map(|m| format!("load_m:{m}")));
+        out
+    }
+}

@@ -1,0 +1,304 @@
+use super::*;
+use crate::dynamics::{raven2, AntagonisticJoint};
+use crate::integrate::{simulate, InputHold, SimOptions};
+
+fn joint() -> AntagonisticJoint {
+    let run =
+        |k: f64, t0: f64| CableRun::new(CableLaw::Linear { stiffness: k }, 3.0, t0, "c").unwrap();
+    AntagonisticJoint::new(
+        4e-3,
+        run(12_000.0, 10.0),
+        run(9_000.0, 8.0),
+        1e-5,
+        StaticFriction::coulomb_viscous("f", 2e-3, 1e-4, 0.05).unwrap(),
+        0.08,
+        1.2,
+        1e-3,
+        None,
+    )
+    .unwrap()
+}
+
+fn max_rel(a: &[f64], b: &[f64]) -> f64 {
+    let scale = a.iter().fold(0.0_f64, |m, v| m.max(v.abs())).max(1e-300);
+    a.iter()
+        .zip(b)
+        .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
+        / scale
+}
+
+#[test]
+fn the_antagonistic_joint_as_a_network_simulates_the_same() {
+    let j = joint();
+    let net = Network::new(&NetworkSpec::from_joint(&j).unwrap()).unwrap();
+    assert_eq!(net.n_states(), 2);
+    assert_eq!(net.n_inputs(), 3); // q_m, q̇_m, τ_ext
+    let (dt, len) = (1e-3, 1500);
+    let mut u_joint = Vec::new();
+    let mut u_net = Vec::new();
+    for k in 0..len {
+        let t = k as f64 * dt;
+        let (x, v) = (
+            2e-3 * (7.0 * t).sin() + 5e-4 * (31.0 * t).sin(),
+            14e-3 * (7.0 * t).cos() + 15.5e-3 * (31.0 * t).cos(),
+        );
+        u_joint.extend([x, v]);
+        u_net.extend([x, v, 0.0]);
+    }
+    let opts = SimOptions::new(dt, 8, InputHold::Foh).unwrap();
+    let a = simulate(&j, &u_joint, &[0.0, 0.0], &opts).unwrap();
+    let b = simulate(&net, &u_net, &[0.0, 0.0], &opts).unwrap();
+    assert!(
+        max_rel(&a.states, &b.states) < 1e-12,
+        "{}",
+        max_rel(&a.states, &b.states)
+    );
+    // outputs: joint [T_m1, T_m2, T_j1, T_j2, θ, F_c]; network [q, q_m, T1, T2, Tm1, Tm2, τ]
+    let (pa, pb) = (6, 8);
+    let pick = |y: &[f64], p: usize, i: usize| (0..len).map(|k| y[k * p + i]).collect::<Vec<_>>();
+    for (ia, ib) in [(0, 4), (1, 5), (2, 2), (3, 3), (4, 0)] {
+        let (ya, yb) = (pick(&a.outputs, pa, ia), pick(&b.outputs, pb, ib));
+        assert!(
+            max_rel(&ya, &yb) < 1e-12,
+            "output {ia}: {}",
+            max_rel(&ya, &yb)
+        );
+    }
+    // τ = r·(T1 − T2)
+    let tau = pick(&b.outputs, pb, 6);
+    let (t1, t2) = (pick(&b.outputs, pb, 2), pick(&b.outputs, pb, 3));
+    for k in 0..len {
+        assert!((tau[k] - j.radius * (t1[k] - t2[k])).abs() < 1e-12 * (1.0 + tau[k].abs()));
+    }
+}
+
+#[test]
+fn the_raven_transmission_as_a_network_simulates_the_same() {
+    let tx = raven2(3).unwrap();
+    let net = Network::new(&NetworkSpec::from_transmission(&tx).unwrap()).unwrap();
+    assert_eq!((net.n_states(), net.n_inputs()), (12, 6));
+    let (dt, len, n) = (1e-3, 800, 3);
+    let mut u = Vec::new();
+    for k in 0..len {
+        let t = k as f64 * dt;
+        u.extend([
+            0.3 * (5.0 * t).sin(),
+            -0.2 * (3.0 * t).sin(),
+            0.25 * (4.0 * t).cos(),
+            0.0,
+            0.05,
+            0.0,
+        ]);
+    }
+    let opts = SimOptions::new(dt, 10, InputHold::Zoh).unwrap();
+    let a = simulate(&tx, &u, &[0.0; 12], &opts).unwrap();
+    let b = simulate(&net, &u, &[0.0; 12], &opts).unwrap();
+    // transmission state per link [q_m, q̇_m, q_l, q̇_l]; network [q_l, q̇_l]×n then [q_m, q̇_m]×n
+    for i in 0..n {
+        for (sa, sb) in [
+            (4 * i, 2 * n + 2 * i),
+            (4 * i + 2, 2 * i),
+            (4 * i + 3, 2 * i + 1),
+        ] {
+            let ya: Vec<f64> = (0..len).map(|k| a.states[k * 12 + sa]).collect();
+            let yb: Vec<f64> = (0..len).map(|k| b.states[k * 12 + sb]).collect();
+            assert!(
+                max_rel(&ya, &yb) < 1e-9,
+                "link {i} state {sa}: {}",
+                max_rel(&ya, &yb)
+            );
+        }
+    }
+}
+
+#[test]
+fn length_map_jacobian_and_torques_agree() {
+    let tx = raven2(3).unwrap();
+    let net = Network::new(&NetworkSpec::from_transmission(&tx).unwrap()).unwrap();
+    let q = [0.3, -0.2, 0.05];
+    let dl = net.length_change(&q).unwrap();
+    let (m, n) = (net.n_cables(), net.n_joints());
+    let arms = net.moment_arms();
+    // finite differences of l(q) give −J
+    for j in 0..n {
+        let mut qp = q;
+        qp[j] += 1e-6;
+        let lp = net.length_change(&qp).unwrap();
+        for c in 0..m {
+            let d = (lp[c] - dl[c]) / 1e-6;
+            assert!((d + arms[c * n + j]).abs() < 1e-8, "cable {c} joint {j}");
+        }
+    }
+    // virtual work: τ·δq = −T·δl
+    let t: Vec<f64> = (0..m).map(|c| 5.0 + c as f64).collect();
+    let tau = net.joint_torques(&t).unwrap();
+    let dq = [1e-3, -2e-3, 5e-4];
+    let dlen = net.length_change(&dq).unwrap();
+    let w_joint: f64 = tau.iter().zip(&dq).map(|(a, b)| a * b).sum();
+    let w_cable: f64 = -t.iter().zip(&dlen).map(|(a, b)| a * b).sum::<f64>();
+    assert!((w_joint - w_cable).abs() < 1e-12);
+}
+
+#[test]
+fn energy_is_conserved_without_losses() {
+    let mut j = joint();
+    j.friction = StaticFriction::NONE;
+    for r in [&mut j.drive, &mut j.ret] {
+        r.damping = 0.0;
+        r.pretension = 50.0; // no slack over the motion
+    }
+    let mut spec = NetworkSpec::from_joint(&j).unwrap();
+    spec.motors[0].drive = Drive::Torque;
+    spec.motors[0].inertia = 2e-6;
+    spec.motors[0].capstan_radius = 0.01; // a motor mode RK4 resolves at this step
+    let net = Network::new(&spec).unwrap();
+    let opts = SimOptions::new(1e-4, 4, InputHold::Zoh).unwrap();
+    let u = vec![0.0; 2 * 3000];
+    let x0 = [0.05, 0.0, 0.0, 0.0];
+    let tr = simulate(&net, &u, &x0, &opts).unwrap();
+    let e0 = net.energy(&x0, &[0.0, 0.0]);
+    let e1 = net.energy(&tr.states[tr.states.len() - 4..], &[0.0, 0.0]);
+    assert!(e0 > 0.0);
+    assert!(((e1 - e0) / e0).abs() < 1e-7, "{e0} -> {e1}");
+}
+
+fn finger() -> NetworkSpec {
+    let run = CableRun::new(CableLaw::Linear { stiffness: 5e4 }, 10.0, 5.0, "t").unwrap();
+    let body = |name: &str| BodySpec {
+        name: name.into(),
+        inertia: 1e-5,
+    };
+    let joint = |name: &str, parent: &str, child: &str| JointSpec {
+        name: name.into(),
+        kind: "revolute".into(),
+        parent: parent.into(),
+        child: child.into(),
+        coulomb: 0.0,
+        viscous: 1e-4,
+        smoothing: 1e-2,
+        gravity: Gravity::NONE,
+    };
+    let pulley = |name: &str, j: &str, r: f64| PulleySpec {
+        name: name.into(),
+        joint: Some(j.into()),
+        radius: r,
+    };
+    let contact = |p: &str, sense: f64| ContactSpec {
+        pulley: p.into(),
+        wrap: 1.0,
+        sense,
+        mu: 0.0,
+    };
+    let motor = |name: &str| MotorSpec {
+        name: name.into(),
+        drive: Drive::Position,
+        inertia: 0.0,
+        gear_ratio: 1.0,
+        capstan_radius: 0.01,
+        friction: StaticFriction::NONE,
+    };
+    let cable = |name: &str, routing: Vec<ContactSpec>, m: &str| CableSpec {
+        name: name.into(),
+        routing,
+        run,
+        motor: Some(m.into()),
+        motor_sense: 1.0,
+    };
+    NetworkSpec {
+        bodies: vec![body("proximal"), body("distal")],
+        joints: vec![
+            joint("mcp", "base", "proximal"),
+            joint("pip", "proximal", "distal"),
+        ],
+        pulleys: vec![pulley("p_mcp", "mcp", 8e-3), pulley("p_pip", "pip", 6e-3)],
+        cables: vec![
+            cable(
+                "t1",
+                vec![contact("p_mcp", 1.0), contact("p_pip", 1.0)],
+                "m1",
+            ),
+            cable(
+                "t2",
+                vec![contact("p_mcp", -1.0), contact("p_pip", 1.0)],
+                "m2",
+            ),
+            cable(
+                "t3",
+                vec![contact("p_mcp", -1.0), contact("p_pip", -1.0)],
+                "m3",
+            ),
+        ],
+        motors: vec![motor("m1"), motor("m2"), motor("m3")],
+        sensors: Vec::new(),
+        capstan_smoothing: 1e-3,
+    }
+}
+
+fn network_error(spec: &NetworkSpec) -> (String, String) {
+    match Network::new(spec) {
+        Err(CableError::Network { element, reason }) => (element, reason),
+        other => panic!("expected a network error, got {other:?}"),
+    }
+}
+
+#[test]
+fn bad_networks_are_refused_naming_the_element() {
+    assert!(Network::new(&finger()).is_ok());
+    let mut s = finger();
+    s.cables[1].routing.clear();
+    assert_eq!(network_error(&s).0, "cable \"t2\"");
+    let mut s = finger();
+    s.cables[2].routing[1].wrap = -0.5;
+    let (el, why) = network_error(&s);
+    assert!(
+        el.contains("cable \"t3\".routing[1]") && why.contains("wrap"),
+        "{el} {why}"
+    );
+    let mut s = finger();
+    s.bodies.push(BodySpec {
+        name: "loose".into(),
+        inertia: 1.0,
+    });
+    let (el, why) = network_error(&s);
+    assert_eq!(el, "body \"loose\"");
+    assert!(why.contains("disconnected"));
+    let mut s = finger();
+    s.joints[0].parent = "distal".into(); // mcp on distal, pip on proximal: a loop
+    let (el, why) = network_error(&s);
+    assert!(el.starts_with("body") && why.contains("loop"), "{el} {why}");
+    // a singular coupling: every tendon turns both joints alike (rows of J proportional)
+    let mut s = finger();
+    s.pulleys[1].radius = 8e-3;
+    s.cables[1].routing[1].sense = -1.0;
+    let (el, why) = network_error(&s);
+    assert!(
+        el.starts_with("joint") && why.contains("singular"),
+        "{el} {why}"
+    );
+    let mut s = finger();
+    s.cables[0].routing[0].pulley = "nowhere".into();
+    let (el, why) = network_error(&s);
+    assert!(el.contains("t1") && why.contains("nowhere"), "{el} {why}");
+    let mut s = finger();
+    s.cables[0].motor = Some("m9".into());
+    assert!(network_error(&s).1.contains("m9"));
+    let mut s = finger();
+    for c in &mut s.cables {
+        c.routing.retain(|k| k.pulley != "p_pip");
+    }
+    let (el, why) = network_error(&s);
+    assert_eq!(el, "joint \"pip\"");
+    assert!(why.contains("nothing moves it"));
+    let mut s = finger();
+    s.cables[2].motor = Some("m1".into());
+    assert_eq!(
+        network_error(&s),
+        ("motor \"m3\"".into(), "hauls no cable".into())
+    );
+    let mut s = finger();
+    s.bodies[0].inertia = -1.0;
+    assert!(matches!(
+        Network::new(&s),
+        Err(CableError::InvalidParameter { .. })
+    ));
+}
