@@ -384,7 +384,7 @@ CALLS = _calls()
 #: whose OS errors are Python's own (documented in docs/networks.md, tested in test_nn.py)
 NOT_IN_TABLE = {
     "AntagonisticJoint.forceps_example", "AntagonisticJoint.params", "CableTransmission.params",
-    "CableNetwork.from_joint", "CableNetwork.from_transmission",
+    "CableNetwork.from_joint", "CableNetwork.from_transmission", "CableNetwork.tension_closure",
     "JawObserver.reset", "JointProblem.candidate_library", "JointProblem.hold_from_updates",
     "JointProblem.param_specs", "JointProblem.reference", "Mlp.input_range", "Mlp.layers",
     "Mlp.output_range", "Mlp.to_bytes", "Mlp.load", "Mlp.save", "Model.rest_state",

@@ -306,3 +306,50 @@ def test_step_advice_on_the_shipped_networks_equals_the_built_in_models():
         assert b.substeps == a.substeps
         assert b.max_stable_step == pytest.approx(a.max_stable_step, rel=1e-6)
         assert abs(b.stiffest_eigenvalue) == pytest.approx(abs(a.stiffest_eigenvalue), rel=1e-6)
+
+
+# ---- tension closure and the command ------------------------------------------------------------
+
+
+def test_tension_closure_matches_the_null_vector_of_the_structure_matrix():
+    finger = network.shipped("tendon_finger")
+    share, t = finger.tension_closure()
+    # n + 1 tendons: the torque-free tensions are the one null vector of Jᵀ, scaled to sum 1
+    null = np.linalg.svd(finger.moment_arms.T)[2][-1]
+    null = null / null.sum()
+    np.testing.assert_allclose(t, null, atol=1e-6)
+    assert share == pytest.approx(null.min(), abs=1e-6) and share > 0.05
+    # antagonistic pairs: every cable an equal share
+    for name, m in (("antagonistic_joint", 2), ("raven2", 6)):
+        share, t = network.shipped(name).tension_closure()
+        assert share == pytest.approx(1.0 / m, abs=1e-6)
+        np.testing.assert_allclose(t, 1.0 / m, atol=1e-6)
+    # one-sided routing: no closure
+    doc = copy.deepcopy(network.shipped_document("tendon_finger"))
+    for c in doc["cables"]:
+        c["routing"][1]["sense"] = 1
+    share, t = network.from_dict(doc).tension_closure()
+    assert share < -1e-3 and t.min() < 0  # torque-free only with a cable pushing
+    np.testing.assert_allclose(network.from_dict(doc).joint_torques(t), 0.0, atol=1e-9)
+
+
+def test_the_network_command_lists_checks_and_refuses(tmp_path, capsys):
+    from cablekit.cli import main
+
+    assert main(["network", "list"]) == 0
+    out = capsys.readouterr().out
+    assert all(name in out for name in network.shipped_names())
+    assert main(["network", "check", "tendon_finger", "--json", str(tmp_path / "d.json")]) == 0
+    out = capsys.readouterr().out
+    assert "tension closure: yes" in out and "condition number" in out
+    import json as _json
+
+    d = _json.loads((tmp_path / "d.json").read_text())
+    assert d["joints"] == ["mcp", "pip", "dip"] and d["tension_closure"]["closed"]
+    assert d["sensors"]["q_dip"] == "q:dip"
+    text = (network.files_folder() / "two_stage_forceps.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("wrap = 2.0", "wrap = -2.0", 1))
+    assert main(["network", "check", str(bad)]) == 4
+    err = capsys.readouterr().err
+    assert "NetworkError" in err and 'cable "jaw_drive".routing[1]' in err

@@ -118,6 +118,15 @@ impl CableNetwork {
         Ok(to_vector(slf.py(), guarded(|| n.joint_torques(&t))?))
     }
 
+    /// Tension closure: the torque-free cable tensions (summing to 1) with the largest smallest
+    /// share `s`; `(s, tensions)`, `s > 0` when every cable can be pretensioned, `s ≤ 0` when a
+    /// torque-free state needs a cable to push.
+    fn tension_closure<'py>(slf: PyRef<'py, Self>) -> PyResult<(f64, Bound<'py, PyArray1<f64>>)> {
+        let n = network(&slf);
+        let (s, t) = slf.py().detach(|| guarded(|| n.tension_closure()))?;
+        Ok((s, to_vector(slf.py(), t)))
+    }
+
     /// Mechanical energy (J) at state `x` and input `u`: kinetic, cable (taut), gravity.
     fn energy(slf: PyRef<'_, Self>, x: &Bound<'_, PyAny>, u: &Bound<'_, PyAny>) -> PyResult<f64> {
         let n = network(&slf);

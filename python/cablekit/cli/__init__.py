@@ -99,9 +99,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_diagnose(sub)
     from cablekit.cli.cdpr import add_parser as add_cdpr
     from cablekit.cli.forceps import add_parser as add_forceps
+    from cablekit.cli.network import add_parser as add_network
     from cablekit.cli.nn import add_parser as add_nn
 
     add_nn(sub)
+    add_network(sub)
     add_cdpr(sub)
     add_forceps(sub)
     return p

@@ -27,7 +27,16 @@ from cablekit._cablekit import CableNetwork
 from cablekit._files import parse_toml, read_text
 from cablekit.errors import DataError
 
-__all__ = ["CableNetwork", "from_dict", "from_toml", "load", "shipped", "shipped_document", "shipped_names"]
+__all__ = [
+    "CableNetwork",
+    "files_folder",
+    "from_dict",
+    "from_toml",
+    "load",
+    "shipped",
+    "shipped_document",
+    "shipped_names",
+]
 
 
 def _finite(value: Any, where: str) -> None:
@@ -65,14 +74,16 @@ def load(path: str | Path) -> CableNetwork:
     return from_toml(read_text(path, "network file"), str(path))
 
 
-def _folder() -> Any:
+@checked
+def files_folder() -> Any:
+    """The folder of the shipped network files (a resource of the package)."""
     return resources.files("cablekit.network") / "files"
 
 
 @checked
 def shipped_names() -> list[str]:
     """The names of the shipped networks."""
-    return sorted(p.name.removesuffix(".toml") for p in _folder().iterdir() if p.name.endswith(".toml"))
+    return sorted(p.name.removesuffix(".toml") for p in files_folder().iterdir() if p.name.endswith(".toml"))
 
 
 @checked
@@ -81,7 +92,7 @@ def shipped(name: str) -> CableNetwork:
     names = shipped_names()
     if name not in names:
         raise DataError(f"no shipped network {name!r}; shipped: {names}")
-    return from_toml((_folder() / f"{name}.toml").read_text(encoding="utf-8"), f"{name}.toml")
+    return from_toml((files_folder() / f"{name}.toml").read_text(encoding="utf-8"), f"{name}.toml")
 
 
 @checked
@@ -90,4 +101,4 @@ def shipped_document(name: str) -> dict[str, Any]:
     names = shipped_names()
     if name not in names:
         raise DataError(f"no shipped network {name!r}; shipped: {names}")
-    return parse_toml((_folder() / f"{name}.toml").read_text(encoding="utf-8"), f"{name}.toml")
+    return parse_toml((files_folder() / f"{name}.toml").read_text(encoding="utf-8"), f"{name}.toml")

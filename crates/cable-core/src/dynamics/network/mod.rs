@@ -640,6 +640,70 @@ impl Network {
         Ok(tau)
     }
 
+    /// **Tension closure** (tendon controllability, Tsai 1999 ch. 10): the cable tensions
+    /// `T ≥ 0`, `Σ T = 1`, that put no torque on any joint (`Jᵀ·T = 0`) with the largest
+    /// smallest share `s = min T`, by a linear program (clarabel; `T` is not bounded below, so
+    /// the program is feasible whenever a torque-free distribution exists). With `s > 0` every
+    /// cable can be pretensioned without moving the mechanism, and — `J` having rank `n` — every
+    /// joint torque is reachable with all cables taut; with `s ≤ 0` a torque-free state needs a
+    /// cable to push (`T` then has a negative share). Returns `(s, T)`.
+    pub fn tension_closure(&self) -> Result<(f64, Vec<f64>)> {
+        use clarabel::algebra::CscMatrix;
+        use clarabel::solver::{
+            DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus,
+            SupportedConeT::{NonnegativeConeT, ZeroConeT},
+        };
+        let (m, n) = (self.n_cables(), self.n_joints());
+        // z = [T₁…T_m, s]; rows: Jᵀ·T = 0 (n), Σ T = 1 (1), s − T_i ≤ 0 (m)
+        let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
+        for c in 0..m {
+            for j in 0..n {
+                rowval.push(j);
+                nzval.push(self.arms[c * n + j]);
+            }
+            rowval.extend([n, n + 1 + c]);
+            nzval.extend([1.0, -1.0]);
+            colptr.push(rowval.len());
+        }
+        rowval.extend(n + 1..n + 1 + m);
+        nzval.extend(std::iter::repeat_n(1.0, m));
+        colptr.push(rowval.len());
+        let a = CscMatrix::new(n + 1 + m, m + 1, colptr, rowval, nzval);
+        let p = CscMatrix::zeros((m + 1, m + 1));
+        let mut q = vec![0.0; m + 1];
+        q[m] = -1.0;
+        let mut b = vec![0.0; n + 1 + m];
+        b[n] = 1.0;
+        let cones = [ZeroConeT(n + 1), NonnegativeConeT(m)];
+        let fail = |_: String| CableError::NotConverged {
+            what: "tension_closure".into(),
+            limit: 200,
+            hint: "the linear program of the tension closure did not solve (clarabel)",
+        };
+        let settings = DefaultSettingsBuilder::default()
+            .verbose(false)
+            .max_iter(200)
+            .build()
+            .map_err(|e| fail(e.to_string()))?;
+        let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
+            .map_err(|e| fail(e.to_string()))?;
+        solver.solve();
+        match solver.solution.status {
+            SolverStatus::Solved | SolverStatus::AlmostSolved => {}
+            SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible => {
+                return Err(CableError::Network {
+                    element: "cables".into(),
+                    reason: "have no torque-free tensions of positive total: the mechanism \
+                             cannot be pretensioned"
+                        .into(),
+                })
+            }
+            other => return Err(fail(format!("{other:?}"))),
+        }
+        let x = &solver.solution.x;
+        Ok((x[m], x[..m].to_vec()))
+    }
+
     /// Motor angle of motor `i` and its rate, from the state or the input.
     #[inline]
     fn motor_at(&self, i: usize, x: &[f64], u: &[f64]) -> (f64, f64) {

@@ -302,3 +302,37 @@ fn bad_networks_are_refused_naming_the_element() {
         Err(CableError::InvalidParameter { .. })
     ));
 }
+
+#[test]
+fn tension_closure_of_pairs_and_tendons() {
+    // an antagonistic pair: both cables at half the total, margin 1/2
+    let j = Network::new(&NetworkSpec::from_joint(&joint()).unwrap()).unwrap();
+    let (s, t) = j.tension_closure().unwrap();
+    assert!(
+        (s - 0.5).abs() < 1e-6 && (t[0] - 0.5).abs() < 1e-6,
+        "{s} {t:?}"
+    );
+    // the test finger's three tendons on two joints: Jᵀ·T = 0 forces the middle one slack
+    let (s, t) = Network::new(&finger()).unwrap().tension_closure().unwrap();
+    assert!(s < 1e-6 && t[1] < 1e-6, "{s} {t:?}");
+    // with moment arms (9, 4), (−3, 4), (−6, −8) mm, T = (1, 1, 1)/3 is torque-free
+    let mut spec = finger();
+    let arms = [(9e-3, 4e-3), (3e-3, 4e-3), (6e-3, 8e-3)];
+    spec.pulleys.clear();
+    for (c, (a, b)) in arms.iter().enumerate() {
+        for (joint, r, k) in [("mcp", *a, 0), ("pip", *b, 1)] {
+            let name = format!("{joint}{c}");
+            spec.pulleys.push(PulleySpec {
+                name: name.clone(),
+                joint: Some(joint.into()),
+                radius: r,
+            });
+            spec.cables[c].routing[k].pulley = name;
+        }
+    }
+    let f = Network::new(&spec).unwrap();
+    let (s, t) = f.tension_closure().unwrap();
+    assert!((s - 1.0 / 3.0).abs() < 1e-6, "{s} {t:?}");
+    let tau = f.joint_torques(&t).unwrap();
+    assert!(tau.iter().all(|v| v.abs() < 1e-9), "{tau:?}");
+}
