@@ -581,3 +581,26 @@ def test_carried_sets_exactly_the_shared_names_within_their_bounds(target, sourc
             assert out[i] == min(max(have[s.name], s.lower), s.upper)
         else:
             assert out[i] == start[i]
+
+
+def test_a_failed_reveal_leaves_the_selection_as_before(monkeypatch):
+    """The discovery on the first pick's predictions replays that model; if the replay fails
+    (a divergence at the pick's substeps), nothing is revealed and the diagnosis goes on."""
+    import cablekit.diagnose.select as select
+    from cablekit.diagnose.selftest import PAIRS, SINGLE
+    from cablekit.errors import SimulationDivergedError
+
+    case = make_case(PAIRS[0], seed=2026 + 97 * len(SINGLE), duration=4.0)
+    real = select.discover
+    calls = []
+
+    def failing(prep, fit, hold, **kw):
+        if kw.get("model") is not None:
+            calls.append(kw["model"].effects)
+            raise SimulationDivergedError("replay diverged")
+        return real(prep, fit, hold, **kw)
+
+    monkeypatch.setattr(select, "discover", failing)
+    res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=300))
+    assert calls, "the reveal was not attempted"
+    assert res.selected.effects and res.selected.effects[0].startswith("coulomb_friction")

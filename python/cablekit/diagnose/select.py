@@ -15,6 +15,7 @@ from cablekit.diagnose.discover import discover, revealed
 from cablekit.diagnose.fit import NESTED, CandidateFit, carried, combinable, fit_many, n_free, warm_start
 from cablekit.diagnose.prepare import MIN_CLOSED, NOISE_LEVEL, Options, Prepared
 from cablekit.diagnose.screen import Screening, shortlist
+from cablekit.errors import CablekitError
 
 __all__ = [
     "bic",
@@ -409,7 +410,10 @@ def forward_select(
                 # a measurement-path effect hidden behind the first pick (its signature follows
                 # the prediction) is offered again when the residual of the model with the pick
                 # in follows that signature (discrepancy discovery on the pick's predictions)
-                shown = revealed(discover(prep, current.fit_resid, current.hold_resid, model=current))
+                try:
+                    shown = revealed(discover(prep, current.fit_resid, current.hold_resid, model=current))
+                except CablekitError:  # the pick's replay failed here: nothing revealed, as before
+                    shown = set()
                 second_chance = second_chance | {k for k in screened_out if prep.info[k]["effect"] in shown}
             others = [
                 k
