@@ -181,8 +181,12 @@ def test_the_two_stage_forceps_moves_the_jaw_through_the_spindle():
     assert np.corrcoef(y["q:spindle"][steady], angle[steady])[0, 1] > 0.99
     gain = np.polyfit(y["q:spindle"][steady], y["q:jaw"][steady], 1)[0]
     assert gain == pytest.approx(4.0 / 2.5, rel=0.1)
-    # the wrist's capstan friction: the motor-side tension exceeds the joint-side one when hauled
-    assert np.all(y["T_motor:jaw_drive"] > 0) and np.all(y["T:jaw_drive"] > 0)
+    # the wrist's capstan friction (mu·phi = 0.2): the spindle-side tension is the jaw-side one
+    # times exp(±0.2) as the cable is hauled or paid out — both directions occur
+    ratio = y["T_motor:jaw_drive"] / y["T:jaw_drive"]
+    assert np.all(y["T:jaw_drive"] > 0)
+    assert ratio.max() <= math.exp(0.2) + 1e-12 and ratio.min() >= math.exp(-0.2) - 1e-12
+    assert ratio.max() > math.exp(0.15) and ratio.min() < math.exp(-0.15)
 
 
 # ---- bad networks -------------------------------------------------------------------------------
