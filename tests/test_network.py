@@ -357,3 +357,48 @@ def test_the_network_command_lists_checks_and_refuses(tmp_path, capsys):
     assert main(["network", "check", str(bad)]) == 4
     err = capsys.readouterr().err
     assert "NetworkError" in err and 'cable "jaw_drive".routing[1]' in err
+
+
+def test_a_network_files_sensors_drive_the_square_root_ukf():
+    """The two-stage forceps without a jaw encoder: the sr-UKF on the network estimates the jaw
+    angle from the spindle's angle and torque (the file's other sensors), from a wrong start."""
+    doc = copy.deepcopy(network.shipped_document("two_stage_forceps"))
+    for j in doc["joints"]:
+        j["coulomb"] = 0.0  # a smooth plant: the filter's RK4 needs no friction substeps
+    net = network.from_dict(doc)
+    dt, n_steps = 1e-3, 1500
+    t = np.arange(n_steps) * dt
+    angle = 0.3 * np.sin(2 * np.pi * 1.3 * t) + 0.1 * np.sin(2 * np.pi * 3.1 * t)
+    rate = 0.3 * 2 * np.pi * 1.3 * np.cos(2 * np.pi * 1.3 * t) + 0.1 * 2 * np.pi * 3.1 * np.cos(
+        2 * np.pi * 3.1 * t
+    )
+    u = _inputs(t, angle, rate, 0 * t, 0 * t)
+    advice = ck.propose_step(net, dt)
+    truth = ck.simulate(net, u, dt, substeps=advice.substeps)
+    sensors = dict(net.sensors)
+    used = [sensors["spindle_angle"], sensors["spindle_torque"]]
+    noise = np.array([2e-4, 2e-3])  # rad, N·m
+    rng = np.random.default_rng(5)
+    y = truth.outputs[:, used] + noise * rng.standard_normal((n_steps, 2))
+    x0 = np.array([0.0, 0.0, 0.2, 0.0])  # the jaw 0.2 rad off
+    f = ck.SrUkf(
+        net,
+        x0,
+        np.diag([1e-4, 1e-2, 0.1, 1.0]),
+        np.diag([1e-10, 1e-6, 1e-10, 1e-6]),
+        np.diag(noise**2),
+        dt=dt,
+        substeps=advice.substeps,
+        outputs=used,
+    )
+    run = f.run(np.ascontiguousarray(u[:-1]), np.ascontiguousarray(y[1:]))
+    jaw = truth.states[1:, 2]
+    err = run.x[:, 2] - jaw
+    late = slice(300, None)
+    assert abs(x0[2] - truth.states[0, 2]) > 0.19  # it started 0.2 rad off, and the first
+    assert abs(err[0]) < 0.05  # spindle torque pulls it in: the jaw cables' stretch shows there
+    rmse = np.sqrt(np.mean(err[late] ** 2))
+    # better than the kinematic estimate (the spindle encoder times the pulley ratio), which its
+    # noise limits: the filter also reads the torque the jaw cables put on the spindle
+    kinematic = y[1:, 0] * 4.0 / 2.5 - jaw
+    assert rmse < 0.2 * np.sqrt(np.mean(kinematic[late] ** 2)) and rmse < 1e-3 * np.ptp(jaw), rmse
