@@ -44,8 +44,10 @@ def _load(what: str) -> tuple[Any, dict[str, Any]]:
     from cablekit._files import load_toml
 
     if not Path(what).suffix and what in network.shipped_names():
-        return network.shipped(what), network.shipped_document(what)
-    return network.load(what), load_toml(what, "network file")
+        doc = network.shipped_document(what)
+    else:
+        doc = load_toml(what, "network file")
+    return network.from_dict(doc, what), doc
 
 
 def describe(net: Any, doc: dict[str, Any]) -> dict[str, Any]:

@@ -89,10 +89,7 @@ def shipped_names() -> list[str]:
 @checked
 def shipped(name: str) -> CableNetwork:
     """The shipped network ``name`` (see :func:`shipped_names`)."""
-    names = shipped_names()
-    if name not in names:
-        raise DataError(f"no shipped network {name!r}; shipped: {names}")
-    return from_toml((files_folder() / f"{name}.toml").read_text(encoding="utf-8"), f"{name}.toml")
+    return from_dict(shipped_document(name), f"{name}.toml")
 
 
 @checked

@@ -9,7 +9,7 @@ use super::{
     invalid, BodySpec, CableSpec, ContactSpec, Drive, JointSpec, MotorSpec, NetworkSpec,
     PulleySpec, SensorSpec,
 };
-use crate::cable::CableRun;
+use crate::cable::{CableLaw, CableRun};
 use crate::dynamics::Gravity;
 use crate::error::Result;
 use crate::friction::StaticFriction;
@@ -219,7 +219,7 @@ impl NetworkSpec {
                     })
                 })
                 .collect::<Result<Vec<_>>>()?;
-            let law = super::law(
+            let law = CableLaw::from_name(
                 &t.text("law", Some("linear"))?,
                 t.num("stiffness", None)?,
                 t.num("length_scale", Some(1.0))?,

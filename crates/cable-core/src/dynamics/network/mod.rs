@@ -47,7 +47,7 @@
 //! along the routing (the capstan losses change the motor-side tensions, not the dynamics),
 //! wrap angles that change with the configuration (the wrap is its value at `q = 0`).
 
-use crate::cable::{CableLaw, CableRun};
+use crate::cable::CableRun;
 use crate::dynamics::{Gravity, JointKind, Model};
 use crate::error::{check, CableError, Result};
 use crate::friction::{smooth_sign, StaticFriction};
@@ -232,6 +232,8 @@ struct Motor {
     friction: StaticFriction,
     /// Index of its `q_m` in the state (torque) or the input (position).
     slot: usize,
+    /// Index of its torque in the input (torque-driven; unused when position-driven).
+    torque_input: usize,
 }
 
 /// A validated cable network; a [`Model`] (see the module docs).
@@ -534,11 +536,15 @@ impl Network {
                 inertia: ms.inertia,
                 friction: ms.friction,
                 slot,
+                torque_input: 0,
             });
         }
         // inputs: the position motors' [q_m, q̇_m], one torque per torque motor, the joint loads
-        let torques = motors.iter().filter(|m| m.drive == Drive::Torque).count();
-        Ok((motors, n_states, n_inputs + torques + n))
+        for m in motors.iter_mut().filter(|m| m.drive == Drive::Torque) {
+            m.torque_input = n_inputs;
+            n_inputs += 1;
+        }
+        Ok((motors, n_states, n_inputs + n))
     }
 
     /// Refuse a coupling that cannot move every joint independently (rank of `J` below `n`).
@@ -764,20 +770,6 @@ impl Network {
         e
     }
 
-    /// Index of the torque input of motor `i` (torque-driven).
-    fn torque_input(&self, i: usize) -> usize {
-        let positions = 2 * self
-            .motors
-            .iter()
-            .filter(|m| m.drive == Drive::Position)
-            .count();
-        positions
-            + self.motors[..i]
-                .iter()
-                .filter(|m| m.drive == Drive::Torque)
-                .count()
-    }
-
     /// Index of the first external joint load input.
     fn load_input(&self) -> usize {
         self.n_inputs - self.n_joints()
@@ -953,11 +945,6 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// Elastic law by name (for the file loaders): `"linear"` or `"exponential"`.
-pub fn law(name: &str, stiffness: f64, length_scale: f64, prefix: &str) -> Result<CableLaw> {
-    CableLaw::from_name(name, stiffness, length_scale, prefix)
-}
-
 impl Model for Network {
     fn n_states(&self) -> usize {
         self.n_states
@@ -999,9 +986,9 @@ impl Model for Network {
         for (j, joint) in self.joints.iter().enumerate() {
             dx[2 * j + 1] *= joint.inv_inertia;
         }
-        for (i, m) in self.motors.iter().enumerate() {
+        for m in &self.motors {
             if m.drive == Drive::Torque {
-                dx[m.slot + 1] = (dx[m.slot + 1] + u[self.torque_input(i)]) / m.inertia;
+                dx[m.slot + 1] = (dx[m.slot + 1] + u[m.torque_input]) / m.inertia;
             }
         }
     }
@@ -1029,7 +1016,7 @@ impl Model for Network {
                     self.motor_at(i, x, u).1 * self.motors[i].rho * cable.sense,
                     Some(i),
                 ),
-                None => (self.elongation(c, x, u).1, None),
+                None => (de, None),
             };
             let a = cable.capstan * smooth_sign(speed, self.capstan_smoothing);
             y[n + p + m + c] = t * a.exp();

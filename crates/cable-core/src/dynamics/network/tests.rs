@@ -1,4 +1,5 @@
 use super::*;
+use crate::cable::CableLaw;
 use crate::dynamics::{raven2, AntagonisticJoint};
 use crate::integrate::{simulate, InputHold, SimOptions};
 
