@@ -187,6 +187,18 @@ def test_the_two_stage_forceps_moves_the_jaw_through_the_spindle():
     assert np.all(y["T:jaw_drive"] > 0)
     assert ratio.max() <= math.exp(0.2) + 1e-12 and ratio.min() >= math.exp(-0.2) - 1e-12
     assert ratio.max() > math.exp(0.15) and ratio.min() < math.exp(-0.15)
+    # and the friction acts in the dynamics: the spindle, which hauls the jaw cables through the
+    # wrist, feels their spindle-side tensions on its capstan (radius 4 mm, sense -1), the jaw
+    # their jaw-side ones (docs/models.md)
+    arms = net.moment_arms
+    cables = ["coupling_a", "coupling_b", "jaw_drive", "jaw_return"]
+    tau = sum(arms[c, 0] * y[f"T:{name}"] for c, name in enumerate(cables))
+    sense = {"jaw_drive": -1.0, "jaw_return": 1.0}
+    tau += sum(sense[n] * 4e-3 * (y[f"T_motor:{n}"] - y[f"T:{n}"]) for n in sense)
+    np.testing.assert_allclose(y["tau:spindle"], tau, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(
+        y["tau:jaw"], sum(arms[c, 1] * y[f"T:{n}"] for c, n in enumerate(cables)), atol=1e-12
+    )
 
 
 # ---- bad networks -------------------------------------------------------------------------------
@@ -346,6 +358,14 @@ def test_the_network_command_lists_checks_and_refuses(tmp_path, capsys):
     assert main(["network", "check", "tendon_finger", "--json", str(tmp_path / "d.json")]) == 0
     out = capsys.readouterr().out
     assert "tension closure: yes" in out and "condition number" in out
+    # the pull of every cable on every joint it passes, signed as the moment arms
+    pulls = {
+        line.split()[0]: line.split()[1:] for line in out.split("its tension turns")[1].splitlines()[1:5]
+    }
+    arms = network.shipped("tendon_finger").moment_arms
+    for c, name in enumerate(network.shipped("tendon_finger").cable_names):
+        signs = [("+" if a > 0 else "-") for a in arms[c] if a]
+        assert pulls[name][1::2] == [s + "," for s in signs[:-1]] + [signs[-1]], (name, pulls[name])
     import json as _json
 
     d = _json.loads((tmp_path / "d.json").read_text())

@@ -87,6 +87,10 @@ def _check(args: argparse.Namespace) -> int:
     print("  moment arms J (mm), cable x joint: " + "  ".join(f"{j:>8}" for j in d["joints"]))
     for c, row in zip(d["cables"], d["moment_arms_m"], strict=True):
         print(f"    {c:<{width}} " + "  ".join(f"{1e3 * v:8.3f}" for v in row))
+    print("  its tension turns (sense +1: positively; check the signs against the mechanism):")
+    for c, row in zip(d["cables"], d["moment_arms_m"], strict=True):
+        pulls = ", ".join(f"{j} {'+' if v > 0 else '-'}" for j, v in zip(d["joints"], row, strict=True) if v)
+        print(f"    {c:<{width}} {pulls}")
     print(
         f"  rank {len(d['joints'])} of {len(d['joints'])} (singular values "
         + ", ".join(f"{v:.3g}" for v in d["singular_values"])

@@ -9,9 +9,10 @@
 //! motors (torque- or position-driven, a capstan of radius `r_m` behind a gear ratio `N`).
 //!
 //! **Length map and coupling.** A contact `k` of cable `c` on a pulley of radius `r_k` on the
-//! axis of joint `j_k`, with sense `s_k = ±1` (+1: turning the joint positively winds the cable
-//! on the pulley), shortens the cable's path by `s_k·r_k·q_j` (revolute; for a prismatic joint
-//! `r_k` is the metres of cable per metre of travel). So
+//! axis of joint `j_k`, with sense `s_k = ±1`, shortens the cable's path by `s_k·r_k·q_j`
+//! (revolute; for a prismatic joint `r_k` is the metres of cable per metre of travel): with
+//! `s_k = +1` the cable's tension turns the joint positively, and turning the joint positively
+//! lets cable off towards it (slackening it unless its motor hauls in). So
 //!
 //! ```text
 //! l(q) = l(0) − J·q,        J_cj = Σ_{k of c on joint j} s_k·r_k        (m × n, constant)
@@ -28,11 +29,20 @@
 //! ρ_m  = r_m / N_m                                 capstan metres per motor radian
 //! e_c  = σ_c·ρ_m(c)·q_m(c) − (J·q)_c                cable elongation from pretension (m)
 //! T_c  = max(0, T₀,c + F_c(e_c) + b_c·ė_c)          joint-side tension (crate::cable)
-//! I_j·q̈_j = (Jᵀ·T)_j − F_f,j(q̇_j) − g_j(q_j) + τ_ext,j
-//! I_m·q̈_m = τ_m − F_f,m(q̇_m) − ρ_m·Σ_{c on m} σ_c·T_c
-//! T_m,c = T_c·exp(μφ_c·σ_ε(σ_c·q̇_m))               motor-side tension: capstan losses of the
-//!                                                  routing (Σ μ_k·φ_k), lumped at the motor
+//! T_m,c = T_c·exp(μφ_c·σ_ε(v_h,c))                 driver-side tension: the routing's capstan
+//!                                                  losses (μφ_c = Σ μ_k·φ_k), v_h,c the speed
+//!                                                  at which the driver hauls the cable through
+//!                                                  its friction contacts
+//! I_j·q̈_j = (Jᵀ·T)_j + (J_dᵀ·(T_m − T))_j − F_f,j(q̇_j) − g_j(q_j) + τ_ext,j
+//! I_m·q̈_m = τ_m − F_f,m(q̇_m) − ρ_m·Σ_{c on m} σ_c·T_m,c
 //! ```
+//!
+//! **Friction along the routing.** A cable's elasticity sits on the joint side of its friction
+//! contacts; the piece between its driver — the motor, or for a cable anchored on a driven
+//! stage the contacts before the first one with friction (`J_d`, the driver's moment arms) —
+//! and the friction contacts carries the driver-side tension `T_m`. So the capstan losses act in
+//! the dynamics: a torque-driven motor, or the driven stage, pulls `T_m` where the joint feels
+//! `T` (the Euler–Eytelwein ratio `e^{±μφ}` as the cable is hauled in or paid out).
 //!
 //! `σ_c = ±1` is the sense in which the motor hauls cable `c` in. A position-driven motor takes
 //! `q_m`, `q̇_m` as inputs instead of states. The antagonistic joint of seed 000
@@ -43,8 +53,8 @@
 //! proximal axes (`r = C_ij·r_l,i`). Both are tested equal to the built-in models.
 //!
 //! **Not modelled** (said where it matters): inertial coupling between joints (each joint's
-//! inertia is its body's, about its axis — as in the transmission model), friction distributed
-//! along the routing (the capstan losses change the motor-side tensions, not the dynamics),
+//! inertia is its body's, about its axis — as in the transmission model), friction contacts
+//! between joint pulleys (a routing's friction is lumped before its first joint-side contact),
 //! wrap angles that change with the configuration (the wrap is its value at `q = 0`).
 
 use crate::cable::CableRun;
@@ -131,7 +141,8 @@ pub struct ContactSpec {
     pub pulley: String,
     /// Wrap angle (rad), ≥ 0.
     pub wrap: f64,
-    /// +1: turning the pulley's joint positively winds the cable on it; −1 the other way.
+    /// +1: the cable's tension turns the pulley's joint positively (turning the joint positively
+    /// shortens the cable's path, slackening it); −1 the other way.
     pub sense: f64,
     /// Capstan friction coefficient of the contact, ≥ 0.
     pub mu: f64,
@@ -221,6 +232,12 @@ struct Cable {
     sense: f64,
     /// `Σ μ_k·φ_k` over its routing.
     capstan: f64,
+    /// Moment arms of its contacts before the first one with friction (the driver's side, which
+    /// carries the motor-side tension), length `n`; for an anchored cable without friction
+    /// contacts, its first contact's (where friction added to its routing would act).
+    driver_arms: Vec<f64>,
+    /// Smoothing of the sign of its haul speed in its routing friction (m/s).
+    smoothing: f64,
 }
 
 /// One motor of a built network.
@@ -332,6 +349,7 @@ impl Network {
                 .transpose()?;
             let sense = Self::sense(cs.motor_sense, &format!("{el}.motor_sense"))?;
             let mut capstan = 0.0;
+            let mut driver_arms = vec![0.0; n];
             for (k, ct) in cs.routing.iter().enumerate() {
                 let ctx = format!("{el}.routing[{k}]");
                 let p = lookup(&pulley_names, &ct.pulley, &ctx, "pulley")?;
@@ -354,6 +372,22 @@ impl Network {
                         "joint",
                     )?;
                     arms[c * n + j] += s * pulley.radius;
+                    if capstan == 0.0 {
+                        driver_arms[j] += s * pulley.radius;
+                    }
+                }
+            }
+            if capstan == 0.0 {
+                // no friction contact: the driver is the motor, or an anchored cable's first
+                // contact's joint
+                driver_arms.iter_mut().for_each(|a| *a = 0.0);
+                if motor.is_none() {
+                    let first = &cs.routing[0];
+                    let p = lookup(&pulley_names, &first.pulley, &el, "pulley")?;
+                    if let Some(j) = &spec.pulleys[p].joint {
+                        let j = lookup(&joint_names, j, &el, "joint")?;
+                        driver_arms[j] = first.sense * spec.pulleys[p].radius;
+                    }
                 }
             }
             cables.push(Cable {
@@ -361,6 +395,8 @@ impl Network {
                 motor,
                 sense,
                 capstan,
+                driver_arms,
+                smoothing: spec.capstan_smoothing,
             });
         }
         for (i, name) in motor_names.iter().enumerate() {
@@ -741,6 +777,31 @@ impl Network {
         (e, de)
     }
 
+    /// Joint-side and motor-side tension of cable `c` (N): the routing's capstan losses
+    /// `T_m = T·exp(Σμφ·σ_ε(v_h))` follow the speed `v_h` at which the cable is hauled through
+    /// its friction contacts — by its motor (`σ·ρ·q̇_m`) and by the contacts before them on a
+    /// driven stage's pulley.
+    #[inline]
+    fn cable_tensions(&self, c: usize, x: &[f64], u: &[f64]) -> (f64, f64) {
+        let (e, de) = self.elongation(c, x, u);
+        let cable = &self.cables[c];
+        let t = cable.run.tension(e, de);
+        if cable.capstan == 0.0 {
+            return (t, t);
+        }
+        let mut haul = match cable.motor {
+            Some(i) => self.motor_at(i, x, u).1 * self.motors[i].rho * cable.sense,
+            None => 0.0,
+        };
+        for (j, a) in cable.driver_arms.iter().enumerate() {
+            haul -= a * x[2 * j + 1];
+        }
+        (
+            t,
+            t * (cable.capstan * smooth_sign(haul, cable.smoothing)).exp(),
+        )
+    }
+
     /// Joint-side tension of every cable (N) at state `x`, input `u`.
     pub fn tensions(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
         for (c, o) in out.iter_mut().enumerate() {
@@ -773,6 +834,181 @@ impl Network {
     /// Index of the first external joint load input.
     fn load_input(&self) -> usize {
         self.n_inputs - self.n_joints()
+    }
+
+    /// Whether motor `i` is torque-driven (it has states, inertia and friction in the
+    /// dynamics) rather than position-driven.
+    pub fn motor_is_torque_driven(&self, i: usize) -> bool {
+        self.motors[i].drive == Drive::Torque
+    }
+
+    /// Capstan metres of cable per motor radian `ρ = r_m/N` of motor `i`.
+    pub fn motor_rho(&self, i: usize) -> f64 {
+        self.motors[i].rho
+    }
+
+    /// The motor that hauls cable `c`, if any.
+    pub fn cable_motor(&self, c: usize) -> Option<usize> {
+        self.cables[c].motor
+    }
+
+    /// The cable run (law, damping, pretension) of cable `c`.
+    pub fn cable_run(&self, c: usize) -> &CableRun {
+        &self.cables[c].run
+    }
+
+    /// Friction of joint `j`.
+    pub fn joint_friction(&self, j: usize) -> &StaticFriction {
+        &self.joints[j].friction
+    }
+
+    /// Inertia of joint `j` (its body's, about its axis).
+    pub fn joint_inertia(&self, j: usize) -> f64 {
+        self.joints[j].inertia
+    }
+
+    /// For a torque-driven motor `i`: the index of its angle in the state (its rate follows),
+    /// its rotor inertia and its friction; `None` for a position-driven one.
+    pub fn motor_dynamics(&self, i: usize) -> Option<(usize, f64, &StaticFriction)> {
+        let m = &self.motors[i];
+        (m.drive == Drive::Torque).then_some((m.slot, m.inertia, &m.friction))
+    }
+
+    /// Smoothing of the sign of cable `c`'s haul speed in its routing friction (m/s).
+    pub fn cable_smoothing(&self, c: usize) -> f64 {
+        self.cables[c].smoothing
+    }
+
+    /// The routing friction of cable `c` (`Σ μ_k·φ_k`).
+    pub fn cable_capstan(&self, c: usize) -> f64 {
+        self.cables[c].capstan
+    }
+
+    /// The one coordinate whose dynamics the routing friction of cable `c` acts on, when there
+    /// is one: `(index of its speed in the state, arm)` such that the cable's driver-side tension
+    /// `T_m` pulls that coordinate with `arm·T_m` and the cable is hauled through its friction
+    /// contacts at `−arm·v`. A torque-driven motor (`arm = −σ·ρ`), or the single joint of an
+    /// anchored cable's driver-side contacts; `None` for a position-driven motor (the friction
+    /// shows in its load only), a cable without friction, or driver-side contacts on several
+    /// joints.
+    pub fn cable_driver(&self, c: usize) -> Option<(usize, f64)> {
+        if self.cables[c].capstan == 0.0 {
+            return None;
+        }
+        self.routing_driver(c)
+    }
+
+    /// The coordinate friction on cable `c`'s routing would act on ([`Self::cable_driver`]),
+    /// whether or not it has any.
+    pub fn routing_driver(&self, c: usize) -> Option<(usize, f64)> {
+        let cable = &self.cables[c];
+        match cable.motor.map(|i| &self.motors[i]) {
+            Some(m) if m.drive == Drive::Torque => {
+                if cable.driver_arms.iter().any(|a| *a != 0.0) {
+                    return None;
+                }
+                Some((m.slot + 1, -m.rho * cable.sense))
+            }
+            Some(_) => None,
+            None => {
+                let mut on = cable
+                    .driver_arms
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, a)| **a != 0.0);
+                match (on.next(), on.next()) {
+                    (Some((j, a)), None) => Some((2 * j + 1, *a)),
+                    _ => None,
+                }
+            }
+        }
+    }
+
+    /// The same network without the friction of its joints and torque-driven motors, and
+    /// without the routing friction of every cable with a [`Self::cable_driver`] (the
+    /// position-driven motors' friction, which acts in their outputs only, is kept): the smooth
+    /// part of the dynamics, for integrators that treat the friction on its own.
+    pub fn frictionless(&self) -> Self {
+        let mut out = self.clone();
+        for j in &mut out.joints {
+            j.friction = StaticFriction::NONE;
+        }
+        for m in out.motors.iter_mut().filter(|m| m.drive == Drive::Torque) {
+            m.friction = StaticFriction::NONE;
+        }
+        for c in 0..out.cables.len() {
+            if self.cable_driver(c).is_some() {
+                out.cables[c].capstan = 0.0;
+            }
+        }
+        out
+    }
+
+    /// The diagnosis' access to the elements (issue #39 §2): effects inserted at a joint, a
+    /// cable, a cable's routing or a motor change these values of a copy of the nominal.
+    pub(crate) fn joint_friction_mut(&mut self, j: usize) -> &mut StaticFriction {
+        &mut self.joints[j].friction
+    }
+
+    /// Scale joint `j`'s inertia by `f` (> 0; a non-positive factor is floored at 1e-3).
+    pub(crate) fn scale_joint_inertia(&mut self, j: usize, f: f64) {
+        let joint = &mut self.joints[j];
+        joint.inertia *= f.max(1e-3);
+        joint.inv_inertia = 1.0 / joint.inertia;
+    }
+
+    /// Cable `c`'s run, mutable.
+    pub(crate) fn cable_run_mut(&mut self, c: usize) -> &mut CableRun {
+        &mut self.cables[c].run
+    }
+
+    /// Add `a` to cable `c`'s routing friction `Σ μ_k·φ_k` (kept ≥ 0) and set the smoothing of
+    /// its sign (m/s, > 0).
+    pub(crate) fn set_routing_friction(&mut self, c: usize, a: f64, smoothing: f64) {
+        let cable = &mut self.cables[c];
+        cable.capstan = (cable.capstan + a).max(0.0);
+        cable.smoothing = smoothing;
+    }
+
+    /// Motor `i`'s friction, mutable.
+    pub(crate) fn motor_friction_mut(&mut self, i: usize) -> &mut StaticFriction {
+        &mut self.motors[i].friction
+    }
+
+    /// Scale torque-driven motor `i`'s rotor inertia by `f` (floored at 1e-3).
+    pub(crate) fn scale_motor_inertia(&mut self, i: usize, f: f64) {
+        self.motors[i].inertia *= f.max(1e-3);
+    }
+
+    /// The state at rest for the first input `u0` (`[q_m, q̇_m]` of each position motor, the
+    /// torques, the loads): the joints at the angles that leave every cable at its pretension —
+    /// `J·q = e₀`, `e₀` the position motors' hauls `σ·ρ·q_m` (0 for the other cables), in the
+    /// least-squares sense — every speed zero and every torque-driven motor at 0.
+    pub fn rest_at(&self, u0: &[f64]) -> Vec<f64> {
+        let (n, m) = (self.n_joints(), self.n_cables());
+        let mut x = vec![0.0; self.n_states];
+        if u0.len() < self.n_inputs {
+            return x;
+        }
+        let b = nalgebra::DVector::from_fn(m, |c, _| {
+            let cable = &self.cables[c];
+            match cable.motor.map(|i| &self.motors[i]) {
+                Some(mo) if mo.drive == Drive::Position => cable.sense * mo.rho * u0[mo.slot],
+                _ => 0.0,
+            }
+        });
+        if b.iter().all(|v| *v == 0.0) {
+            return x;
+        }
+        let a = nalgebra::DMatrix::from_row_slice(m, n, &self.arms);
+        if let Ok(q) = a.svd(true, true).solve(&b, 1e-12) {
+            for j in 0..n {
+                if q[j].is_finite() {
+                    x[2 * j] = q[j];
+                }
+            }
+        }
+        x
     }
 }
 
@@ -972,14 +1208,19 @@ impl Model for Network {
             }
         }
         for (c, cable) in self.cables.iter().enumerate() {
-            let (e, de) = self.elongation(c, x, u);
-            let t = cable.run.tension(e, de);
+            let (t, tm) = self.cable_tensions(c, x, u);
             for (j, a) in self.arms[c * n..(c + 1) * n].iter().enumerate() {
                 dx[2 * j + 1] += a * t;
             }
+            #[allow(clippy::float_cmp)] // equal exactly when the cable has no routing friction
+            if tm != t {
+                for (j, a) in cable.driver_arms.iter().enumerate() {
+                    dx[2 * j + 1] += a * (tm - t);
+                }
+            }
             if let Some(m) = cable.motor.map(|i| &self.motors[i]) {
                 if m.drive == Drive::Torque {
-                    dx[m.slot + 1] -= m.rho * cable.sense * t;
+                    dx[m.slot + 1] -= m.rho * cable.sense * tm;
                 }
             }
         }
@@ -994,7 +1235,9 @@ impl Model for Network {
     }
 
     /// `y = [q_j…, q_m…, T_c (joint side)…, T_m,c (motor side)…, τ_j…, load_m…]`, the
-    /// motor's cable load `ρ_m·Σ σ_c·T_m,c` (N·m) being what its current measures.
+    /// motor's cable load `ρ_m·Σ σ_c·T_m,c` (N·m) being what its current measures — plus, for a
+    /// position-driven motor, its own friction `F_f,m(q̇_m)`, which its servo's current also
+    /// overcomes (a torque-driven motor's friction is in its dynamics).
     fn output(&self, x: &[f64], u: &[f64], y: &mut [f64]) {
         let (n, p, m) = (self.n_joints(), self.n_motors(), self.n_cables());
         for j in 0..n {
@@ -1006,25 +1249,20 @@ impl Model for Network {
             y[2 * n + p + 2 * m + i] = 0.0;
         }
         for (c, cable) in self.cables.iter().enumerate() {
-            let (e, de) = self.elongation(c, x, u);
-            let t = cable.run.tension(e, de);
+            let (t, tm) = self.cable_tensions(c, x, u);
             y[n + p + c] = t;
-            // the capstan losses follow the cable's speed at its motor end (the elongation's
-            // rate when both ends are anchored)
-            let (speed, motor) = match cable.motor {
-                Some(i) => (
-                    self.motor_at(i, x, u).1 * self.motors[i].rho * cable.sense,
-                    Some(i),
-                ),
-                None => (de, None),
-            };
-            let a = cable.capstan * smooth_sign(speed, self.capstan_smoothing);
-            y[n + p + m + c] = t * a.exp();
-            if let Some(i) = motor {
-                y[2 * n + p + 2 * m + i] += self.motors[i].rho * cable.sense * y[n + p + m + c];
+            y[n + p + m + c] = tm;
+            if let Some(i) = cable.motor {
+                y[2 * n + p + 2 * m + i] += self.motors[i].rho * cable.sense * tm;
             }
             for (j, arm) in self.arms[c * n..(c + 1) * n].iter().enumerate() {
-                y[n + p + 2 * m + j] += arm * t;
+                y[n + p + 2 * m + j] += arm * t + cable.driver_arms[j] * (tm - t);
+            }
+        }
+        // a position-driven motor's current also overcomes its own friction
+        for (i, mo) in self.motors.iter().enumerate() {
+            if mo.drive == Drive::Position {
+                y[2 * n + p + 2 * m + i] += mo.friction.force(u[mo.slot + 1]);
             }
         }
     }

@@ -144,6 +144,7 @@ fn length_map_jacobian_and_torques_agree() {
 fn energy_is_conserved_without_losses() {
     let mut j = joint();
     j.friction = StaticFriction::NONE;
+    j.capstan_mu = 0.0; // the routing's friction acts on a torque-driven motor
     for r in [&mut j.drive, &mut j.ret] {
         r.damping = 0.0;
         r.pretension = 50.0; // no slack over the motion
