@@ -34,6 +34,11 @@ def _campaign(root: Path) -> Path:
             f'held_out = ["{name}/hold.csv"]',
         ]
         lines += ['model = "lag/model.toml"', ""] if name == "lag" else [""]
+    # a cable-network group (issue #39 §4): the two-stage instrument with extra friction at its jaw,
+    # its model file naming the network file beside it
+    from tests.test_diagnose_network import network_group
+
+    lines += network_group(root / "network")
     (root / "manifest.toml").write_text("\n".join(lines))
     return root
 
@@ -45,7 +50,7 @@ def campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _docs(out: Path) -> dict[str, dict]:
     docs = {}
-    for name in ("lag", "control"):
+    for name in ("lag", "control", "network"):
         doc = json.loads((out / name / "diagnosis.json").read_text())
         doc["meta"].pop("options")  # holds the executor-independent knobs only; compared below
         docs[name] = doc
@@ -76,9 +81,10 @@ def test_ray_campaign_equals_the_serial_campaign(campaign, tmp_path):
         distributed = run_many(campaign, tmp_path / "ray", engine="ray", progress=False, html=False)
     finally:
         ray.shutdown()
-    assert [r.error for r in serial + distributed] == [None] * 4
+    assert [r.error for r in serial + distributed] == [None] * 6
     summary = json.loads((tmp_path / "ray" / "summary.json").read_text())
-    assert summary["engine"] == "ray" and [g["group"] for g in summary["groups"]] == ["lag", "control"]
+    groups = [g["group"] for g in summary["groups"]]
+    assert summary["engine"] == "ray" and groups == ["lag", "control", "network"]
     assert json.loads((tmp_path / "serial" / "summary.json").read_text())["engine"] == "serial"
     # the same results, whichever process fitted them: names, verdicts and flags exactly, numbers
     # to 1e-9 (the parameter intervals' linear algebra runs single-threaded in Ray's workers and
@@ -87,6 +93,7 @@ def test_ray_campaign_equals_the_serial_campaign(campaign, tmp_path):
     by = {r.group.name: r.diagnosis for r in serial}
     assert by["lag"] is not None and by["lag"].effects[0].name == "sensor_lag"
     assert by["control"] is not None and by["control"].verdict == "no_significant_gap"
+    assert by["network"] is not None and by["network"].effects[0].site == "joint.jaw"
 
 
 def test_a_failing_group_is_reported_and_the_others_go_on(campaign, tmp_path):

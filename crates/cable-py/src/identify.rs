@@ -119,7 +119,7 @@ fn candidate_dict<'py>(
     let d = PyDict::new(py);
     d.set_item("id", problem.candidate_id(c))?;
     d.set_item("effect", c.effect.name())?;
-    d.set_item("site", c.site.name(&|i| problem.channel_name(i)))?;
+    d.set_item("site", problem.site_name(c.site))?;
     d.set_item("form", c.form.name())?;
     d.set_item("sentence", problem.candidate_sentence(c))?;
     d.set_item("parameters", c.params(problem.scales()).len())?;

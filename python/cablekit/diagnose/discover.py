@@ -142,7 +142,11 @@ def _features(prep: Prepared, hold: bool, model: CandidateFit | None = None) -> 
     if model is not None and model.effects:
         problem, theta = problem.with_effects(model.effects, model.substeps), model.params
     out = []
-    angle_cols = [c for o, c in zip(prep.channel_names, prep.columns, strict=True) if o in ("theta", "q_l1")]
+    angle_cols = [
+        c
+        for o, c in zip(prep.channel_names, prep.columns, strict=True)
+        if o in ("theta", "q_l1") or o.startswith("q:")
+    ]
     for i, run in enumerate(runs):
         start = round(prep.spec.warmup / run.dt)
         pred = np.asarray(problem.predict(theta, i))

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from cablekit._cablekit import JointProblem, JointRun, effect_catalogue
 from cablekit.diagnose import localise
 from cablekit.diagnose.data import Run, check_units
-from cablekit.diagnose.spec import NOT_IN_TRANSMISSION, ModelSpec
+from cablekit.diagnose.spec import NOT_IN_NETWORK, NOT_IN_TRANSMISSION, ModelSpec
 from cablekit.errors import DataError
 from cablekit.simulation import state_indices
 
@@ -103,7 +103,12 @@ def joint_run(spec: ModelSpec, run: Run, columns: list[str], model: Any = None) 
         rates = spec.extra.get("dq_m_ref")
         cols += [run.column(c) for c in rates] if rates else [np.gradient(c, run.dt) for c in cols]
     external = None
-    if spec.external:
+    if spec.kind == "cable_network" and spec.external:
+        # one column per joint of the network, zero where no load is recorded
+        given = dict(spec.extra["external_joints"])
+        ext = [run.column(given[j]) if j in given else np.zeros(len(run)) for j in spec.network().joint_names]
+        external = np.ascontiguousarray(np.column_stack(ext))
+    elif spec.external:
         ext = [run.column(c) for c in spec.external]
         external = np.ascontiguousarray(ext[0] if len(ext) == 1 else np.column_stack(ext))
     x0 = None
@@ -197,6 +202,8 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
             continue
         if wanted and not any(w.split("@")[0] == e for w in wanted):
             skipped[e] = "not in the model file's [diagnosis] effects"
+        elif spec.kind == "cable_network" and e in NOT_IN_NETWORK:
+            skipped[e] = NOT_IN_NETWORK[e]
         elif spec.kind == "cable_transmission" and e in NOT_IN_TRANSMISSION:
             skipped[e] = "no counterpart in the cable transmission model"
         elif e == "coupling" and spec.kind == "cable_transmission" and spec.links < 2:

@@ -32,6 +32,26 @@
     substeps = 0                        # RK4 substeps per sample; 0 = from the stiffest mode
     effects = ["coulomb_friction", ...] # candidate subset; default: every applicable one
 
+A **cable network** (any mechanism of a network file, docs/models.md) is diagnosed the same way:
+
+.. code-block:: toml
+
+    model = "cable_network"
+    [parameters]
+    network = "two_stage_forceps"       # a shipped network, or file = "robot.toml" (relative to
+                                        # this file), or an inline [parameters.definition] table
+    [inputs]
+    drive = "x_motor"                   # one column per motor: a position-driven motor's angle
+                                        # (rad), a torque-driven motor's torque (N·m)
+    external = {jaw = "tau_jaw"}        # optional: external loads per joint
+    [outputs]
+    "q:jaw" = "enc_jaw"                 # a network output (q:, q_m:, T:, T_motor:, tau:, load_m:)
+    spindle_torque = "torque"           # or a sensor the network file names
+
+Its sites are derived from the network's elements (``joint.<name>``, ``cable.<name>``,
+``routing.<cable>``, ``motor.<name>``, the sensor sites); tensions, torques and motor loads are
+force channels.
+
 Outputs of the antagonistic joint: ``tension_motor_drive``, ``tension_motor_return``,
 ``tension_joint_drive``, ``tension_joint_return`` (N, force sensors), ``theta`` (rad, encoder),
 ``contact_force`` (N, force sensor), ``net_motor_force`` (N, ``T_m,drive − T_m,return``: a
@@ -48,7 +68,7 @@ from typing import Any
 
 import numpy as np
 
-from cablekit._cablekit import AntagonisticJoint, CableTransmission, Model, effect_catalogue
+from cablekit._cablekit import AntagonisticJoint, CableNetwork, CableTransmission, Model, effect_catalogue
 from cablekit.diagnose.data import Run
 from cablekit.errors import CablekitError, DataError
 
@@ -74,10 +94,40 @@ TRANSMISSION_OUTPUTS: dict[str, tuple[int, str, bool]] = {
     "joint_torque": (4, "N·m", True),
 }
 
-MODELS = ("antagonistic_joint", "cable_transmission")
+MODELS = ("antagonistic_joint", "cable_transmission", "cable_network")
+
+#: effects a cable network has no state for yet, and why they are skipped
+NOT_IN_NETWORK = {
+    "dahl_hysteresis": "no hysteresis state in the cable network model yet",
+    "creep": "no creep state in the cable network model yet",
+    "backlash": "no play state in the cable network model yet",
+    "coupling": "a network's routing is its coupling (no separate coupled axis)",
+}
+
+#: network output prefix → (unit, is a force channel); angles may be lengths (prismatic joints)
+NETWORK_OUTPUTS: dict[str, tuple[str | None, bool]] = {
+    "q": (None, False),
+    "q_m": ("rad", False),
+    "T": ("N", True),
+    "T_motor": ("N", True),
+    "tau": (None, True),
+    "load_m": ("N·m", True),
+}
 
 #: effects with no counterpart in the cable transmission
 NOT_IN_TRANSMISSION = ("stribeck_friction", "dahl_hysteresis", "capstan_friction", "creep", "backlash")
+
+
+def network_output_info(network: CableNetwork, name: str) -> tuple[int, str | None, bool]:
+    """``(index, unit, is force channel)`` of a network output, by output name (``q:jaw``) or by
+    the name of a sensor the network file declares; KeyError if none."""
+    names = list(network.output_names)
+    if name in names:
+        index = names.index(name)
+    else:
+        index = dict(network.sensors)[name]
+    unit, force = NETWORK_OUTPUTS[names[index].split(":", 1)[0]]
+    return index, unit, force
 
 
 def output_info(kind: str, name: str, links: int = 1) -> tuple[int, str, bool]:
@@ -142,11 +192,29 @@ class ModelSpec:
         try:
             if self.kind == "antagonistic_joint":
                 return AntagonisticJoint(**self.parameters)
+            if self.kind == "cable_network":
+                return self.network()
             return _transmission(self.parameters, self.links)
         except TypeError as exc:
             raise DataError(f"{self.source}: [parameters]: {exc}") from None
 
+    def __getstate__(self) -> dict[str, Any]:
+        # the built network (a core object) is a cache: a pickled spec (a Ray task's) rebuilds it
+        state = dict(self.__dict__)
+        state["extra"] = {k: v for k, v in self.extra.items() if k != "_network"}
+        return state
+
+    def network(self) -> CableNetwork:
+        """The nominal network (built once per spec)."""
+        net = self.extra.get("_network")
+        if net is None:
+            net = self.extra["_network"] = _network(self.parameters, self.source)
+        return net
+
     def output(self, name: str) -> tuple[int, str, bool]:
+        if self.kind == "cable_network":
+            index, unit, force = network_output_info(self.network(), name)
+            return index, unit or "rad|m", force
         return output_info(self.kind, name, self.links)
 
     def units(self) -> dict[str, str]:
@@ -154,7 +222,7 @@ class ModelSpec:
         u = {self.x_m: "m"} if self.kind == "antagonistic_joint" else {}
         for out, col in self.outputs:
             unit = self.output(out)[1]
-            if self.kind == "cable_transmission" and unit == "rad":
+            if (self.kind == "cable_transmission" and unit == "rad") or unit == "rad|m":
                 continue  # revolute (rad) or prismatic (m): not checkable by name
             u[col] = unit
         return u
@@ -188,6 +256,9 @@ class ModelSpec:
             cols[self.x_m] = "m"
             if self.coupled:
                 cols[self.coupled] = None
+        elif self.kind == "cable_network":
+            for name, c in zip(self.network().motor_names, self.inputs, strict=True):
+                cols[c] = "N·m" if f"tau_m:{name}" in self.network().input_names else "rad|m"
         else:
             for c in self.inputs:
                 cols[c] = "rad|m" if self.servo() else "N·m"
@@ -198,6 +269,8 @@ class ModelSpec:
         for out, col in self.outputs:
             unit = self.output(out)[1]
             cols[col] = "rad|m" if self.kind == "cable_transmission" and unit == "rad" else unit
+            if cols[col] == "rad|m" and self.kind == "cable_network" and not out.startswith(("q:", "q_m:")):
+                cols[col] = None  # a joint torque: N·m, or N on a prismatic joint
         return cols
 
     def channels(self) -> list[tuple[int, bool]]:
@@ -211,7 +284,7 @@ class ModelSpec:
         if self.kind == "antagonistic_joint":
             return self.x_m, "input"
         for out, col in self.outputs:
-            if out.startswith(("q_l", "q_m")):
+            if out.startswith(("q_l", "q_m", "q:")):
                 return col, "measured"
         return self.inputs[0], "input"
 
@@ -223,8 +296,12 @@ class ModelSpec:
         """The model file's tables (:func:`write_model_toml` writes them, :func:`load_model_spec`
         reads them back into the same spec)."""
         servo = self.servo()
-        if self.kind == "antagonistic_joint":
-            inputs: dict[str, Any] = {"x_m": self.x_m}
+        if self.kind == "cable_network":
+            inputs: dict[str, Any] = dict(zip(self.network().motor_names, self.inputs, strict=True))
+            if self.external:
+                inputs["external"] = dict(self.extra["external_joints"])
+        elif self.kind == "antagonistic_joint":
+            inputs = {"x_m": self.x_m}
             if self.coupled:
                 inputs["coupled"] = self.coupled
             if self.external:
@@ -237,10 +314,13 @@ class ModelSpec:
             inputs = {"tau_m": list(self.inputs)}
             if self.external:
                 inputs["external"] = list(self.external)
+        parameters = dict(self.parameters)
+        if self.kind == "cable_network" and isinstance(parameters.get("file"), str):
+            parameters["file"] = str(_network_file(parameters["file"], self.source).resolve())
         return (
             {
                 "model": self.kind,
-                "parameters": dict(self.parameters),
+                "parameters": parameters,
                 "inputs": inputs,
                 "outputs": dict(self.outputs),
                 "diagnosis": {"warmup": self.warmup, "substeps": self.substeps}
@@ -338,6 +418,67 @@ def _transmission(params: dict[str, Any], links: int) -> CableTransmission:
     return CableTransmission(**base)
 
 
+#: keys of a network model's [parameters]: exactly one of them
+NETWORK_SOURCES = ("network", "file", "definition")
+
+
+def _network(params: dict[str, Any], source: str) -> CableNetwork:
+    """The network a model file's ``[parameters]`` name: a shipped network (``network``), a
+    network file (``file``, relative to the model file) or an inline ``definition`` table."""
+    from cablekit import network as nw
+
+    given = [k for k in NETWORK_SOURCES if k in params]
+    unknown = sorted(set(params) - set(NETWORK_SOURCES))
+    if unknown or len(given) != 1:
+        raise DataError(
+            f"{source}: [parameters] of a cable_network holds exactly one of network = <shipped name>, "
+            f"file = <network file>, or a [parameters.definition] table"
+            + (f"; unknown keys {unknown}" if unknown else f"; got {given or 'none'}")
+        )
+    value = params[given[0]]
+    if given[0] == "definition":
+        if not isinstance(value, dict):
+            raise DataError(f"{source}: [parameters] definition must be a table (a network document)")
+        return nw.from_dict(value, f"{source}: [parameters.definition]")
+    if not isinstance(value, str):
+        raise DataError(f"{source}: [parameters] {given[0]} must be a string, got {type(value).__name__}")
+    if given[0] == "network":
+        return nw.shipped(value)
+    return nw.load(_network_file(value, source))
+
+
+def _network_file(value: str, source: str) -> Path:
+    """A network file named in a model file: relative to the model file's folder."""
+    path = Path(value)
+    if not path.is_absolute() and source and not source.startswith("<"):
+        path = Path(source).parent / path
+    return path
+
+
+def _network_inputs(
+    inputs: dict[str, Any], network: CableNetwork, source: str
+) -> tuple[list[str], list[str], list[tuple[str, str]]]:
+    """Motor columns in the network's motor order, and the external-load columns with their
+    joints."""
+    motors = list(network.motor_names)
+    missing = [m for m in motors if m not in inputs]
+    if missing:
+        raise DataError(
+            f"{source}: [inputs] needs a column for every motor of the network ({motors}): a "
+            f"position-driven motor's angle (rad) or a torque-driven motor's torque (N·m); missing {missing}"
+        )
+    cols = [_column(inputs[m], f"[inputs] {m}", source) for m in motors]
+    ext = inputs.get("external", {})
+    if not isinstance(ext, dict):
+        raise DataError(f"{source}: [inputs] external must be a table joint = <column>")
+    joints = list(network.joint_names)
+    bad = sorted(set(ext) - set(joints))
+    if bad:
+        raise DataError(f"{source}: [inputs] external names unknown joints {bad}; joints: {joints}")
+    pairs = [(j, _column(ext[j], f"[inputs] external.{j}", source)) for j in joints if j in ext]
+    return cols, [c for _, c in pairs], pairs
+
+
 def load_model_spec(path: str | Path) -> ModelSpec:
     """Parse and validate a model file; errors are :class:`DataError` naming the key."""
     from cablekit._files import load_toml
@@ -361,7 +502,16 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
             raise DataError(f"{source}: {key} must be a table [{key}]")
     inputs = doc["inputs"]
     extra: dict[str, Any] = {}
-    if kind == "antagonistic_joint":
+    if kind == "cable_network":
+        try:
+            network = _network(dict(doc["parameters"]), source)
+        except CablekitError as exc:
+            raise _located(exc, f"{source}: [parameters]") from exc
+        extra["_network"] = network
+        in_cols, external, pairs = _network_inputs(inputs, network, source)
+        extra["external_joints"] = pairs
+        allowed = {*network.motor_names, "external"}
+    elif kind == "antagonistic_joint":
         if "x_m" not in inputs:
             raise DataError(f"{source}: [inputs] needs x_m = <column of the motor displacement, m>")
         allowed = {"x_m", "coupled", "external"}
@@ -399,12 +549,15 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
         )
     links = len(in_cols) if kind == "cable_transmission" else 1
     outputs = []
-    names = (
-        list(OUTPUTS)
-        if kind == "antagonistic_joint"
-        else [f"{b}{i}" for i in range(1, links + 1) for b in TRANSMISSION_OUTPUTS]
-        + ([f"tau_m{i}" for i in range(1, links + 1)] if "servo" in extra else [])
-    )
+    if kind == "cable_network":
+        net = extra["_network"]
+        names = list(net.output_names) + [n for n, _ in net.sensors]
+    elif kind == "antagonistic_joint":
+        names = list(OUTPUTS)
+    else:
+        names = [f"{b}{i}" for i in range(1, links + 1) for b in TRANSMISSION_OUTPUTS] + (
+            [f"tau_m{i}" for i in range(1, links + 1)] if "servo" in extra else []
+        )
     for out, col in doc["outputs"].items():
         if out not in names:
             raise DataError(f"{source}: [outputs] {out!r} is not an output; choose from {names}")
@@ -444,14 +597,23 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
     spec.column_units = _column_units(doc.get("units", {}), spec.columns(), source)
     spec.conditions = _conditions(doc.get("conditions", {}), source)
     for key, value in spec.parameters.items():
-        _parameter(value, f"[parameters] {key}", source)
+        if kind != "cable_network":  # a network's numbers are checked by its own reader
+            _parameter(value, f"[parameters] {key}", source)
     try:
         spec.model()
     except CablekitError as exc:  # keep the specific class (ParameterError, ...), add the file
-        raise type(exc)(f"{source}: [parameters]: {exc}") from exc
+        raise _located(exc, f"{source}: [parameters]") from exc
     except (TypeError, ValueError, OverflowError) as exc:  # a value of the wrong kind
         raise DataError(f"{source}: [parameters]: {exc}") from None
     return spec
+
+
+def _located(exc: CablekitError, where: str) -> CablekitError:
+    """The same error (its class and attributes, e.g. a NetworkError's ``element``) with
+    ``where`` in front of its message."""
+    new = type(exc)(f"{where}: {exc}")
+    new.__dict__.update(exc.__dict__)
+    return new
 
 
 def _column_units(

@@ -2,6 +2,7 @@
 //! ([`augment_joint`] → [`JointPlant`]), the transmission's ([`augment_transmission`]), and each
 //! channel's sensor path ([`SensorChain`]).
 
+use crate::dynamics::network::Network;
 use crate::dynamics::{AntagonisticJoint, CableTransmission};
 use crate::error::Result;
 
@@ -313,4 +314,71 @@ pub fn augment_transmission(
         }
     }
     CableTransmission::new(links, &coupling)
+}
+
+/// The cable network with its plant candidates applied at their elements: a joint's friction
+/// (Coulomb, viscous, Stribeck) and inertia, a cable's law (exponential hardening or a stiffness
+/// scale), damping and pretension, a routing's friction (its capstan exponent and the sharpness
+/// of its sign), a motor's friction (given, as at
+/// the joint's motor site, in N of cable at its capstan) and rotor inertia. Dry friction keeps
+/// the element's sign smoothing.
+pub fn augment_network(nom: &Network, effects: &[(Candidate, &[f64])]) -> Network {
+    let mut m = nom.clone();
+    for &(c, p) in effects {
+        match (c.site, c.effect) {
+            (Site::NetJoint(j), e) => {
+                let j = usize::from(j);
+                let f = m.joint_friction_mut(j);
+                match e {
+                    Effect::CoulombFriction => {
+                        f.coulomb += p[0];
+                        f.static_level += p[0];
+                    }
+                    Effect::ViscousFriction => f.viscous = (f.viscous + p[0]).max(0.0),
+                    Effect::StribeckFriction => {
+                        f.coulomb += p[0];
+                        f.static_level += p[0] + p[1];
+                        f.stribeck_velocity = p[2];
+                        f.stribeck_exponent = p[3];
+                    }
+                    Effect::InertiaError => m.scale_joint_inertia(j, 1.0 + p[0]),
+                    _ => {}
+                }
+            }
+            (Site::NetCable(k), e) => {
+                let run = m.cable_run_mut(usize::from(k));
+                match (e, c.form) {
+                    (Effect::NonlinearStiffness, Form::Scale) => {
+                        run.law = run.law.scaled(1.0 + p[0]);
+                    }
+                    (Effect::NonlinearStiffness, _) => run.law = exponential(run, p[0]),
+                    (Effect::CableDamping, _) => run.damping = (run.damping + p[0]).max(0.0),
+                    (Effect::Slack, _) => run.pretension = (run.pretension - p[0]).max(0.0),
+                    _ => {}
+                }
+            }
+            (Site::NetRouting(k), Effect::CapstanFriction) => {
+                m.set_routing_friction(usize::from(k), p[0], p[1]);
+            }
+            (Site::NetMotor(i), e) => {
+                let i = usize::from(i);
+                let rho = m.motor_rho(i);
+                match e {
+                    Effect::CoulombFriction => {
+                        let f = m.motor_friction_mut(i);
+                        f.coulomb += p[0].max(0.0) * rho;
+                        f.static_level += p[0].max(0.0) * rho;
+                    }
+                    Effect::ViscousFriction => {
+                        let f = m.motor_friction_mut(i);
+                        f.viscous += p[0].max(0.0) * rho * rho;
+                    }
+                    Effect::InertiaError => m.scale_motor_inertia(i, 1.0 + p[0]),
+                    _ => {}
+                }
+            }
+            _ => {}
+        }
+    }
+    m
 }

@@ -210,6 +210,9 @@ pub struct Scales {
     /// Whether the plant is the cable transmission (per-link joint effects, no friction
     /// smoothing parameter, pretension loss as a fraction, coupling coefficients `C_ij`).
     pub transmission: bool,
+    /// Smoothing of the sign of a cable's haul speed in its routing friction (m/s; a cable
+    /// network's, else 1e-3).
+    pub routing_smoothing: f64,
 }
 
 impl Effect {
@@ -571,6 +574,7 @@ mod tests {
             sensors: 2,
             links: 1,
             transmission: false,
+            routing_smoothing: 1e-3,
         }
     }
 

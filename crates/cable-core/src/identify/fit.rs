@@ -450,6 +450,16 @@ impl JointProblem {
                     };
                     propose_step(m, &x, &vec![0.0; m.n_inputs()], run.dt, 0.9)?
                 }
+                Replay::Network(m) => {
+                    // the friction is integrated implicitly (netplant.rs): advise for the rest
+                    let q = m.frictionless();
+                    let x = if run.x0.len() == q.n_states() {
+                        run.x0.clone()
+                    } else {
+                        q.rest_at(&[])
+                    };
+                    propose_step(&q, &x, &vec![0.0; q.n_inputs()], run.dt, 0.9)?
+                }
             };
             worst = worst.max(advice.substeps);
         }

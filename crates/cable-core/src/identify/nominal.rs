@@ -3,6 +3,7 @@
 //! both the problem ([`super::problem`]) and the data scales ([`super::scales`]) use.
 
 use crate::control::{simulate_closed_loop_into, ClosedLoopMut, MotorPd};
+use crate::dynamics::network::Network;
 use crate::dynamics::{AntagonisticJoint, AnyModel, CableTransmission, Model};
 use crate::error::{CableError, Result};
 use crate::integrate::{simulate_into, InputHold, SimOptions, TrajectoryMut};
@@ -24,11 +25,21 @@ pub enum Plant {
     /// then the applied motor torques `(n)`. The loop keeps the replay near the measurement, where
     /// an open-loop torque replay of frictional links drifts.
     Servo(CableTransmission, MotorPd),
+    /// A cable network ([`crate::dynamics::network`]): inputs one column per motor, in the
+    /// network's motor order — a position-driven motor's angle (rad; its rate is the column's
+    /// derivative), a torque-driven motor's torque (N·m); outputs the network's.
+    Network(Network),
 }
 
 impl From<AntagonisticJoint> for Plant {
     fn from(j: AntagonisticJoint) -> Self {
         Plant::Joint(j)
+    }
+}
+
+impl From<Network> for Plant {
+    fn from(n: Network) -> Self {
+        Plant::Network(n)
     }
 }
 
@@ -48,10 +59,20 @@ impl Plant {
             (AnyModel::Transmission(t), Some((kp, kd, lim))) => {
                 Ok(Plant::Servo(t.clone(), MotorPd::new(kp, kd, lim)?))
             }
+            (AnyModel::Network(n), None) => Ok(Plant::Network(n.clone())),
+            (AnyModel::Network(_), Some(_)) => Err(CableError::InvalidOption {
+                name: "servo".into(),
+                value: "given".into(),
+                allowed: "none for a cable network (drive its motors by position or torque in \
+                          its file)"
+                    .into(),
+            }),
             (other, _) => Err(CableError::InvalidOption {
                 name: "model".into(),
                 value: other.kind().into(),
-                allowed: "AntagonisticJoint or CableTransmission (the diagnosis' plants)".into(),
+                allowed: "AntagonisticJoint, CableTransmission or CableNetwork (the diagnosis' \
+                          plants)"
+                    .into(),
             }),
         }
     }
@@ -62,6 +83,7 @@ impl Plant {
             Plant::Joint(_) => JOINT_OUTPUTS,
             Plant::Transmission(t) => t.n_outputs(),
             Plant::Servo(t, _) => t.n_outputs() + t.n_links(),
+            Plant::Network(n) => n.n_outputs(),
         }
     }
 
@@ -71,6 +93,17 @@ impl Plant {
             Plant::Joint(_) => 1,
             Plant::Transmission(t) => t.n_links(),
             Plant::Servo(t, _) => 2 * t.n_links(),
+            Plant::Network(n) => n.n_motors(),
+        }
+    }
+
+    /// Columns of a run's external loads (joint: 1; transmission: one per link; network: one
+    /// per joint).
+    pub fn external_width(&self) -> usize {
+        match self {
+            Plant::Joint(_) => 1,
+            Plant::Transmission(t) | Plant::Servo(t, _) => t.n_links(),
+            Plant::Network(n) => n.n_joints(),
         }
     }
 
@@ -88,6 +121,11 @@ impl Plant {
                     format!("tau_m{}", i - p + 1)
                 }
             }
+            Plant::Network(n) => n
+                .output_names()
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| format!("output{i}")),
         }
     }
 
@@ -96,15 +134,17 @@ impl Plant {
         match self {
             Plant::Joint(_) => 1,
             Plant::Transmission(t) | Plant::Servo(t, _) => t.n_links(),
+            Plant::Network(n) => n.n_joints(),
         }
     }
 
-    /// `"antagonistic joint"` or `"cable transmission"`.
+    /// `"antagonistic joint"`, `"cable transmission"` or `"cable network"`.
     pub fn name(&self) -> &'static str {
         match self {
             Plant::Joint(_) => "antagonistic joint",
             Plant::Transmission(_) => "cable transmission",
             Plant::Servo(..) => "cable transmission (servo replay)",
+            Plant::Network(_) => "cable network",
         }
     }
 }
@@ -167,4 +207,54 @@ pub(crate) fn servo_into(
         },
     )?;
     Ok((outputs, applied))
+}
+
+/// A network's input rows `(T, n_inputs)` from one column per motor (a position-driven motor's
+/// angle, whose rate is its derivative; a torque-driven motor's torque) and the joints' external
+/// loads `(T, n)` (empty: none).
+pub(crate) fn network_inputs(
+    net: &Network,
+    cols: &[Vec<f64>],
+    external: &[f64],
+    dt: f64,
+) -> Vec<f64> {
+    let t = cols.first().map_or(0, Vec::len);
+    let (w, n) = (net.n_inputs(), net.n_joints());
+    let n_pos = (0..net.n_motors())
+        .filter(|&i| !net.motor_is_torque_driven(i))
+        .count();
+    let mut u = vec![0.0; t * w];
+    let (mut pos, mut tor) = (0, 2 * n_pos);
+    let mut rate = vec![0.0; t];
+    for (i, col) in cols.iter().enumerate() {
+        if net.motor_is_torque_driven(i) {
+            for k in 0..t {
+                u[k * w + tor] = col[k];
+            }
+            tor += 1;
+        } else {
+            super::signal::velocity(col, dt, &mut rate);
+            for k in 0..t {
+                u[k * w + pos] = col[k];
+                u[k * w + pos + 1] = rate[k];
+            }
+            pos += 2;
+        }
+    }
+    if external.len() == t * n {
+        for k in 0..t {
+            u[k * w + w - n..(k + 1) * w].copy_from_slice(&external[k * n..(k + 1) * n]);
+        }
+    }
+    u
+}
+
+/// The hold of a network's inputs: first order when a motor is position-driven (its angle is a
+/// sampled trajectory), zero order for torques alone.
+pub(crate) fn network_hold(net: &Network) -> InputHold {
+    if (0..net.n_motors()).all(|i| net.motor_is_torque_driven(i)) {
+        InputHold::Zoh
+    } else {
+        InputHold::Foh
+    }
 }

@@ -2,11 +2,13 @@
 //! candidate's parameters.
 
 use crate::control::MotorPd;
+use crate::dynamics::network::Network;
 use crate::dynamics::{AntagonisticJoint, CableTransmission, Model};
 use crate::integrate::InputHold;
 
 use super::effects::Scales;
-use super::nominal::{run_into, servo_into, Plant};
+use super::netplant::simulate_network;
+use super::nominal::{network_hold, network_inputs, run_into, servo_into, Plant};
 use super::run::{Channel, JointRun};
 use super::signal;
 
@@ -24,6 +26,80 @@ pub(crate) fn scales_of(nominal: &Plant, channels: &[Channel], runs: &[JointRun]
         Plant::Joint(j) => joint_scales(j, channels, runs),
         Plant::Transmission(t) => transmission_scales(t, None, channels, runs),
         Plant::Servo(t, pd) => transmission_scales(t, Some(pd), channels, runs),
+        Plant::Network(n) => network_scales(n, channels, runs),
+    }
+}
+
+/// Scales of a cable network: forces from the pretensions and the force channels, torques
+/// through the mean moment arm, speeds from a nominal replay of the first run.
+fn network_scales(net: &Network, channels: &[Channel], runs: &[JointRun]) -> Scales {
+    let (dt, duration) = time_scales(runs);
+    let (n, m) = (net.n_joints(), net.n_cables());
+    let arms: Vec<f64> = net
+        .moment_arms()
+        .iter()
+        .map(|a| a.abs())
+        .filter(|a| *a > 0.0)
+        .collect();
+    let arm = if arms.is_empty() {
+        1.0
+    } else {
+        arms.iter().sum::<f64>() / arms.len() as f64
+    };
+    let runs_of = |f: fn(&crate::cable::CableRun) -> f64| (0..m).map(move |c| f(net.cable_run(c)));
+    let pretension = runs_of(|r| r.pretension).fold(0.0, f64::max);
+    let stiffness = runs_of(|r| r.law.stiffness()).fold(f64::INFINITY, f64::min);
+    let damping = runs_of(|r| r.damping).fold(f64::INFINITY, f64::min);
+    let force = pretension.max(sensor_force(channels, runs)).max(1e-9);
+    let run = &runs[0];
+    let cols: Vec<Vec<f64>> = (0..run.width).map(|c| run.input_column(c)).collect();
+    let u = network_inputs(net, &cols, &run.external, run.dt);
+    let x0 = if run.x0.len() == net.n_states() {
+        run.x0.clone()
+    } else {
+        net.rest_at(&u[..net.n_inputs().min(u.len())])
+    };
+    let p = net.n_outputs();
+    let speed = simulate_network(net, &u, &x0, run.dt, 4, network_hold(net))
+        .ok()
+        .map(|y| {
+            let tl = run.len();
+            let mut v = vec![0.0; tl];
+            let mut acc = 0.0;
+            for j in 0..n {
+                let q: Vec<f64> = (0..tl).map(|k| y[k * p + j]).collect();
+                signal::velocity(&q, run.dt, &mut v);
+                acc += rms(v.iter().copied()).powi(2);
+            }
+            (acc / n as f64).sqrt()
+        })
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .unwrap_or(1.0);
+    let joints = (0..n).map(|j| net.joint_friction(j));
+    Scales {
+        dt,
+        duration,
+        torque: force * arm,
+        speed,
+        force,
+        stretch: force / stiffness.max(1e-12),
+        travel: 0.0,
+        motor_speed: speed * arm,
+        coupled: 0.0,
+        pretension,
+        viscous: joints
+            .clone()
+            .map(|f| f.viscous)
+            .fold(f64::INFINITY, f64::min),
+        smoothing: joints.map(|f| f.smoothing).fold(f64::INFINITY, f64::min),
+        damping: if damping.is_finite() { damping } else { 0.0 },
+        sensors: channels.iter().filter(|c| c.sensor).count(),
+        links: n,
+        transmission: false,
+        routing_smoothing: (0..m)
+            .map(|c| net.cable_smoothing(c))
+            .fold(f64::INFINITY, f64::min)
+            .min(1.0),
     }
 }
 
@@ -136,6 +212,7 @@ fn transmission_scales(
         sensors: channels.iter().filter(|c| c.sensor).count(),
         links: n,
         transmission: true,
+        routing_smoothing: 1e-3,
     }
 }
 
@@ -178,5 +255,6 @@ fn joint_scales(nominal: &AntagonisticJoint, channels: &[Channel], runs: &[Joint
         sensors: channels.iter().filter(|c| c.sensor).count(),
         links: 1,
         transmission: false,
+        routing_smoothing: 1e-3,
     }
 }

@@ -16,13 +16,19 @@
 //! Sites of the cable transmission: `input` (the recorded torques or references), `links`
 //! (every link, one parameter each), `cables` (every cable pair, shared), and the sensor sites.
 //!
+//! Sites of a cable network ([`crate::dynamics::network`]) are derived from its structure, one
+//! per element: `joint.<name>` (friction families, inertia), `cable.<name>` (stiffness forms,
+//! damping, pretension), `routing.<name>` (the capstan losses of that cable's routing — its
+//! contacts act through one lumped exponent, so contacts of one cable are one site), `motor.<name>`
+//! (friction, rotor inertia), `input` and the sensor sites.
+//!
 //! Forms are the alternative physical laws of one effect at one site, e.g. a creep that relaxes
 //! only the stretch-dependent tension (`elastic`) or the whole tension, pretension included
 //! (`whole`).
 
 use crate::error::{CableError, Result};
 
-use super::effects::{bristle_floor, spec, Effect, ParamSpec, Scales};
+use super::effects::{bristle_floor, spec, Effect, ParamSpec, Scales, Stage};
 
 /// One of the two cables of an antagonistic joint, or both.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -78,12 +84,96 @@ pub enum Site {
     Sensor(usize),
     /// Every force-sensor channel together.
     ForceSensors,
+    /// One joint of a cable network (its index).
+    NetJoint(u16),
+    /// One cable of a cable network.
+    NetCable(u16),
+    /// The routing of one network cable (its contacts' capstan losses).
+    NetRouting(u16),
+    /// One motor of a cable network.
+    NetMotor(u16),
+}
+
+/// Kinds of network elements a site can name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Element {
+    /// A joint.
+    Joint,
+    /// A cable (also names a routing).
+    Cable,
+    /// A motor.
+    Motor,
+}
+
+/// Names of a problem's channels and elements, for site identifiers. Any `Fn(usize) -> String`
+/// naming channels is one (its elements then read `joint#0`, ...).
+pub trait SiteNames {
+    /// Name of channel `i`.
+    fn channel(&self, i: usize) -> String;
+    /// Name of element `i` of a kind.
+    fn element(&self, kind: Element, i: usize) -> String {
+        format!("{kind:?}#{i}").to_lowercase()
+    }
+}
+
+impl<F: Fn(usize) -> String> SiteNames for F {
+    fn channel(&self, i: usize) -> String {
+        self(i)
+    }
+}
+
+/// Look-up of channels and elements by name, for parsing site identifiers. Any
+/// `Fn(&str) -> Option<usize>` finding channels is one (with no elements).
+pub trait SiteIndex {
+    /// Index of the channel called `name`.
+    fn channel(&self, name: &str) -> Option<usize>;
+    /// Index of the element of a kind called `name`.
+    fn element(&self, _kind: Element, _name: &str) -> Option<usize> {
+        None
+    }
+}
+
+impl<F: Fn(&str) -> Option<usize>> SiteIndex for F {
+    fn channel(&self, name: &str) -> Option<usize> {
+        self(name)
+    }
+}
+
+impl SiteNames for SiteContext {
+    fn channel(&self, i: usize) -> String {
+        self.channels
+            .get(i)
+            .cloned()
+            .unwrap_or_else(|| format!("output{i}"))
+    }
+    fn element(&self, kind: Element, i: usize) -> String {
+        self.network
+            .as_ref()
+            .and_then(|n| n.names(kind).get(i).cloned())
+            .unwrap_or_else(|| format!("{kind:?}#{i}").to_lowercase())
+    }
+}
+
+impl SiteIndex for SiteContext {
+    fn channel(&self, name: &str) -> Option<usize> {
+        self.channels.iter().position(|c| c == name)
+    }
+    fn element(&self, kind: Element, name: &str) -> Option<usize> {
+        self.network
+            .as_ref()
+            .and_then(|n| n.names(kind).iter().position(|c| c == name))
+    }
 }
 
 impl Site {
-    /// The site's name in the documented vocabulary; `channel_name(i)` names channel `i`.
-    pub fn name(self, channel_name: &dyn Fn(usize) -> String) -> String {
+    /// The site's name in the documented vocabulary; `names` names channels and elements.
+    pub fn name(self, names: &dyn SiteNames) -> String {
+        let el = |k, i: u16| names.element(k, usize::from(i));
         match self {
+            Site::NetJoint(i) => format!("joint.{}", el(Element::Joint, i)),
+            Site::NetCable(i) => format!("cable.{}", el(Element::Cable, i)),
+            Site::NetRouting(i) => format!("routing.{}", el(Element::Cable, i)),
+            Site::NetMotor(i) => format!("motor.{}", el(Element::Motor, i)),
             Site::Input => "input".into(),
             Site::Cable(s) => format!("cable.{}", s.name()),
             Site::Contact(s) => format!("contact.{}", s.name()),
@@ -91,20 +181,27 @@ impl Site {
             Site::Joint => "joint".into(),
             Site::Links => "links".into(),
             Site::Cables => "cables".into(),
-            Site::Sensor(i) => format!("sensor.{}", channel_name(i)),
+            Site::Sensor(i) => format!("sensor.{}", names.channel(i)),
             Site::ForceSensors => "sensors.force".into(),
         }
     }
 
-    /// Parse a site name; `channel_index` maps a channel name to its index.
-    pub fn parse(name: &str, channel_index: &dyn Fn(&str) -> Option<usize>) -> Result<Self> {
+    /// Parse a site name; `index` finds channels and network elements by name (a network's
+    /// element is looked up before the antagonistic joint's sides).
+    pub fn parse(name: &str, index: &dyn SiteIndex) -> Result<Self> {
         let bad = || CableError::InvalidOption {
             name: "site".into(),
             value: name.into(),
             allowed:
                 "input, cable.{drive,return,both}, contact.{drive,return,both}, motor, joint, \
-                      links, cables, sensor.<output>, sensors.force"
+                      links, cables, sensor.<output>, sensors.force; on a cable network \
+                      joint.<joint>, cable.<cable>, routing.<cable>, motor.<motor>"
                     .into(),
+        };
+        let element = |kind, tail: &str| {
+            index
+                .element(kind, tail)
+                .and_then(|i| u16::try_from(i).ok())
         };
         let side = |s: &str| Side::ALL.into_iter().find(|x| x.name() == s);
         Ok(match name {
@@ -117,9 +214,15 @@ impl Site {
             _ => {
                 let (head, tail) = name.split_once('.').ok_or_else(bad)?;
                 match head {
-                    "cable" => Site::Cable(side(tail).ok_or_else(bad)?),
+                    "joint" => Site::NetJoint(element(Element::Joint, tail).ok_or_else(bad)?),
+                    "routing" => Site::NetRouting(element(Element::Cable, tail).ok_or_else(bad)?),
+                    "motor" => Site::NetMotor(element(Element::Motor, tail).ok_or_else(bad)?),
+                    "cable" => match element(Element::Cable, tail) {
+                        Some(i) => Site::NetCable(i),
+                        None => Site::Cable(side(tail).ok_or_else(bad)?),
+                    },
                     "contact" => Site::Contact(side(tail).ok_or_else(bad)?),
-                    "sensor" => Site::Sensor(channel_index(tail).ok_or_else(bad)?),
+                    "sensor" => Site::Sensor(index.channel(tail).ok_or_else(bad)?),
                     _ => return Err(bad()),
                 }
             }
@@ -127,7 +230,8 @@ impl Site {
     }
 
     /// Human phrase for the site, e.g. "in the cable–pulley contact of the drive cable".
-    pub fn phrase(self, channel_name: &dyn Fn(usize) -> String) -> String {
+    pub fn phrase(self, names: &dyn SiteNames) -> String {
+        let el = |k, i: u16| names.element(k, usize::from(i));
         let cable = |s: Side| match s {
             Side::Drive => "the drive cable".to_owned(),
             Side::Return => "the return cable".to_owned(),
@@ -145,8 +249,18 @@ impl Site {
             Site::Joint => "at the joint".into(),
             Site::Links => "at every link".into(),
             Site::Cables => "in every cable pair".into(),
-            Site::Sensor(i) => format!("in the {} channel's own path", channel_name(i)),
+            Site::Sensor(i) => format!("in the {} channel's own path", names.channel(i)),
             Site::ForceSensors => "in every force sensor's path".into(),
+            Site::NetJoint(i) => format!("at joint {}", el(Element::Joint, i)),
+            Site::NetCable(i) => format!("in cable {}", el(Element::Cable, i)),
+            Site::NetRouting(i) => format!(
+                "in the cable–pulley contacts along cable {}'s routing",
+                el(Element::Cable, i)
+            ),
+            Site::NetMotor(i) => format!(
+                "at motor {} (its bearings, gearhead and rotor)",
+                el(Element::Motor, i)
+            ),
         }
     }
 }
@@ -258,6 +372,37 @@ pub struct SiteContext {
     pub force: Vec<bool>,
     /// Whether a coupled-axis signal is recorded.
     pub coupled: bool,
+    /// The elements of a cable network (`None` for the built-in plants).
+    pub network: Option<NetworkSites>,
+}
+
+/// The elements of a cable network that sites are derived from.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct NetworkSites {
+    /// Joint names.
+    pub joints: Vec<String>,
+    /// Cable names.
+    pub cables: Vec<String>,
+    /// Motor names.
+    pub motors: Vec<String>,
+    /// Per motor: torque-driven (its friction and inertia are in the dynamics).
+    pub torque_driven: Vec<bool>,
+    /// Per cable: the motor that hauls it.
+    pub cable_motor: Vec<Option<usize>>,
+    /// Per cable: whether friction on its routing acts in the dynamics (it has a driver with
+    /// inertia: a torque-driven motor or a driven stage).
+    pub routing_in_dynamics: Vec<bool>,
+}
+
+impl NetworkSites {
+    /// The names of one kind of element.
+    pub fn names(&self, kind: Element) -> &[String] {
+        match kind {
+            Element::Joint => &self.joints,
+            Element::Cable => &self.cables,
+            Element::Motor => &self.motors,
+        }
+    }
 }
 
 impl SiteContext {
@@ -340,6 +485,33 @@ impl Candidate {
                 .flat_map(|&s| forms.iter().map(move |&f| c(s).with_form(f)))
                 .collect()
         };
+        // the measurement path, alike on the joint and a network: a delay of the input, of every
+        // force channel or of one encoder (its own bus or clock), the force sensors' lag forms,
+        // converters and calibration
+        let measurement = || -> Vec<Candidate> {
+            match effect {
+                TimeDelay => {
+                    let mut v = vec![c(Site::Input)];
+                    v.extend(sensors(&[Form::Standard]));
+                    v.extend(
+                        (0..ctx.channels.len())
+                            .filter(|&i| !ctx.force[i])
+                            .map(|i| c(Site::Sensor(i))),
+                    );
+                    v
+                }
+                SensorLag => sensors(&[Form::Standard, Form::SecondOrder, Form::Resonant]),
+                SensorSampling => sensors(&[Form::Standard, Form::Averaging]),
+                SensorGainBias => sensors(&[Form::Standard]),
+                _ => vec![],
+            }
+        };
+        if let Some(net) = &ctx.network {
+            return match effect.stage() {
+                Stage::Plant => Self::of_network_effect(effect, ctx, net),
+                _ => measurement(),
+            };
+        }
         if ctx.transmission {
             return match effect {
                 CoulombFriction | ViscousFriction | InertiaError => vec![c(Site::Links)],
@@ -404,20 +576,53 @@ impl Candidate {
             // pulley and the link (a hub's clearance)
             Backlash => vec![c(Site::Input), c(Site::Joint)],
             Coupling if ctx.coupled => vec![c(Site::Input)],
-            TimeDelay => {
-                let mut v = vec![c(Site::Input)];
-                v.extend(sensors(&[Form::Standard]));
-                // an encoder on its own bus or clock
-                v.extend(
-                    (0..ctx.channels.len())
-                        .filter(|&i| !ctx.force[i])
-                        .map(|i| c(Site::Sensor(i))),
-                );
-                v
-            }
-            SensorLag => sensors(&[Form::Standard, Form::SecondOrder, Form::Resonant]),
-            SensorSampling => sensors(&[Form::Standard, Form::Averaging]),
-            SensorGainBias => sensors(&[Form::Standard]),
+            _ => measurement(),
+        }
+    }
+
+    /// The plant candidates of one effect on a cable network: every element where its physics
+    /// acts and shows in the measured channels.
+    fn of_network_effect(effect: Effect, ctx: &SiteContext, net: &NetworkSites) -> Vec<Candidate> {
+        use Effect::*;
+        let c = |site| Candidate::new(effect, site);
+        let idx = |i: usize| u16::try_from(i).unwrap_or(u16::MAX);
+        let joints = || (0..net.joints.len()).map(|j| c(Site::NetJoint(idx(j))));
+        let cables = || (0..net.cables.len()).map(|k| c(Site::NetCable(idx(k))));
+        // a motor's friction shows in the dynamics of a torque-driven motor, and in the current
+        // of a position-driven one when it is measured
+        let measured = |name: String| ctx.channels.contains(&name);
+        let motors = || {
+            (0..net.motors.len())
+                .filter(|&i| net.torque_driven[i] || measured(format!("load_m:{}", net.motors[i])))
+                .map(|i| c(Site::NetMotor(idx(i))))
+        };
+        // the routing's friction acts on its driver's dynamics, and changes the motor-side
+        // tension and the motor's load
+        let routings = || {
+            (0..net.cables.len())
+                .filter(|&k| {
+                    net.routing_in_dynamics[k]
+                        || measured(format!("T_motor:{}", net.cables[k]))
+                        || net.cable_motor[k]
+                            .is_some_and(|i| measured(format!("load_m:{}", net.motors[i])))
+                })
+                .map(|k| c(Site::NetRouting(idx(k))))
+        };
+        match effect {
+            CoulombFriction | ViscousFriction => joints().chain(motors()).collect(),
+            StribeckFriction => joints().collect(),
+            InertiaError => joints()
+                .chain(motors().filter(
+                    |m| matches!(m.site, Site::NetMotor(i) if net.torque_driven[usize::from(i)]),
+                ))
+                .collect(),
+            CapstanFriction => routings().collect(),
+            NonlinearStiffness => cables()
+                .chain(cables().map(|x| x.with_form(Form::Scale)))
+                .collect(),
+            CableDamping | Slack => cables().collect(),
+            // states a network does not have yet (Dahl, creep, play) and the coupling its
+            // routing already describes
             _ => vec![],
         }
     }
@@ -439,8 +644,8 @@ impl Candidate {
 
     /// Identifier `effect@site` (with `/form` when not standard), e.g.
     /// `creep@cable.both/whole`.
-    pub fn id(&self, channel_name: &dyn Fn(usize) -> String) -> String {
-        let mut s = format!("{}@{}", self.effect.name(), self.site.name(channel_name));
+    pub fn id(&self, names: &dyn SiteNames) -> String {
+        let mut s = format!("{}@{}", self.effect.name(), self.site.name(names));
         if self.form != Form::Standard {
             s.push('/');
             s.push_str(self.form.name());
@@ -450,11 +655,7 @@ impl Candidate {
 
     /// Parse `effect`, `effect@site` or `effect@site/form`; an effect alone means its classic
     /// site ([`Candidate::default_for`]).
-    pub fn parse(
-        id: &str,
-        transmission: bool,
-        channel_index: &dyn Fn(&str) -> Option<usize>,
-    ) -> Result<Self> {
+    pub fn parse(id: &str, transmission: bool, index: &dyn SiteIndex) -> Result<Self> {
         let (effect, rest) = match id.split_once('@') {
             Some((e, r)) => (e, Some(r)),
             None => (id, None),
@@ -469,14 +670,14 @@ impl Candidate {
         };
         Ok(Self {
             effect,
-            site: Site::parse(site, channel_index)?,
+            site: Site::parse(site, index)?,
             form,
         })
     }
 
     /// One sentence a user reads, e.g. "hysteresis (Dahl) in the cable–pulley contact of the
     /// drive cable".
-    pub fn sentence(&self, channel_name: &dyn Fn(usize) -> String) -> String {
+    pub fn sentence(&self, names: &dyn SiteNames) -> String {
         let what = match (self.effect, self.form) {
             (Effect::CoulombFriction, Form::LoadDependent) => {
                 "dry friction growing with the transmitted load"
@@ -512,7 +713,7 @@ impl Candidate {
             }
             (e, _) => e.description(),
         };
-        format!("{what} {}", self.site.phrase(channel_name))
+        format!("{what} {}", self.site.phrase(names))
     }
 }
 
@@ -609,6 +810,21 @@ impl Candidate {
                 )]
             }
             // motor side: forces in N at the motor, driven by the motor displacement
+            // a network's dry friction keeps its element's sign smoothing: the network has no
+            // per-interval friction substeps, so a fitted sharpening could outrun RK4's
+            // stability at the advised substeps
+            (Effect::CoulombFriction, Site::NetJoint(_), _) => base.into_iter().take(1).collect(),
+            (Effect::CoulombFriction, Site::NetMotor(_), _) => vec![motor_level()],
+            // a routing's friction: its level, and the sharpness of its sign (a capstan's dry
+            // friction is sharper than any regularised law; its smoothing vanishes at the
+            // nominal's)
+            (Effect::CapstanFriction, Site::NetRouting(_), _) => {
+                let e = s.routing_smoothing;
+                vec![
+                    p("mu_phi", "1", 0.0, 0.02, 0.0, 3.0, 0.1),
+                    p("eps_h", "m/s", e, e, 1e-3 * e, 10.0 * e, e).starts(&[0.1 * e, 0.01 * e]),
+                ]
+            }
             (Effect::CoulombFriction, Site::Motor, _) => {
                 let v = s.motor_speed.max(1e-9);
                 vec![
@@ -616,7 +832,7 @@ impl Candidate {
                     p("eps_m", "m/s", 0.0, 0.01 * v, 1e-4 * v, v, 0.01 * v),
                 ]
             }
-            (Effect::ViscousFriction, Site::Motor, _) => {
+            (Effect::ViscousFriction, Site::Motor | Site::NetMotor(_), _) => {
                 let b = s.force / s.motor_speed.max(1e-9);
                 vec![p("b_m", "N·s/m", 0.0, 0.0, 0.0, 100.0 * b, b)]
             }
@@ -699,6 +915,7 @@ mod tests {
             ],
             force: vec![true, true, false],
             coupled: true,
+            network: None,
         }
     }
 

@@ -1,0 +1,308 @@
+"""Diagnosis on a cable network (issue #39 §2): the model file, sites derived from the network's
+elements, and a diagnosis that names an effect inserted at one element of a two-stage
+instrument — runs simulated from an edited network file, not by the diagnosis' own insertion."""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import cablekit as ck
+from cablekit import network as nw
+from cablekit.diagnose.data import Run
+from cablekit.diagnose.engine import Options, diagnose
+from cablekit.diagnose.prepare import prepare
+from cablekit.diagnose.spec import model_spec_from_dict
+from cablekit.errors import CablekitError, DataError, NetworkError
+
+DT = 1e-3
+OUTPUTS = {"q_m:drive": "qm", "q:spindle": "qs", "load_m:drive": "torque", "q:jaw": "qj"}
+
+
+def _doc(parameters: dict | None = None, **over: object) -> dict:
+    doc = {
+        "model": "cable_network",
+        "parameters": parameters or {"network": "two_stage_forceps"},
+        "inputs": {"drive": "x"},
+        "outputs": dict(OUTPUTS),
+        "diagnosis": {"warmup": 0.1},
+    }
+    doc.update(over)
+    return doc
+
+
+def _motion(t: np.ndarray, held_out: bool) -> np.ndarray:
+    w = 2 * math.pi
+    if held_out:
+        return 0.35 * np.sin(w * 0.9 * t) + 0.08 * np.sin(w * 4.1 * t + 0.3)
+    return 0.3 * np.sin(w * 0.6 * t) + 0.1 * np.sin(w * 2.7 * t + 1.0)
+
+
+def _runs(definition: dict, seed: int, seconds: float = 3.0) -> tuple[list[Run], list[Run]]:
+    """Runs of the network ``definition`` (the 'real' instrument) under the motor motions, with
+    quantised encoders and a noisy torque channel."""
+    net = nw.from_dict(definition)
+    rng = np.random.default_rng(seed)
+    out = []
+    names = list(net.output_names)
+    for held in (False, True):
+        t = np.arange(round(seconds / DT)) * DT
+        x = _motion(t, held)
+        u = np.zeros((len(t), net.n_inputs))
+        u[:, 0], u[:, 1] = x, np.gradient(x, DT)
+        y = ck.simulate(net, u, DT, substeps=512, hold="foh").outputs  # the jaw's friction resolved
+        q = 2 * math.pi / 2**14
+        cols = {
+            "x": x,
+            "qm": np.round(y[:, names.index("q_m:drive")] / q) * q,
+            "qs": np.round(y[:, names.index("q:spindle")] / q) * q,
+            "qj": np.round(y[:, names.index("q:jaw")] / q) * q,
+            "torque": y[:, names.index("load_m:drive")] + rng.normal(0.0, 2e-4, len(t)),
+        }
+        out.append(Run("held_out" if held else "fit", t, cols))
+    return [out[0]], [out[1]]
+
+
+def network_group(folder: Path) -> list[str]:
+    """A campaign group (cablekit diagnose --many) of the two-stage instrument with extra jaw
+    friction: its network file, model file and runs in ``folder``; the manifest's lines."""
+    from cablekit.diagnose.data import write_csv
+
+    folder.mkdir(parents=True)
+    (folder / "robot.toml").write_text(nw.files_folder().joinpath("two_stage_forceps.toml").read_text())
+    real = nw.shipped_document("two_stage_forceps")
+    real["joints"][1]["coulomb"] = 4e-3
+    fit, hold = _runs(real, 3, seconds=2.0)
+    write_csv(fit[0], folder / "fit.csv")
+    write_csv(hold[0], folder / "hold.csv")
+    lines = [
+        'model = "cable_network"',
+        "[parameters]",
+        'file = "robot.toml"',
+        "[inputs]",
+        'drive = "x"',
+        "[outputs]",
+    ]
+    lines += [f'"{k}" = "{v}"' for k, v in OUTPUTS.items()] + ["[diagnosis]", "warmup = 0.1"]
+    (folder / "model.toml").write_text("\n".join(lines) + "\n")
+    name = folder.name
+    return [
+        "[[group]]",
+        f'name = "{name}"',
+        f'model = "{name}/model.toml"',
+        f'fit = ["{name}/fit.csv"]',
+        f'held_out = ["{name}/hold.csv"]',
+        "",
+    ]
+
+
+def test_network_model_file_reads_every_source_and_refuses_bad_ones(tmp_path):
+    spec = model_spec_from_dict(_doc())
+    assert spec.kind == "cable_network"
+    assert spec.inputs == ["x"]
+    # a network output or a sensor the file declares
+    assert spec.output("q:jaw")[2] is False and spec.output("load_m:drive")[2] is True
+    sensor = model_spec_from_dict(_doc(outputs={"jaw_angle": "qj", "spindle_torque": "torque"}))
+    assert [sensor.output(o)[0] for o, _ in sensor.outputs] == [
+        spec.output("q:jaw")[0],
+        spec.output("load_m:drive")[0],
+    ]
+    definition = nw.shipped_document("two_stage_forceps")
+    inline = model_spec_from_dict(_doc({"definition": definition}))
+    assert inline.network().output_names == spec.network().output_names
+    (tmp_path / "robot.toml").write_text(nw.files_folder().joinpath("two_stage_forceps.toml").read_text())
+    model = tmp_path / "model.toml"
+    model.write_text(
+        'model = "cable_network"\n[parameters]\nfile = "robot.toml"\n[inputs]\ndrive = "x"\n'
+        '[outputs]\n"q:jaw" = "qj"\n'
+    )
+    from cablekit.diagnose.spec import load_model_spec
+
+    assert load_model_spec(model).network().joint_names == ["spindle", "jaw"]
+    bad = [
+        _doc({"network": "two_stage_forceps", "file": "x.toml"}),  # two sources
+        _doc({"network": "two_stage_forceps", "stiffness": 3.0}),  # an unknown key
+        _doc(inputs={}),  # the motor has no column
+        _doc(inputs={"drive": "x", "elbow": "y"}),  # no such motor
+        _doc(inputs={"drive": "x", "external": {"wrist": "w"}}),  # no such joint
+        _doc(outputs={"q:elbow": "q"}),  # no such output
+        _doc({"network": 3}),
+    ]
+    for doc in bad:
+        with pytest.raises(DataError):
+            model_spec_from_dict(doc)
+    broken = copy.deepcopy(definition)
+    broken["cables"][2]["routing"] = []
+    with pytest.raises(NetworkError) as err:
+        model_spec_from_dict(_doc({"definition": broken}))
+    assert "jaw_drive" in err.value.element
+
+
+def test_network_sites_are_the_elements_and_skips_say_why():
+    fit, hold = _runs(nw.shipped_document("two_stage_forceps"), 0, seconds=1.0)
+    prep = prepare(model_spec_from_dict(_doc()), fit, hold)
+    sites = {prep.info[c]["site"] for c in prep.candidates}
+    # every joint and cable of the file is a site; the position-driven motor is one because its
+    # current (load_m) is measured; the coupling cables' routing shows in that current
+    for want in [
+        "joint.spindle",
+        "joint.jaw",
+        "cable.coupling_a",
+        "cable.jaw_return",
+        "motor.drive",
+        "routing.coupling_b",
+        "input",
+        "sensor.load_m:drive",
+    ]:
+        assert want in sites, (want, sorted(sites))
+    # the jaw cables are anchored on the spindle: their wrist friction acts on its dynamics
+    assert "routing.jaw_drive" in sites
+    # without the motor's current, the position-driven motor's friction and the coupling
+    # cables' routing friction show nowhere
+    outputs = {k: v for k, v in OUTPUTS.items() if k != "load_m:drive"}
+    blind = prepare(model_spec_from_dict(_doc(outputs=outputs)), fit, hold)
+    blind_sites = {blind.info[c]["site"] for c in blind.candidates}
+    assert "motor.drive" not in blind_sites and "routing.coupling_a" not in blind_sites
+    assert "routing.jaw_return" in blind_sites
+    for effect in ("dahl_hysteresis", "creep", "backlash", "coupling"):
+        assert effect in prep.skipped and "network" in prep.skipped[effect]
+
+
+def test_diagnosis_names_an_effect_at_its_element():
+    """Extra dry friction at the jaw's joint, written into the network file: the diagnosis of the
+    nominal file names Coulomb friction at joint.jaw, and its fit closes the held-out gap."""
+    real = nw.shipped_document("two_stage_forceps")
+    real["joints"][1]["coulomb"] = 4e-3  # nominal 1e-3 N·m
+    fit, hold = _runs(real, 1)
+    res = diagnose(model_spec_from_dict(_doc()), fit, hold, Options(progress=False))
+    assert res.verdict in ("explained", "ambiguous"), res.verdict
+    top = res.effects[0]
+    assert (top.name, top.site) == ("coulomb_friction", "joint.jaw"), [e.id for e in res.effects[:3]]
+    assert res.selected.held_out.closed_fraction > 0.8
+    # the nominal file itself: nothing to explain
+    fit0, hold0 = _runs(nw.shipped_document("two_stage_forceps"), 2)
+    res0 = diagnose(model_spec_from_dict(_doc()), fit0, hold0, Options(progress=False))
+    assert res0.verdict == "no_significant_gap", [e.id for e in res0.effects[:3]]
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    params=st.one_of(
+        st.dictionaries(
+            st.sampled_from(["network", "file", "definition", "x"]),
+            st.one_of(
+                st.none(),
+                st.integers(),
+                st.floats(allow_nan=True),
+                st.text(max_size=8),
+                st.lists(st.floats(), max_size=3),
+            ),
+            max_size=3,
+        ),
+    ),
+    inputs=st.dictionaries(
+        st.sampled_from(["drive", "external", "other"]),
+        st.one_of(
+            st.text(max_size=4),
+            st.integers(),
+            st.floats(allow_nan=True),
+            st.dictionaries(st.text(max_size=4), st.text(max_size=4), max_size=2),
+        ),
+        max_size=3,
+    ),
+)
+def test_network_model_documents_of_any_shape_are_read_or_refused_typed(params, inputs):
+    try:
+        spec = model_spec_from_dict(_doc(params, inputs=inputs))
+    except CablekitError:
+        return
+    assert spec.kind == "cable_network" and len(spec.network().joint_names) == 2
+
+
+def test_a_network_model_file_survives_pickle_and_a_rewrite(tmp_path):
+    import pickle
+
+    from cablekit.diagnose.spec import load_model_spec, write_model_toml
+
+    (tmp_path / "robot.toml").write_text(nw.files_folder().joinpath("two_stage_forceps.toml").read_text())
+    spec = model_spec_from_dict(_doc({"file": "robot.toml"}), source=str(tmp_path / "model.toml"))
+    # a Ray task receives the spec pickled: the built network (a core object) is rebuilt
+    back = pickle.loads(pickle.dumps(spec))
+    assert "_network" not in back.extra and back.network().joint_names == ["spindle", "jaw"]
+    assert back.output("q:jaw") == spec.output("q:jaw")
+    # written elsewhere, the network file is still found
+    (tmp_path / "elsewhere").mkdir()
+    path = write_model_toml(spec, tmp_path / "elsewhere" / "model.toml")
+    again = load_model_spec(path)
+    assert again.network().output_names == spec.network().output_names
+    assert again.inputs == spec.inputs and again.outputs == spec.outputs
+
+
+def test_the_independent_simulators_convention_meets_cablekits_in_one_place():
+    """The simulator's stretch matrix D (stretch per coordinate, force −D·T) against cablekit's
+    network built from the converted file: e = σρ·q_m − J·q, so −J must equal D's joint columns
+    and σρ its motor columns, for every plant of the self-test."""
+    import tomllib
+
+    from cablekit.diagnose import netsim_independent as sim
+    from cablekit.diagnose.selftest_network import to_cablekit_senses
+
+    seen = set()
+    for case in sim.cases(seed=0, quick=True):
+        if case.plant in seen:
+            continue
+        seen.add(case.plant)
+        doc = tomllib.loads(case.network_toml)
+        theirs = sim.compile_network(doc)
+        ours = nw.from_dict(to_cablekit_senses(doc))
+        assert ours.joint_names == theirs.joints and ours.cable_names == theirs.cables
+        np.testing.assert_allclose(
+            -np.asarray(ours.moment_arms), theirs.D[:, : len(theirs.joints)], atol=1e-15
+        )
+    assert seen == {"two_stage", "finger", "transmission2"}
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    name=st.one_of(
+        st.text(max_size=12), st.sampled_from(["q:jaw", "T:jaw_drive", "load_m:drive", "jaw_angle"])
+    )
+)
+def test_a_network_output_is_found_by_name_or_a_key_error(name):
+    from cablekit.diagnose.spec import network_output_info
+
+    net = nw.shipped("two_stage_forceps")
+    try:
+        index, unit, force = network_output_info(net, name)
+        assert unit in (None, "rad", "N", "N·m")
+    except KeyError:
+        assert name not in net.output_names and name not in dict(net.sensors)
+        return
+    assert 0 <= index < net.n_outputs and isinstance(force, bool)
+    assert net.output_names[index] == name or dict(net.sensors)[name] == index
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    senses=st.lists(st.lists(st.sampled_from([1.0, -1.0]), min_size=1, max_size=3), min_size=1, max_size=4)
+)
+def test_converting_a_documents_senses_twice_gives_it_back(senses):
+    from cablekit.diagnose.selftest_network import to_cablekit_senses
+
+    doc = {
+        "cables": [
+            {"name": f"c{i}", "routing": [{"pulley": "p", "sense": s} for s in row]}
+            for i, row in enumerate(senses)
+        ]
+    }
+    once = to_cablekit_senses(doc)
+    assert [[ct["sense"] for ct in c["routing"]] for c in once["cables"]] == [
+        [-s for s in row] for row in senses
+    ]
+    assert to_cablekit_senses(once) == doc
