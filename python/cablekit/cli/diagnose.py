@@ -77,6 +77,22 @@ def _diagnose(args: argparse.Namespace) -> int:
             only=CI_SUBSET if args.independent == "ci" else None,
         )
         return _write_self_test(out, "independent", format_independent(res), res)
+    if args.networks:
+        from cablekit.diagnose.selftest_independent import format_independent
+        from cablekit.diagnose.selftest_network import run_network_self_test
+
+        print(
+            "cablekit: network self-test (two-stage instrument, tendon finger, two-link transmission; runs "
+            "from an independent simulator written from the literature; "
+            f"{'quick subset' if args.networks == 'quick' else 'every case'}) ...",
+            flush=True,
+        )
+        res = run_network_self_test(seed=args.seed, quick=args.networks == "quick", progress=not args.quiet)
+        by_plant = ", ".join(
+            f"{p}: effect {v['effect']:.0%}, site {v['site']:.0%} of {v['cases']}"
+            for p, v in res["scores"]["by_plant"].items()
+        )
+        return _write_self_test(out, "networks", format_independent(res) + f"\nby plant: {by_plant}", res)
     if args.benchmark:
         from cablekit.diagnose import Options
         from cablekit.diagnose.benchmark import format_benchmark, run_benchmark
@@ -281,6 +297,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "--independent",
         choices=["all", "ci"],
         help="score the diagnoser on runs from the independent simulator (every case, or the CI subset)",
+    )
+    d.add_argument(
+        "--networks",
+        choices=["all", "quick"],
+        help="score the diagnoser on cable-network plants (a two-stage instrument, a tendon finger, a "
+        "two-link transmission) from an independent simulator: every case, or a quick subset",
     )
     d.add_argument(
         "--benchmark",

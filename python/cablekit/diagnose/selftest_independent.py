@@ -1320,13 +1320,8 @@ def run_independent(
             "both_found": None,
             "honest": None,
         }
-        # an effect that stays below the noise even at 16x its drawn size cannot be attributed
-        # by any method: listed, not scored
-        row["visible"] = kind == "control" or res.gap.held_out >= MIN_VISIBLE_GAP
-        if kind == "single":
-            row["effect_correct"] = row["top1"] == case.effect
-            row["site_correct"] = row["effect_correct"] and row["top1_site"] == case.site
-        elif kind == "pair":
+        judge(row, kind, case.effect, case.site, res)
+        if kind == "pair":
             names = [e for e, _s, _f in effs]
             row["effect_correct"] = row["top1"] in names
             row["site_correct"] = (
@@ -1334,13 +1329,6 @@ def run_independent(
             )
             found = {sel.split("@")[0] for sel in res.selected.effects}
             row["both_found"] = all(n in found for n in names)
-        elif kind == "outside":
-            # nothing in the library is the truth: the honest verdicts are "ambiguous" and
-            # "partially_explained"; "explained" names a wrong effect, "no_significant_gap" misses it
-            row["honest"] = res.verdict not in ("explained", "no_significant_gap")
-            row["effect_correct"] = row["site_correct"] = None
-        else:
-            row["effect_correct"] = row["site_correct"] = res.verdict == "no_significant_gap"
         rows.append(row)
         if progress:
             if kind == "outside":
@@ -1357,6 +1345,31 @@ def run_independent(
                 f"closed={row['held_out_closed']:.2f} "
                 f"({gen_s:.0f}+{elapsed:.0f}s)"
             )
+    scores, goals, passed = summarise(rows, t_start)
+    return {"cases": rows, "scores": scores, "goals": goals, "passed": passed}
+
+
+def judge(row: dict[str, Any], kind: str, effect: str | None, site: str | None, res: Any) -> None:
+    """Score one case's diagnosis ``res`` into ``row``: visible, effect and site right (a
+    single), honest (a case outside the library: any verdict but ``explained`` or
+    ``no_significant_gap``), clean (a control). A pair's scores are the caller's."""
+    # an effect that stays below the noise even at 16x its drawn size cannot be attributed by any
+    # method: listed, not scored
+    row["visible"] = kind == "control" or res.gap.held_out >= MIN_VISIBLE_GAP
+    if kind == "single":
+        row["effect_correct"] = row["top1"] == effect
+        row["site_correct"] = row["effect_correct"] and row["top1_site"] == site
+    elif kind == "outside":
+        # nothing in the library is the truth: "explained" names a wrong effect,
+        # "no_significant_gap" misses it
+        row["honest"] = res.verdict not in ("explained", "no_significant_gap")
+        row["effect_correct"] = row["site_correct"] = None
+    elif kind == "control":
+        row["effect_correct"] = row["site_correct"] = res.verdict == "no_significant_gap"
+
+
+def summarise(rows: list[dict[str, Any]], t_start: float) -> tuple[dict[str, Any], dict[str, Any], bool]:
+    """Scores, goals and pass/fail of judged rows (:func:`judge`)."""
     singles = [r for r in rows if r["kind"] == "single" and r["visible"]]
     pairs = [r for r in rows if r["kind"] == "pair" and r["visible"]]
     outside = [r for r in rows if r["kind"] == "outside" and r["visible"]]
@@ -1391,7 +1404,7 @@ def run_independent(
         and scores["control_false_alarms"] == 0
         and (not closed or scores["median_held_out_closed"] >= 0.8)
     )
-    return {"cases": rows, "scores": scores, "goals": goals, "passed": passed}
+    return scores, goals, passed
 
 
 def _frac(kn: list[int]) -> str:
