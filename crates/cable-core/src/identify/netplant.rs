@@ -171,18 +171,28 @@ impl Model for Limited<'_> {
         if self.coordinates.iter().any(|k| !k.cables.is_empty()) {
             net.tensions(x, u, t);
         }
-        let mut cables = Vec::new();
+        // the cables a coordinate hauls, on the stack (a heap list only beyond eight: no
+        // allocation per derivative on the hot path)
+        let mut stack = [(0.0, 0.0, 0.0, 0.0); 8];
+        let mut heap = Vec::new();
         for k in &self.coordinates {
-            cables.clear();
-            cables.extend(
-                k.cables
-                    .iter()
-                    .map(|&(c, arm)| (arm, t[c], net.cable_capstan(c), net.cable_smoothing(c))),
-            );
-            if cables.is_empty() && k.friction == StaticFriction::NONE {
+            if k.cables.is_empty() && k.friction == StaticFriction::NONE {
                 continue;
             }
-            let law = |w: f64| coordinate_friction(&k.friction, &cables, w);
+            let entry = |&(c, arm): &(usize, f64)| {
+                (arm, t[c], net.cable_capstan(c), net.cable_smoothing(c))
+            };
+            let cables: &[(f64, f64, f64, f64)] = if k.cables.len() <= stack.len() {
+                for (slot, c) in stack.iter_mut().zip(&k.cables) {
+                    *slot = entry(c);
+                }
+                &stack[..k.cables.len()]
+            } else {
+                heap.clear();
+                heap.extend(k.cables.iter().map(entry));
+                &heap
+            };
+            let law = |w: f64| coordinate_friction(&k.friction, cables, w);
             let f = limited_friction(law, k.inertia, x[k.speed], dx[k.speed], self.h);
             dx[k.speed] -= f / k.inertia;
         }
