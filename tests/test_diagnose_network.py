@@ -176,10 +176,23 @@ def test_network_sites_are_the_elements_and_skips_say_why():
     outputs = {k: v for k, v in OUTPUTS.items() if k != "load_m:drive"}
     blind = prepare(model_spec_from_dict(_doc(outputs=outputs)), fit, hold)
     blind_sites = {blind.info[c]["site"] for c in blind.candidates}
-    assert "motor.drive" not in blind_sites and "routing.coupling_a" not in blind_sites
+    assert "routing.coupling_a" not in blind_sites
+    assert not any(c.endswith("friction@motor.drive") for c in blind.candidates)
+    # its play moves the jaw whatever is measured
+    assert "backlash@motor.drive" in blind.candidates
     assert "routing.jaw_return" in blind_sites
-    for effect in ("dahl_hysteresis", "creep", "backlash", "coupling"):
-        assert effect in prep.skipped and "network" in prep.skipped[effect]
+    # the state effects: pre-sliding at every joint, creep (both forms) in every cable, play
+    # behind the position-driven motor
+    for want in [
+        "dahl_hysteresis@joint.spindle",
+        "dahl_hysteresis@joint.jaw",
+        "creep@cable.jaw_drive",
+        "creep@cable.coupling_b/whole",
+        "backlash@motor.drive",
+    ]:
+        assert want in prep.candidates, want
+    assert not any(c.startswith("backlash@") and c != "backlash@motor.drive" for c in prep.candidates)
+    assert set(prep.skipped) == {"coupling"} and "network" in prep.skipped["coupling"]
 
 
 def test_diagnosis_names_an_effect_at_its_element():

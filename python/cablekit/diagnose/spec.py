@@ -96,11 +96,8 @@ TRANSMISSION_OUTPUTS: dict[str, tuple[int, str, bool]] = {
 
 MODELS = ("antagonistic_joint", "cable_transmission", "cable_network")
 
-#: effects a cable network has no state for yet, and why they are skipped
+#: effects a cable network does not offer, and why they are skipped
 NOT_IN_NETWORK = {
-    "dahl_hysteresis": "no hysteresis state in the cable network model yet",
-    "creep": "no creep state in the cable network model yet",
-    "backlash": "no play state in the cable network model yet",
     "coupling": "a network's routing is its coupling (no separate coupled axis)",
 }
 

@@ -2,7 +2,7 @@
 //! ([`augment_joint`] → [`JointPlant`]), the transmission's ([`augment_transmission`]), and each
 //! channel's sensor path ([`SensorChain`]).
 
-use crate::dynamics::network::Network;
+use crate::dynamics::network::{Network, Presliding, TensionCreep};
 use crate::dynamics::{AntagonisticJoint, CableTransmission};
 use crate::error::Result;
 
@@ -342,9 +342,31 @@ pub fn augment_network(nom: &Network, effects: &[(Candidate, &[f64])]) -> Networ
                         f.stribeck_exponent = p[3];
                     }
                     Effect::InertiaError => m.scale_joint_inertia(j, 1.0 + p[0]),
+                    Effect::DahlHysteresis => {
+                        // the joint's dry friction becomes a pre-sliding element of level
+                        // F_c + ΔF (additive where the nominal has none)
+                        let level = (f.coulomb + p[0]).max(0.0);
+                        f.coulomb = 0.0;
+                        f.static_level = 0.0;
+                        m.set_presliding(
+                            j,
+                            Presliding {
+                                level,
+                                breakaway: p[1].max(f64::MIN_POSITIVE),
+                            },
+                        );
+                    }
                     _ => {}
                 }
             }
+            (Site::NetCable(k), Effect::Creep) => m.set_creep(
+                usize::from(k),
+                TensionCreep {
+                    fraction: p[0].clamp(0.0, 0.99),
+                    time_constant: p[1].max(f64::MIN_POSITIVE),
+                    whole: c.form == Form::Whole,
+                },
+            ),
             (Site::NetCable(k), e) => {
                 let run = m.cable_run_mut(usize::from(k));
                 match (e, c.form) {
@@ -374,6 +396,8 @@ pub fn augment_network(nom: &Network, effects: &[(Candidate, &[f64])]) -> Networ
                         f.viscous += p[0].max(0.0) * rho * rho;
                     }
                     Effect::InertiaError => m.scale_motor_inertia(i, 1.0 + p[0]),
+                    // the play's half-width in m of cable at the capstan
+                    Effect::Backlash => m.set_play(i, p[0].max(0.0) / rho),
                     _ => {}
                 }
             }

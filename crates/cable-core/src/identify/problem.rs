@@ -977,6 +977,12 @@ mod tests {
             ("capstan_friction@routing.drive", vec![0.15, f64::NAN]), // NaN: the nominal's
             ("nonlinear_stiffness@cable.return/scale", vec![0.4]),
             ("viscous_friction@motor.motor", vec![300.0]),
+            // the states a network gets from the diagnosis: pre-sliding (its level 1 mN·m above
+            // the nominal Coulomb's, break-away 2 mrad), creep, play behind the motor
+            ("dahl_hysteresis@joint.joint", vec![1e-3, 2e-3]),
+            ("creep@cable.drive", vec![0.3, 0.4]),
+            ("creep@cable.return/whole", vec![0.2, 0.8]),
+            ("backlash@motor.motor", vec![6e-5]),
         ] {
             let c = probe.parse_candidate(id).unwrap();
             let base = probe.with_candidates(vec![c], 4).unwrap();
@@ -993,7 +999,11 @@ mod tests {
             let reference = p.reference();
             let nominal = probe.predict(&[], 0).unwrap();
             let at_ref = p.predict(&reference, 0).unwrap();
-            assert!(max_abs_diff(&nominal, &at_ref) < 1e-9, "{id}");
+            // (a pre-sliding candidate turns the joint's dry friction into its own element: its
+            // reference is that element at the nominal level, not the nominal law)
+            if !id.starts_with("dahl") {
+                assert!(max_abs_diff(&nominal, &at_ref) < 1e-9, "{id}");
+            }
             let fit = p.fit(None, &LmOptions::default()).unwrap();
             for (got, want) in fit.params.iter().zip(&truth) {
                 assert_relative_eq!(*got, *want, max_relative = 2e-3);

@@ -60,21 +60,28 @@ fn network_scales(net: &Network, channels: &[Channel], runs: &[JointRun]) -> Sca
         net.rest_at(&u[..net.n_inputs().min(u.len())])
     };
     let p = net.n_outputs();
-    let speed = simulate_network(net, &u, &x0, run.dt, 4, network_hold(net))
+    // the joints' RMS speed and their largest range of motion, in a nominal replay
+    let (speed, range) = simulate_network(net, &u, &x0, run.dt, 4, network_hold(net))
         .ok()
         .map(|y| {
             let tl = run.len();
             let mut v = vec![0.0; tl];
-            let mut acc = 0.0;
+            let (mut acc, mut range) = (0.0, 0.0_f64);
             for j in 0..n {
                 let q: Vec<f64> = (0..tl).map(|k| y[k * p + j]).collect();
                 signal::velocity(&q, run.dt, &mut v);
                 acc += rms(v.iter().copied()).powi(2);
+                let (lo, hi) = q
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                        (a.min(*x), b.max(*x))
+                    });
+                range = range.max(hi - lo);
             }
-            (acc / n as f64).sqrt()
+            ((acc / n as f64).sqrt(), range)
         })
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .unwrap_or(1.0);
+        .filter(|(v, r)| v.is_finite() && *v > 0.0 && r.is_finite())
+        .unwrap_or((1.0, 0.0));
     let joints = (0..n).map(|j| net.joint_friction(j));
     Scales {
         dt,
@@ -83,7 +90,8 @@ fn network_scales(net: &Network, channels: &[Channel], runs: &[JointRun]) -> Sca
         speed,
         force,
         stretch: force / stiffness.max(1e-12),
-        travel: 0.0,
+        // the cable travel of that motion (m)
+        travel: range * arm,
         motor_speed: speed * arm,
         coupled: 0.0,
         pretension,

@@ -507,8 +507,10 @@ impl Candidate {
             }
         };
         if let Some(net) = &ctx.network {
+            // a network's play sits between a motor and its capstan (a plant element)
             return match effect.stage() {
                 Stage::Plant => Self::of_network_effect(effect, ctx, net),
+                _ if effect == Backlash => Self::of_network_effect(effect, ctx, net),
                 _ => measurement(),
             };
         }
@@ -621,8 +623,18 @@ impl Candidate {
                 .chain(cables().map(|x| x.with_form(Form::Scale)))
                 .collect(),
             CableDamping | Slack => cables().collect(),
-            // states a network does not have yet (Dahl, creep, play) and the coupling its
-            // routing already describes
+            // pre-sliding of a joint's dry friction
+            DahlHysteresis => joints().collect(),
+            Creep => cables()
+                .chain(cables().map(|x| x.with_form(Form::Whole)))
+                .collect(),
+            // play between a position-driven motor and its capstan (a torque-driven motor's
+            // play and a joint hub's clearance are not modelled on networks)
+            Backlash => (0..net.motors.len())
+                .filter(|&i| !net.torque_driven[i])
+                .map(|i| c(Site::NetMotor(idx(i))))
+                .collect(),
+            // the coupling its routing already describes
             _ => vec![],
         }
     }

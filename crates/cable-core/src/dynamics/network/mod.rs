@@ -69,6 +69,9 @@ mod tests;
 /// Relative size of the smallest singular value of `J` below which the coupling is singular.
 pub const SINGULAR_COUPLING: f64 = 1e-9;
 
+/// Most iterations of the capstan's balance inside a motor's play.
+const PLAY_ITER: usize = 60;
+
 /// How a motor is driven.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Drive {
@@ -214,6 +217,31 @@ pub struct NetworkSpec {
     pub capstan_smoothing: f64,
 }
 
+/// Pre-sliding (Dahl) friction of a joint: a friction torque `z` that follows the joint's
+/// displacement through `ż = σ₀·(q̇ − |q̇|·ζ)`, `ζ = clamp(z/F, −1, 1)`, `σ₀ = F/θ_d`: the joint
+/// turns elastically by about `θ_d` after each reversal before the torque reaches its level `F`
+/// (Dahl 1968). Not read from a network file: the diagnosis inserts it (issue #39 §2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Presliding {
+    /// Level `F` (N·m, or N for a prismatic joint), ≥ 0.
+    pub level: f64,
+    /// Break-away displacement `θ_d` (rad or m), > 0.
+    pub breakaway: f64,
+}
+
+/// Creep of a cable's tension: a relaxation `w` that the tension loses,
+/// `T = T₀ + F(e) + b·ė − w`, `ẇ = (κ·F(e) − w)/τ` (`κ·(T₀ + F(e))` for the whole tension) — a
+/// standard linear solid whose instantaneous law is the cable's. Inserted by the diagnosis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TensionCreep {
+    /// Relaxed fraction `κ` in `[0, 1)`.
+    pub fraction: f64,
+    /// Time constant `τ` (s), > 0.
+    pub time_constant: f64,
+    /// Relax the pretension too.
+    pub whole: bool,
+}
+
 /// One joint of a built network.
 #[derive(Debug, Clone, PartialEq)]
 struct Joint {
@@ -222,6 +250,8 @@ struct Joint {
     inertia: f64,
     friction: StaticFriction,
     gravity: Gravity,
+    /// Pre-sliding friction and the index of its state.
+    presliding: Option<(Presliding, usize)>,
 }
 
 /// One cable of a built network.
@@ -238,6 +268,8 @@ struct Cable {
     driver_arms: Vec<f64>,
     /// Smoothing of the sign of its haul speed in its routing friction (m/s).
     smoothing: f64,
+    /// Creep of its tension and the index of its state.
+    creep: Option<(TensionCreep, usize)>,
 }
 
 /// One motor of a built network.
@@ -251,6 +283,9 @@ struct Motor {
     slot: usize,
     /// Index of its torque in the input (torque-driven; unused when position-driven).
     torque_input: usize,
+    /// Half-width of the play between a position-driven motor and its capstan (rad of motor
+    /// angle; 0: none).
+    play: f64,
 }
 
 /// A validated cable network; a [`Model`] (see the module docs).
@@ -397,6 +432,7 @@ impl Network {
                 capstan,
                 driver_arms,
                 smoothing: spec.capstan_smoothing,
+                creep: None,
             });
         }
         for (i, name) in motor_names.iter().enumerate() {
@@ -517,6 +553,7 @@ impl Network {
                 inertia,
                 friction,
                 gravity: js.gravity,
+                presliding: None,
             });
         }
         // every body reaches the base through the joints that move it (no cycle, no orphan)
@@ -573,6 +610,7 @@ impl Network {
                 friction: ms.friction,
                 slot,
                 torque_input: 0,
+                play: 0.0,
             });
         }
         // inputs: the position motors' [q_m, q̇_m], one torque per torque motor, the joint loads
@@ -756,6 +794,104 @@ impl Network {
         }
     }
 
+    /// Angle and rate of motor `i`'s capstan: the motor's, or, across a play of half-width
+    /// `δ` (a position-driven motor's gearhead or coupling), the angle within `q_m ± δ` where
+    /// the motor's cables balance (`Σ σ_c·T_c = 0`, the capstan massless; damping and routing
+    /// friction left out of the balance), held at the nearer end when they do not balance in
+    /// it. Inside the play its rate follows the joints through the cables' tangent stiffnesses.
+    fn capstan_at(&self, i: usize, x: &[f64], u: &[f64]) -> (f64, f64) {
+        let (qm, wm) = self.motor_at(i, x, u);
+        let mo = &self.motors[i];
+        if mo.play <= 0.0 {
+            return (qm, wm);
+        }
+        let n = self.n_joints();
+        let rho = mo.rho;
+        // per cable of the motor: its sense and its joint-side shortening J·q
+        let mut cables = [(0usize, 0.0, 0.0); 8];
+        let mut k = 0;
+        for (c, cable) in self.cables.iter().enumerate() {
+            if cable.motor == Some(i) && k < cables.len() {
+                let row = &self.arms[c * n..(c + 1) * n];
+                let p: f64 = row.iter().enumerate().map(|(j, a)| a * x[2 * j]).sum();
+                cables[k] = (c, cable.sense, p);
+                k += 1;
+            }
+        }
+        let cables = &cables[..k];
+        let balance = |qc: f64| -> (f64, f64) {
+            let (mut g, mut dg) = (0.0, 0.0);
+            for &(c, s, p) in cables {
+                let run = &self.cables[c].run;
+                let e = s * rho * qc - p;
+                let t = run.pretension + run.law.elastic(e) - self.creep_of(c, x);
+                if t > 0.0 {
+                    g += s * t;
+                    dg += rho * run.law.slope(e);
+                }
+            }
+            (g, dg)
+        };
+        let (lo, hi) = (qm - mo.play, qm + mo.play);
+        if balance(lo).0 >= 0.0 {
+            return (lo, wm);
+        }
+        if balance(hi).0 <= 0.0 {
+            return (hi, wm);
+        }
+        let (mut a, mut b) = (lo, hi);
+        let mut q = 0.5 * (a + b);
+        for _ in 0..PLAY_ITER {
+            let (g, dg) = balance(q);
+            if g < 0.0 {
+                a = q;
+            } else {
+                b = q;
+            }
+            let mut next = if dg > 0.0 { q - g / dg } else { f64::NAN };
+            if !(next > a && next < b) {
+                next = 0.5 * (a + b);
+            }
+            let done = (next - q).abs() <= 1e-14 * (1.0 + q.abs()) || b - a <= 1e-14;
+            q = next;
+            if done {
+                break;
+            }
+        }
+        // its rate: d/dt Σ σ_c·T_c = 0 with the tangent stiffnesses
+        let (mut num, mut den) = (0.0, 0.0);
+        for &(c, s, p) in cables {
+            let run = &self.cables[c].run;
+            let e = s * rho * q - p;
+            if run.pretension + run.law.elastic(e) - self.creep_of(c, x) > 0.0 {
+                let kc = run.law.slope(e);
+                let row = &self.arms[c * n..(c + 1) * n];
+                let dp: f64 = row.iter().enumerate().map(|(j, a)| a * x[2 * j + 1]).sum();
+                num += s * kc * dp;
+                den += rho * kc;
+            }
+        }
+        (q, if den > 0.0 { num / den } else { wm })
+    }
+
+    /// Creep relaxation `w` of cable `c` at state `x` (0 without creep).
+    #[inline]
+    fn creep_of(&self, c: usize, x: &[f64]) -> f64 {
+        self.cables[c].creep.map_or(0.0, |(_, k)| x[k])
+    }
+
+    /// Joint-side tension of cable `c` at elongation `e`, rate `de`: its law less its creep.
+    #[inline]
+    fn tension_of(&self, c: usize, e: f64, de: f64, x: &[f64]) -> f64 {
+        let run = &self.cables[c].run;
+        match self.cables[c].creep {
+            None => run.tension(e, de),
+            Some((_, k)) => {
+                (run.pretension + run.law.elastic(e) + run.damping * de - x[k]).max(0.0)
+            }
+        }
+    }
+
     /// Elongation and its rate of cable `c`.
     #[inline]
     fn elongation(&self, c: usize, x: &[f64], u: &[f64]) -> (f64, f64) {
@@ -763,7 +899,7 @@ impl Network {
         let cable = &self.cables[c];
         let (mut e, mut de) = match cable.motor {
             Some(i) => {
-                let (qm, wm) = self.motor_at(i, x, u);
+                let (qm, wm) = self.capstan_at(i, x, u);
                 let rho = self.motors[i].rho;
                 (cable.sense * rho * qm, cable.sense * rho * wm)
             }
@@ -785,12 +921,12 @@ impl Network {
     fn cable_tensions(&self, c: usize, x: &[f64], u: &[f64]) -> (f64, f64) {
         let (e, de) = self.elongation(c, x, u);
         let cable = &self.cables[c];
-        let t = cable.run.tension(e, de);
+        let t = self.tension_of(c, e, de, x);
         if cable.capstan == 0.0 {
             return (t, t);
         }
         let mut haul = match cable.motor {
-            Some(i) => self.motor_at(i, x, u).1 * self.motors[i].rho * cable.sense,
+            Some(i) => self.capstan_at(i, x, u).1 * self.motors[i].rho * cable.sense,
             None => 0.0,
         };
         for (j, a) in cable.driver_arms.iter().enumerate() {
@@ -806,7 +942,7 @@ impl Network {
     pub fn tensions(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
         for (c, o) in out.iter_mut().enumerate() {
             let (e, de) = self.elongation(c, x, u);
-            *o = self.cables[c].run.tension(e, de);
+            *o = self.tension_of(c, e, de, x);
         }
     }
 
@@ -926,8 +1062,9 @@ impl Network {
 
     /// The same network without the friction of its joints and torque-driven motors, and
     /// without the routing friction of every cable with a [`Self::cable_driver`] (the
-    /// position-driven motors' friction, which acts in their outputs only, is kept): the smooth
-    /// part of the dynamics, for integrators that treat the friction on its own.
+    /// position-driven motors' friction, which acts in their outputs only, is kept, and so are
+    /// the joints' pre-sliding states, creep and play): the smooth part of the dynamics, for
+    /// integrators that treat the friction on its own.
     pub fn frictionless(&self) -> Self {
         let mut out = self.clone();
         for j in &mut out.joints {
@@ -968,6 +1105,34 @@ impl Network {
         let cable = &mut self.cables[c];
         cable.capstan = (cable.capstan + a).max(0.0);
         cable.smoothing = smoothing;
+    }
+
+    /// Give joint `j` a pre-sliding (Dahl) friction (replacing any it had), with a state.
+    pub(crate) fn set_presliding(&mut self, j: usize, p: Presliding) {
+        let slot = self.state_slot(self.joints[j].presliding.map(|(_, k)| k));
+        self.joints[j].presliding = Some((p, slot));
+    }
+
+    /// The index of an element's state: the one it has, or a new one at the end.
+    fn state_slot(&mut self, existing: Option<usize>) -> usize {
+        existing.unwrap_or_else(|| {
+            self.n_states += 1;
+            self.n_states - 1
+        })
+    }
+
+    /// Give cable `c` a creep of its tension (replacing any it had), with a state.
+    pub(crate) fn set_creep(&mut self, c: usize, cr: TensionCreep) {
+        let slot = self.state_slot(self.cables[c].creep.map(|(_, k)| k));
+        self.cables[c].creep = Some((cr, slot));
+    }
+
+    /// Set the play between position-driven motor `i` and its capstan (half-width, rad of
+    /// motor angle, ≥ 0; ignored for a torque-driven motor).
+    pub(crate) fn set_play(&mut self, i: usize, half_width: f64) {
+        if self.motors[i].drive == Drive::Position {
+            self.motors[i].play = half_width.max(0.0);
+        }
     }
 
     /// Motor `i`'s friction, mutable.
@@ -1196,10 +1361,29 @@ impl Model for Network {
         let n = self.n_joints();
         let load = self.load_input();
         for (j, joint) in self.joints.iter().enumerate() {
-            dx[2 * j] = x[2 * j + 1];
-            dx[2 * j + 1] = -joint.friction.force(x[2 * j + 1])
-                - joint.gravity.load(joint.kind, x[2 * j])
-                + u[load + j];
+            let v = x[2 * j + 1];
+            dx[2 * j] = v;
+            dx[2 * j + 1] =
+                -joint.friction.force(v) - joint.gravity.load(joint.kind, x[2 * j]) + u[load + j];
+            if let Some((p, k)) = joint.presliding {
+                let zeta = if p.level > 0.0 {
+                    (x[k] / p.level).clamp(-1.0, 1.0)
+                } else {
+                    0.0
+                };
+                dx[2 * j + 1] -= p.level * zeta;
+                dx[k] = p.level / p.breakaway * (v - v.abs() * zeta);
+            }
+        }
+        for (c, cable) in self.cables.iter().enumerate() {
+            if let Some((cr, k)) = cable.creep {
+                let (e, _) = self.elongation(c, x, u);
+                let mut target = cable.run.law.elastic(e);
+                if cr.whole {
+                    target += cable.run.pretension;
+                }
+                dx[k] = (cr.fraction * target - x[k]) / cr.time_constant;
+            }
         }
         for m in &self.motors {
             if m.drive == Drive::Torque {
@@ -1268,15 +1452,23 @@ impl Model for Network {
     }
 
     fn state_names(&self) -> Vec<String> {
-        let mut out = Vec::with_capacity(self.n_states);
-        for j in &self.joint_names {
-            out.push(format!("q:{j}"));
-            out.push(format!("dq:{j}"));
+        let mut out = vec![String::new(); self.n_states];
+        for (j, name) in self.joint_names.iter().enumerate() {
+            out[2 * j] = format!("q:{name}");
+            out[2 * j + 1] = format!("dq:{name}");
+            if let Some((_, k)) = self.joints[j].presliding {
+                out[k] = format!("z:{name}");
+            }
         }
         for (m, name) in self.motors.iter().zip(&self.motor_names) {
             if m.drive == Drive::Torque {
-                out.push(format!("q_m:{name}"));
-                out.push(format!("dq_m:{name}"));
+                out[m.slot] = format!("q_m:{name}");
+                out[m.slot + 1] = format!("dq_m:{name}");
+            }
+        }
+        for (c, name) in self.cables.iter().zip(&self.cable_names) {
+            if let Some((_, k)) = c.creep {
+                out[k] = format!("creep:{name}");
             }
         }
         out

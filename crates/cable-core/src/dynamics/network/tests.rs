@@ -338,3 +338,139 @@ fn tension_closure_of_pairs_and_tendons() {
     let tau = f.joint_torques(&t).unwrap();
     assert!(tau.iter().all(|v| v.abs() < 1e-9), "{tau:?}");
 }
+
+/// The joint's network with its friction removed, driven by its motor along `motion(t)` (m of
+/// capstan): the inputs `[q_m, q̇_m, τ_ext]` over `len` samples of `dt`.
+fn driven(motion: impl Fn(f64) -> (f64, f64), len: usize, dt: f64) -> Vec<f64> {
+    (0..len)
+        .flat_map(|k| {
+            let (q, v) = motion(k as f64 * dt);
+            [q, v, 0.0]
+        })
+        .collect()
+}
+
+/// A pre-sliding (Dahl) element with a break-away displacement far below the motion is the
+/// Coulomb friction of its level; its state stays within the level.
+#[test]
+fn presliding_friction_tends_to_coulomb_and_stays_bounded() {
+    let mut j = joint();
+    let level = 2e-3;
+    j.friction = StaticFriction::coulomb_viscous("f", level, 1e-4, 1e-3).unwrap();
+    let coulomb = Network::new(&NetworkSpec::from_joint(&j).unwrap()).unwrap();
+    j.friction = StaticFriction::coulomb_viscous("f", 0.0, 1e-4, 1e-3).unwrap();
+    let mut dahl = Network::new(&NetworkSpec::from_joint(&j).unwrap()).unwrap();
+    dahl.set_presliding(
+        0,
+        Presliding {
+            level,
+            breakaway: 1e-4,
+        },
+    );
+    assert_eq!(dahl.n_states(), 3);
+    assert_eq!(dahl.state_names()[2], "z:joint");
+    let w = 2.0 * std::f64::consts::PI;
+    let (dt, len) = (1e-3, 1500);
+    let u = driven(
+        |t| (2e-4 * (w * t).sin(), 2e-4 * w * (w * t).cos()),
+        len,
+        dt,
+    );
+    let opts = SimOptions::new(dt, 64, InputHold::Foh).unwrap();
+    let a = simulate(&coulomb, &u, &[0.0; 2], &opts).unwrap();
+    let b = simulate(&dahl, &u, &[0.0; 3], &opts).unwrap();
+    let p = coulomb.n_outputs();
+    let angle = |y: &[f64]| (0..len).map(|k| y[k * p]).collect::<Vec<_>>();
+    let (qa, qb) = (angle(&a.outputs), angle(&b.outputs));
+    let span = qa.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let err = qa
+        .iter()
+        .zip(&qb)
+        .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
+    assert!(span > 1e-2 && err < 0.05 * span, "{err} of {span}");
+    let z_max = b
+        .states
+        .chunks(3)
+        .map(|x| x[2].abs())
+        .fold(0.0_f64, f64::max);
+    assert!(z_max <= level * 1.001 && z_max > 0.9 * level, "{z_max}");
+}
+
+/// A creeping cable held at a constant stretch loses `κ` of its elastic tension with time
+/// constant `τ` (the whole form: of its pretension too).
+#[test]
+fn creep_relaxes_the_tension_at_constant_stretch() {
+    let mut j = joint();
+    j.inertia = 1e3; // the joint stays put over the run
+    j.friction = StaticFriction::NONE;
+    let base = Network::new(&NetworkSpec::from_joint(&j).unwrap()).unwrap();
+    let (dt, len, tau, kappa) = (1e-3, 3000, 0.5, 0.4);
+    let e = 1e-4;
+    let u = driven(|_| (e, 0.0), len, dt);
+    for whole in [false, true] {
+        let mut net = base.clone();
+        net.set_creep(
+            0,
+            TensionCreep {
+                fraction: kappa,
+                time_constant: tau,
+                whole,
+            },
+        );
+        assert_eq!(net.state_names()[2], "creep:drive");
+        let out = simulate(
+            &net,
+            &u,
+            &[0.0; 3],
+            &SimOptions::new(dt, 4, InputHold::Zoh).unwrap(),
+        )
+        .unwrap();
+        let p = net.n_outputs();
+        let t_end = out.outputs[(len - 1) * p + 2];
+        let (t0, f) = (10.0, 12_000.0 * e);
+        let target = if whole { kappa * (t0 + f) } else { kappa * f };
+        let decay = (-((len - 1) as f64 * dt) / tau).exp();
+        let expect = t0 + f - target * (1.0 - decay);
+        // the joint creeps a little under the unbalanced pair: 1 % of the relaxed part
+        assert!(
+            (t_end - expect).abs() < 0.01 * target,
+            "{whole}: {t_end} vs {expect}"
+        );
+    }
+}
+
+/// A position motor with play of half-width `δ`: a motion within the play leaves the joint at
+/// rest; beyond it the joint follows the motor less the play.
+#[test]
+fn motor_play_is_a_dead_band_between_motor_and_joint() {
+    let mut j = joint();
+    j.friction = StaticFriction::coulomb_viscous("f", 0.0, 1e-3, 1e-3).unwrap();
+    let mut net = Network::new(&NetworkSpec::from_joint(&j).unwrap()).unwrap();
+    let delta = 2e-4;
+    // the pair balances with the capstan this far back (unequal pretensions)
+    let offset = (10.0 - 8.0) / (12_000.0 + 9_000.0);
+    net.set_play(0, delta);
+    let (dt, len) = (1e-3, 2000);
+    let opts = SimOptions::new(dt, 8, InputHold::Foh).unwrap();
+    let p = net.n_outputs();
+    // within the play (its balance point included): back and forth by 0.3 δ
+    let w = 2.0 * std::f64::consts::PI;
+    let inside = driven(
+        |t| (0.3 * delta * (w * t).sin(), 0.3 * delta * w * (w * t).cos()),
+        len,
+        dt,
+    );
+    let x0 = [offset / j.radius, 0.0];
+    let out = simulate(&net, &inside, &x0, &opts).unwrap();
+    let moved = (0..len)
+        .map(|k| (out.outputs[k * p] - x0[0]).abs())
+        .fold(0.0_f64, f64::max);
+    assert!(moved < 1e-3 * delta / j.radius, "{moved}");
+    // a slow ramp to 5 δ: the joint ends δ/r short of where it ends without the play
+    let ramp = driven(|t| (5.0 * delta * t / 2.0, 5.0 * delta / 2.0), len, dt);
+    let with = simulate(&net, &ramp, &x0, &opts).unwrap().outputs[(len - 1) * p];
+    net.set_play(0, 0.0);
+    let without = simulate(&net, &ramp, &x0, &opts).unwrap().outputs[(len - 1) * p];
+    let short = (without - with) * j.radius;
+    assert!((short - delta).abs() < 0.03 * delta, "{short} vs {delta}");
+}
