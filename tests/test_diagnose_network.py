@@ -327,3 +327,29 @@ def test_converting_a_documents_senses_twice_gives_it_back(senses):
         [-s for s in row] for row in senses
     ]
     assert to_cablekit_senses(once) == doc
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    smoothing=st.one_of(
+        st.just(1e-3), st.floats(min_value=1e-9, max_value=1.0), st.floats(allow_nan=True), st.none()
+    ),
+    senses=st.lists(st.sampled_from([1, -1]), min_size=1, max_size=3),
+)
+def test_the_simulators_nominal_file_as_cablekit_reads_it(smoothing, senses):
+    """Senses converted, and the format's default of the simulator's time left out (only that
+    value: any other is the file's statement and kept)."""
+    from cablekit.diagnose.selftest_network import FORMAT_DEFAULT_THEN, nominal_document
+
+    lines = [] if smoothing is None or smoothing != smoothing else [f"capstan_smoothing = {smoothing!r}"]
+    lines += [
+        "[[cables]]",
+        'name = "c"',
+        "routing = [" + ", ".join(f'{{pulley = "p", sense = {s}}}' for s in senses) + "]",
+    ]
+    doc = nominal_document("\n".join(lines))
+    assert [ct["sense"] for ct in doc["cables"][0]["routing"]] == [-s for s in senses]
+    if smoothing == FORMAT_DEFAULT_THEN or not lines[0].startswith("capstan"):
+        assert "capstan_smoothing" not in doc
+    else:
+        assert doc["capstan_smoothing"] == smoothing

@@ -27,7 +27,7 @@ from cablekit.diagnose.engine import Options, diagnose
 from cablekit.diagnose.selftest_independent import judge, summarise
 from cablekit.diagnose.spec import ModelSpec, model_spec_from_dict
 
-__all__ = ["run_network_self_test", "to_cablekit_senses"]
+__all__ = ["nominal_document", "run_network_self_test", "to_cablekit_senses"]
 
 
 def to_cablekit_senses(doc: dict[str, Any]) -> dict[str, Any]:
@@ -46,13 +46,30 @@ def to_cablekit_senses(doc: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+#: the network format's default routing-friction smoothing (m/s) when the simulator was written,
+#: which its file writer copies into every nominal file; the format's default is now 1e-6 m/s (a
+#: capstan sticks), and its plants' capstans stick exactly
+FORMAT_DEFAULT_THEN = 1e-3
+
+
+def nominal_document(network_toml: str) -> dict[str, Any]:
+    """The simulator's nominal network file as cablekit reads it: senses converted
+    (:func:`to_cablekit_senses`), and a ``capstan_smoothing`` equal to the format's default at the
+    time of writing (:data:`FORMAT_DEFAULT_THEN`) left out, so that the format's present default
+    applies — the value was the format's, not a statement about the plant."""
+    doc = to_cablekit_senses(tomllib.loads(network_toml))
+    if doc.get("capstan_smoothing") == FORMAT_DEFAULT_THEN:
+        doc = {k: v for k, v in doc.items() if k != "capstan_smoothing"}
+    return doc
+
+
 def _case_spec(case: Any) -> ModelSpec:
-    """The model file a user of the case's plant would write: its nominal network inline, in
-    cablekit's sense convention (:func:`to_cablekit_senses`)."""
+    """The model file a user of the case's plant would write: its nominal network inline
+    (:func:`nominal_document`)."""
     return model_spec_from_dict(
         {
             "model": "cable_network",
-            "parameters": {"definition": to_cablekit_senses(tomllib.loads(case.network_toml))},
+            "parameters": {"definition": nominal_document(case.network_toml)},
             "inputs": dict(case.inputs),
             "outputs": dict(case.outputs),
             "diagnosis": {"warmup": 0.1},

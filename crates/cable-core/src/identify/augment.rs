@@ -330,9 +330,15 @@ pub fn augment_network(nom: &Network, effects: &[(Candidate, &[f64])]) -> Networ
                 let j = usize::from(j);
                 let f = m.joint_friction_mut(j);
                 match e {
+                    // the sticking forms: the sign law sharpened to the stick's resolution (the
+                    // replay integrates the friction implicitly, so it holds the joint at rest
+                    // below the level instead of creeping; last parameter, fixed)
                     Effect::CoulombFriction => {
                         f.coulomb += p[0];
                         f.static_level += p[0];
+                        if c.form == Form::Sticking {
+                            f.smoothing = f.smoothing.min(p[1]);
+                        }
                     }
                     Effect::ViscousFriction => f.viscous = (f.viscous + p[0]).max(0.0),
                     Effect::StribeckFriction => {
@@ -340,21 +346,18 @@ pub fn augment_network(nom: &Network, effects: &[(Candidate, &[f64])]) -> Networ
                         f.static_level += p[0] + p[1];
                         f.stribeck_velocity = p[2];
                         f.stribeck_exponent = p[3];
+                        if c.form == Form::Lugre {
+                            f.smoothing = f.smoothing.min(p[4]);
+                        }
                     }
                     Effect::InertiaError => m.scale_joint_inertia(j, 1.0 + p[0]),
+                    // the joint's dry friction becomes a pre-sliding (Dahl) element of level
+                    // F_c + ΔF (additive where the nominal has none)
                     Effect::DahlHysteresis => {
-                        // the joint's dry friction becomes a pre-sliding element of level
-                        // F_c + ΔF (additive where the nominal has none)
                         let level = (f.coulomb + p[0]).max(0.0);
                         f.coulomb = 0.0;
                         f.static_level = 0.0;
-                        m.set_presliding(
-                            j,
-                            Presliding {
-                                level,
-                                breakaway: p[1].max(f64::MIN_POSITIVE),
-                            },
-                        );
+                        m.set_presliding(j, Presliding::dahl(level, p[1].max(f64::MIN_POSITIVE)));
                     }
                     _ => {}
                 }

@@ -611,8 +611,16 @@ impl Candidate {
                 .map(|k| c(Site::NetRouting(idx(k))))
         };
         match effect {
-            CoulombFriction | ViscousFriction => joints().chain(motors()).collect(),
-            StribeckFriction => joints().collect(),
+            // dry friction as a smoothed sign law, or held in a stiff bristle (pre-sliding)
+            // state that sticks at rest: the joint's sticking and LuGre forms
+            CoulombFriction => joints()
+                .chain(joints().map(|x| x.with_form(Form::Sticking)))
+                .chain(motors())
+                .collect(),
+            ViscousFriction => joints().chain(motors()).collect(),
+            StribeckFriction => joints()
+                .chain(joints().map(|x| x.with_form(Form::Lugre)))
+                .collect(),
             InertiaError => joints()
                 .chain(motors().filter(
                     |m| matches!(m.site, Site::NetMotor(i) if net.torque_driven[usize::from(i)]),
@@ -761,6 +769,19 @@ impl Candidate {
             )
         };
         match (self.effect, self.site, self.form) {
+            // on a network joint the sticking forms are the sign law sharpened to a ten-thousandth
+            // of the typical speed, which the replay's implicit friction holds at rest (fixed)
+            (Effect::CoulombFriction, Site::NetJoint(_), Form::Sticking)
+            | (Effect::StribeckFriction, Site::NetJoint(_), Form::Lugre) => {
+                let e = 1e-4 * s.speed.max(1e-12);
+                let mut v: Vec<ParamSpec> = if self.effect == Effect::CoulombFriction {
+                    base.into_iter().take(1).collect()
+                } else {
+                    base
+                };
+                v.push(p("eps_s", "rad/s", e, e, e, e, e));
+                v
+            }
             // the bristle forms carry the level(s) only: their break-away displacement is the
             // resolution floor (one sample's travel), below which no pre-sliding is observable
             // (fixed: lower = upper, carried with the parameters so that every run replays the

@@ -7,7 +7,7 @@ use serde_json::{Map, Value};
 
 use super::{
     invalid, BodySpec, CableSpec, ContactSpec, Drive, JointSpec, MotorSpec, NetworkSpec,
-    PulleySpec, SensorSpec,
+    PulleySpec, SensorSpec, DEFAULT_CAPSTAN_SMOOTHING,
 };
 use crate::cable::{CableLaw, CableRun};
 use crate::dynamics::Gravity;
@@ -257,7 +257,7 @@ impl NetworkSpec {
             cables,
             motors,
             sensors,
-            capstan_smoothing: top.num("capstan_smoothing", Some(1e-3))?,
+            capstan_smoothing: top.num("capstan_smoothing", Some(DEFAULT_CAPSTAN_SMOOTHING))?,
         })
     }
 }

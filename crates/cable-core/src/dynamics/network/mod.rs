@@ -69,6 +69,13 @@ mod tests;
 /// Relative size of the smallest singular value of `J` below which the coupling is singular.
 pub const SINGULAR_COUPLING: f64 = 1e-9;
 
+/// Smoothing of a routing friction's sign when a network file gives none (m/s of cable): a
+/// capstan's dry friction sticks — a regularisation as wide as an instrument's cable speeds
+/// (mm/s) would turn the stick into a drag that grows with speed — so the default resolves the
+/// stick to 1 µm/s. Explicit RK4 then needs the step advice's substeps where the routing acts
+/// on a torque-driven motor or a driven stage; the diagnosis integrates it implicitly.
+pub const DEFAULT_CAPSTAN_SMOOTHING: f64 = 1e-6;
+
 /// Most iterations of the capstan's balance inside a motor's play.
 const PLAY_ITER: usize = 60;
 
@@ -218,15 +225,36 @@ pub struct NetworkSpec {
 }
 
 /// Pre-sliding (Dahl) friction of a joint: a friction torque `z` that follows the joint's
-/// displacement through `ż = σ₀·(q̇ − |q̇|·ζ)`, `ζ = clamp(z/F, −1, 1)`, `σ₀ = F/θ_d`: the joint
-/// turns elastically by about `θ_d` after each reversal before the torque reaches its level `F`
-/// (Dahl 1968). Not read from a network file: the diagnosis inserts it (issue #39 §2).
+/// displacement through `ż = σ₀·(q̇ − |q̇|·ζ)`, `ζ = clamp(z/F, −1, 1)`, `σ₀ = F/θ_d`, the
+/// torque `z` (within `±F`): the joint turns elastically by about `θ_d` after each reversal
+/// before the torque reaches its level `F` (Dahl 1968). Not read from a network file: the
+/// diagnosis inserts it (issue #39 §2).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Presliding {
     /// Level `F` (N·m, or N for a prismatic joint), ≥ 0.
     pub level: f64,
     /// Break-away displacement `θ_d` (rad or m), > 0.
     pub breakaway: f64,
+}
+
+impl Presliding {
+    /// A Dahl element of level `level` and break-away `breakaway`.
+    pub fn dahl(level: f64, breakaway: f64) -> Self {
+        Self { level, breakaway }
+    }
+
+    /// The friction torque at state `z`, speed `v`, and the state's rate.
+    #[inline]
+    fn torque_and_rate(&self, z: f64, v: f64) -> (f64, f64) {
+        if self.level <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let zeta = (z / self.level).clamp(-1.0, 1.0);
+        (
+            self.level * zeta,
+            self.level / self.breakaway * (v - v.abs() * zeta),
+        )
+    }
 }
 
 /// Creep of a cable's tension: a relaxation `w` that the tension loses,
@@ -1366,13 +1394,9 @@ impl Model for Network {
             dx[2 * j + 1] =
                 -joint.friction.force(v) - joint.gravity.load(joint.kind, x[2 * j]) + u[load + j];
             if let Some((p, k)) = joint.presliding {
-                let zeta = if p.level > 0.0 {
-                    (x[k] / p.level).clamp(-1.0, 1.0)
-                } else {
-                    0.0
-                };
-                dx[2 * j + 1] -= p.level * zeta;
-                dx[k] = p.level / p.breakaway * (v - v.abs() * zeta);
+                let (torque, rate) = p.torque_and_rate(x[k], v);
+                dx[2 * j + 1] -= torque;
+                dx[k] = rate;
             }
         }
         for (c, cable) in self.cables.iter().enumerate() {

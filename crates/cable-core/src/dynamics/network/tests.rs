@@ -360,13 +360,7 @@ fn presliding_friction_tends_to_coulomb_and_stays_bounded() {
     let coulomb = Network::new(&NetworkSpec::from_joint(&j).unwrap()).unwrap();
     j.friction = StaticFriction::coulomb_viscous("f", 0.0, 1e-4, 1e-3).unwrap();
     let mut dahl = Network::new(&NetworkSpec::from_joint(&j).unwrap()).unwrap();
-    dahl.set_presliding(
-        0,
-        Presliding {
-            level,
-            breakaway: 1e-4,
-        },
-    );
+    dahl.set_presliding(0, Presliding::dahl(level, 1e-4));
     assert_eq!(dahl.n_states(), 3);
     assert_eq!(dahl.state_names()[2], "z:joint");
     let w = 2.0 * std::f64::consts::PI;
