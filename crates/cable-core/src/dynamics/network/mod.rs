@@ -836,17 +836,26 @@ impl Network {
         let n = self.n_joints();
         let rho = mo.rho;
         // per cable of the motor: its sense and its joint-side shortening J·q
-        let mut cables = [(0usize, 0.0, 0.0); 8];
+        // on the stack up to eight cables (no allocation per derivative), on the heap beyond
+        let mut stack = [(0usize, 0.0, 0.0); 8];
+        let mut heap = Vec::new();
         let mut k = 0;
         for (c, cable) in self.cables.iter().enumerate() {
-            if cable.motor == Some(i) && k < cables.len() {
+            if cable.motor == Some(i) {
                 let row = &self.arms[c * n..(c + 1) * n];
                 let p: f64 = row.iter().enumerate().map(|(j, a)| a * x[2 * j]).sum();
-                cables[k] = (c, cable.sense, p);
+                if k < stack.len() {
+                    stack[k] = (c, cable.sense, p);
+                } else {
+                    if heap.is_empty() {
+                        heap.extend_from_slice(&stack);
+                    }
+                    heap.push((c, cable.sense, p));
+                }
                 k += 1;
             }
         }
-        let cables = &cables[..k];
+        let cables: &[(usize, f64, f64)] = if heap.is_empty() { &stack[..k] } else { &heap };
         let balance = |qc: f64| -> (f64, f64) {
             let (mut g, mut dg) = (0.0, 0.0);
             for &(c, s, p) in cables {
