@@ -317,7 +317,8 @@ pub fn augment_transmission(
 }
 
 /// The cable network with its plant candidates applied at their elements: a joint's friction
-/// (Coulomb, viscous, Stribeck) and inertia, a cable's law (exponential hardening or a stiffness
+/// (Coulomb, viscous, Stribeck, the dry laws also sharpened to stick; its dry friction as a
+/// pre-sliding Dahl state) and inertia, a cable's creep (a state), a position-driven motor's play, a cable's law (exponential hardening or a stiffness
 /// scale), damping and pretension, a routing's friction (its capstan exponent and the sharpness
 /// of its sign), a motor's friction (given, as at
 /// the joint's motor site, in N of cable at its capstan) and rotor inertia. Dry friction keeps
