@@ -24,7 +24,8 @@ TRAVELS = [0.002, 0.02, 0.2]
 
 def _synthetic(seed: int, loads=(0.01, 0.03, 0.05), n: int = 3000, dt: float = 1e-3):
     """Runs of an instrument that follows the drive model plus noise: a sine of the spindle,
-    the motor ahead of it, friction by direction, a load level per run."""
+    the motor ahead of it, friction by direction and varying with the angle, a load level per
+    run."""
     rng = np.random.default_rng(seed)
     runs = []
     for i, load in enumerate(loads):
@@ -33,7 +34,8 @@ def _synthetic(seed: int, loads=(0.01, 0.03, 0.05), n: int = 3000, dt: float = 1
         motor = th + 0.002 * np.sin(2 * np.pi * (0.5 + 0.2 * i) * t + 0.3)
         s = ref.states(motor, TRAVELS)
         tj = -load - 0.01 * th + 0.0005 * rng.standard_normal(n)
-        ts = 0.004 - 0.02 * th + s @ [-0.02, -0.015, -0.01] + (-1.05 + s @ [0.1, 0.05, 0.02]) * tj
+        friction = s @ [-0.02, -0.015, -0.01] + th * (s @ [0.008, -0.004, 0.003])
+        ts = 0.004 - 0.02 * th + friction + (-1.05 + s @ [0.1, 0.05, 0.02]) * tj
         ts = ts + 0.0005 * rng.standard_normal(n)
         ja = 0.4 + 0.95 * th + 0.3 * ts
         runs.append(np.column_stack([th, ts, motor, tj, ja]))
@@ -41,25 +43,59 @@ def _synthetic(seed: int, loads=(0.01, 0.03, 0.05), n: int = 3000, dt: float = 1
 
 
 @settings(max_examples=15, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), window=st.integers(1, 40))
-def test_drive_model_equals_the_numpy_reference(seed, window):
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    window=st.integers(1, 40),
+    angle=st.sampled_from(["default", "fitted", "off", "span"]),
+)
+def test_drive_model_equals_the_numpy_reference(seed, window, angle):
     runs = _synthetic(seed)
-    model = DriveModel.fit(runs, TRAVELS, dt=1e-3, window=window, warmup=0.2)
-    c, p = ref.fit(runs, TRAVELS, 1e-3, window, 0.2)
+    kw = {} if angle == "default" else {"angle_friction": (0.2, 0.7) if angle == "span" else angle}
+    model = DriveModel.fit(runs, TRAVELS, dt=1e-3, window=window, warmup=0.2, **kw)
+    span = {"off": None, "span": (0.2, 0.7)}.get(angle, "fitted")
+    c, p = ref.fit(runs, TRAVELS, 1e-3, window, 0.2, span=span)
+    span = ref.fitted_span(runs, 1e-3, 0.2) if span == "fitted" else span
+    assert model.angle_friction_span == (None if span is None else pytest.approx(span, abs=0))
     np.testing.assert_allclose(model.coefficients, c, rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(model.angle_coefficients, p, rtol=1e-6, atol=1e-9)
     est = model.estimate(runs[1][:, :3].copy(), dt=1e-3)
-    torque, angle = ref.estimate(c, p, runs[1], TRAVELS, 1e-3, window)
+    torque, angle_ref = ref.estimate(c, p, runs[1], TRAVELS, 1e-3, window, span)
     np.testing.assert_allclose(est.torque, torque, rtol=0, atol=1e-8)
-    np.testing.assert_allclose(est.angle, angle, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(est.angle, angle_ref, rtol=0, atol=1e-8)
     # one sample at a time, as a controller calls it, gives the same numbers
     obs = model.observer(dt=1e-3)
     for k in range(0, 50):
         sample = obs.step(*runs[1][k, :3])
         assert sample.torque == est.torque[k] and sample.angle == est.angle[k]
-    # the model recovers the jaw torque it was built on, to the noise's order
-    err = est.torque[500:] - runs[1][500:, 3]
-    assert np.sqrt(np.mean(err**2)) < 2e-3
+    # the model recovers the jaw torque it was built on, to the noise's order; without the
+    # angle-dependent friction the instrument's is left in the estimate
+    rmse = np.sqrt(np.mean((est.torque[500:] - runs[1][500:, 3]) ** 2))
+    if angle in ("default", "fitted"):
+        assert rmse < 1e-3
+    elif angle == "off":
+        assert rmse > 1.5e-3
+
+
+def test_angle_friction_options_are_checked():
+    runs = _synthetic(4)
+    for bad in [(0.5, 0.5), (0.7, 0.2), (np.nan, 1.0), (0.0, np.inf)]:
+        with pytest.raises(ParameterError if np.isfinite(bad).all() else NotFiniteError):
+            DriveModel.fit(runs, TRAVELS, warmup=0.2, angle_friction=bad)
+    with pytest.raises(ParameterError, match="angle_friction"):
+        DriveModel.fit(runs, TRAVELS, warmup=0.2, angle_friction="linear")
+    with pytest.raises(ShapeError):
+        DriveModel.fit(runs, TRAVELS, warmup=0.2, angle_friction=np.zeros(3))
+    # an array span equals the tuple; the estimate counts the samples beyond it as outside
+    a = DriveModel.fit(runs, TRAVELS, warmup=0.2, angle_friction=np.array([0.2, 0.7]))
+    b = DriveModel.fit(runs, TRAVELS, warmup=0.2, angle_friction=(0.2, 0.7))
+    assert a.coefficients == b.coefficients and a.angle_friction_span == (0.2, 0.7)
+    th = runs[1][:, 0]
+    est = a.estimate(runs[1][:, :3].copy())
+    margin = 0.05 * 0.5  # the core's SPAN_MARGIN of the span's width
+    beyond = np.mean((th < 0.2 - margin) | (th > 0.7 + margin))
+    # (the warm-up's first samples may also leave the training ranges of the velocity)
+    assert beyond - 1e-12 <= est.outside_share <= beyond + 200 / len(th) and beyond > 0.3
+    assert DriveModel.fit(runs, TRAVELS, warmup=0.2, angle_friction="off").angle_friction_span is None
 
 
 def test_drive_model_refuses_bad_input_and_recalibrates_an_offset():

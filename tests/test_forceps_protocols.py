@@ -5,6 +5,7 @@ in CI) the spindle protocol from the CLI."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -22,26 +23,38 @@ def _run(name: str, rows: int = 1200) -> dv.BenchRun:
     return dv.BenchRun(name, Path(name), 1e-3, np.zeros((rows, 5)), np.zeros(rows), None, None)
 
 
-@settings(max_examples=60, deadline=None)
-@given(names=st.lists(st.text(alphabet="0123456789ab", min_size=1, max_size=4), max_size=8, unique=True))
-def test_the_calibration_load_step_is_00_and_03_or_a_data_error(names):
+@settings(max_examples=200, deadline=None)
+@given(names=st.lists(st.text(alphabet="0123456789ab", min_size=1, max_size=4), max_size=10, unique=True))
+def test_the_calibration_load_step_spans_the_loads_or_is_a_data_error(names):
     runs = [_run(n) for n in names]
-    for width in sorted({len(n) for n in names if n.isdigit()}):
-        light, heavy = "0" * width, "0" * (width - 1) + "3"
-        if light in names and heavy in names:
-            got = [r.name for r in pr.calibration_runs(runs)]
-            assert got[:2] == [light, heavy]
-            # and the same load step at the fastest motion (the largest X of the names 0…0XY)
-            head = "0" * (width - 2)
-            xs = [
-                n[-2] for n in names if width >= 2 and len(n) == width and n.isdigit() and n.startswith(head)
-            ]
-            top = max(xs, default="0")
-            fast = [head + top + "0", head + top + "3"]
-            want = fast if top != "0" and all(f in names for f in fast) else []
-            assert got[2:] == want
-            return
-    with pytest.raises(DataError, match="00 and 03"):
+    digits = [n for n in names if n.isdigit()]
+    for width in sorted({len(n) for n in digits}):
+        same = [n for n in digits if len(n) == width]
+        head = "0" * (width - 1)
+        loads = [n[-1] for n in same if n.startswith(head)]
+        if head + "0" not in names or max(loads) == "0":
+            continue
+        heavy = max(loads)
+        got = [r.name for r in pr.calibration_runs(runs)]
+        # the lightest and the heaviest load at the slowest motion: nothing heavier at X = 0
+        assert got[:2] == [head + "0", head + heavy]
+        assert all(n[-1] <= heavy for n in same if n.startswith(head))
+        want: list[str] = []
+        if width >= 2:
+            # the same loads at the fastest motion (the largest X of the names 0…0XY)
+            lead = "0" * (width - 2)
+            top = max(n[-2] for n in same if n.startswith(lead))
+            fast = [lead + top + "0", lead + top + heavy]
+            want += fast if top != "0" and all(f in names for f in fast) else []
+        if width == 3:
+            # and the load step at the last jaw stopping position
+            last = max(n[0] for n in same)
+            stop = [last + "00", last + "0" + heavy]
+            want += stop if last != "0" and all(f in names for f in stop) else []
+        assert got[2:] == want
+        assert len(set(got)) == len(got)
+        return
+    with pytest.raises(DataError, match="lightest and the heaviest load"):
         pr.calibration_runs(runs)
 
 
@@ -110,3 +123,26 @@ def test_the_spindle_protocol_on_the_bench_from_the_cli(tmp_path):
             assert s[c]["worst_run_mnm"] >= s[c]["rmse_mnm"]
     text = (out / "protocols.md").read_text(encoding="utf-8")
     assert text.count("| spindle |") == 4 and "O'Neill" in text
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    values=st.lists(st.floats(0.5, 50.0), min_size=8, max_size=8),
+    nan_at=st.one_of(st.none(), st.integers(0, 7)),
+)
+def test_the_cross_validation_chooses_by_both_recordings(values, nan_at):
+    """The chosen (method, share) has the least geometric mean over the recordings of the
+    all-pairs criterion; a recording without pairs (NaN) does not count."""
+    keys = [("offset", None), ("prior", 16.0), ("prior", 64.0), ("prior", 256.0)]
+    rows, overall = [], {}
+    for i, (key, recording) in enumerate((k, r) for r in ("documented", "load step") for k in keys):
+        v = math.nan if i == nan_at else values[i]
+        group = pr.CvGroup(v, v, 0, 1)
+        rows.append(pr.CvRow(key[0], key[1], recording, group, group))
+        if math.isfinite(v):
+            overall.setdefault(key, []).append(v)
+    want = min(keys, key=lambda k: math.exp(np.mean(np.log(overall[k]))))
+    assert pr._chosen(rows) == want
+    table = pr.cv_markdown(rows)
+    marked = [line for line in table.splitlines() if "(chosen)" in line]
+    assert marked and all(f"| {want[0]} **(chosen)** |" in line for line in marked)

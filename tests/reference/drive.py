@@ -1,7 +1,8 @@
 """NumPy reference of the drive model (``cablekit.DriveModel``, issue #22 §3), written from its
 equations: the Maxwell-slip direction states as relaxations toward ``sgn Δφ``, the causal
-velocity by array indexing, the forward model fitted by ``numpy.linalg.lstsq`` on the full
-design (not streamed normal equations), the estimate by inverting it."""
+velocity by array indexing, the angle-dependent friction ``eᵢ·clip(θ, span)·σᵢ`` (issue #37),
+the forward model fitted by ``numpy.linalg.lstsq`` on the full design (not streamed normal
+equations), the estimate by inverting it."""
 
 from __future__ import annotations
 
@@ -28,9 +29,23 @@ def velocity(angle, dt, window):
     return w
 
 
-def fit(runs, travels, dt, window, warmup, weights=None):
+def fitted_span(runs, dt, warmup, weights=None):
+    """The range of the spindle angle over the fitted samples (after the warm-up, weight > 0)."""
+    k = int(np.ceil(warmup / dt))
+    kept = [
+        r[k:, 0] if weights is None else r[k:, 0][np.asarray(weights[i])[k:] > 0] for i, r in enumerate(runs)
+    ]
+    th = np.concatenate(kept)
+    return float(th.min()), float(th.max())
+
+
+def fit(runs, travels, dt, window, warmup, weights=None, span="fitted"):
     """``(coefficients, angle coefficients)`` from ``(T, 5)`` runs; ``weights``: per run an array
-    of sample weights (weighted least squares: each row scaled by the weight's square root)."""
+    of sample weights (weighted least squares: each row scaled by the weight's square root);
+    ``span``: ``"fitted"`` (the fitted samples' angle range), ``None`` (no angle-dependent
+    friction) or ``(lo, hi)``."""
+    if span == "fitted":
+        span = fitted_span(runs, dt, warmup, weights)
     rows, ys, arows, ays = [], [], [], []
     for i, r in enumerate(runs):
         sw = np.ones(len(r)) if weights is None else np.sqrt(np.asarray(weights[i], dtype=float))
@@ -38,7 +53,8 @@ def fit(runs, travels, dt, window, warmup, weights=None):
         s = states(motor, travels)
         w = velocity(th, dt, window)
         k = int(np.ceil(warmup / dt))
-        a = np.column_stack([np.ones_like(th), th, w, s, tj, s * tj[:, None]])
+        angle = [] if span is None else [np.clip(th, *span)[:, None] * s]
+        a = np.column_stack([np.ones_like(th), th, w, s, *angle, tj, s * tj[:, None]])
         rows.append((a * sw[:, None])[k:])
         ys.append((ts * sw)[k:])
         arows.append((np.column_stack([np.ones_like(th), th, ts]) * sw[:, None])[k:])
@@ -48,11 +64,16 @@ def fit(runs, travels, dt, window, warmup, weights=None):
     return c, p
 
 
-def estimate(c, p, run, travels, dt, window):
+def estimate(c, p, run, travels, dt, window, span=None):
+    """Jaw torque and angle; ``span`` as the fit's (``None``: no angle-dependent friction)."""
     th, ts, motor = run[:, 0], run[:, 1], run[:, 2]
     m = len(travels)
     s = states(motor, travels)
     w = velocity(th, dt, window)
     rest = c[0] + c[1] * th + c[2] * w + s @ c[3 : 3 + m]
-    gain = c[3 + m] + s @ c[4 + m :]
+    r = 3 + m
+    if span is not None:
+        rest = rest + np.clip(th, *span) * (s @ c[r : r + m])
+        r += m
+    gain = c[r] + s @ c[r + 1 :]
     return (ts - rest) / gain, p[0] + p[1] * th + p[2] * ts

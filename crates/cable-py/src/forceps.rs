@@ -549,14 +549,42 @@ fn run_weights(
         .collect()
 }
 
+/// `DriveModel.fit`'s `angle_friction`: `None` (the core's default), `"fitted"`, `"off"` or a
+/// span `(lo, hi)` in rad.
+fn angle_friction(obj: Option<&Bound<'_, PyAny>>) -> PyResult<drive::AngleFriction> {
+    let Some(obj) = obj else {
+        return Ok(drive::AngleFriction::default());
+    };
+    if let Ok(name) = obj.extract::<String>() {
+        return match name.as_str() {
+            "fitted" => Ok(drive::AngleFriction::FittedRange),
+            "off" => Ok(drive::AngleFriction::Off),
+            _ => Err(core_error(cable_core::CableError::InvalidOption {
+                name: "angle_friction".into(),
+                value: name,
+                allowed: "'fitted', 'off' or a span (lo, hi) in rad".into(),
+            })),
+        };
+    }
+    // a (lo, hi) pair of numbers, or a (2,) float64 array
+    if let Ok((lo, hi)) = obj.extract::<(f64, f64)>() {
+        return Ok(drive::AngleFriction::Span([lo, hi]));
+    }
+    let span = vector(obj, "angle_friction", 2)?;
+    Ok(drive::AngleFriction::Span([span[0], span[1]]))
+}
+
 #[pymethods]
 impl DriveModel {
     /// Fits on `runs` (a list of `(T, 5)` arrays) with Maxwell-slip element `travels` (rad
     /// of motor angle), a causal velocity over `window` samples, skipping `warmup` s per run;
     /// `weights` (optional): one `(T,)` array of sample weights ≥ 0 per run (0 leaves a sample
-    /// out of the fit, 2 counts it twice).
+    /// out of the fit, 2 counts it twice); `angle_friction`: the friction's dependence on the
+    /// spindle angle — `"fitted"` (the default: held inside the fitted samples' range), `"off"`,
+    /// or a span `(lo, hi)` in rad to hold it in (a calibration recording's range).
     #[staticmethod]
-    #[pyo3(signature = (runs, travels, *, dt = 1e-3, window = 20, warmup = 1.0, weights = None))]
+    #[pyo3(signature = (runs, travels, *, dt = 1e-3, window = 20, warmup = 1.0, weights = None, angle_friction = None))]
+    #[allow(clippy::too_many_arguments)]
     fn fit(
         py: Python<'_>,
         runs: Vec<Bound<'_, PyAny>>,
@@ -565,7 +593,9 @@ impl DriveModel {
         window: usize,
         warmup: f64,
         weights: Option<Vec<Bound<'_, PyAny>>>,
+        angle_friction: Option<Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let angle = self::angle_friction(angle_friction.as_ref())?;
         let data = runs
             .iter()
             .enumerate()
@@ -577,12 +607,13 @@ impl DriveModel {
                 .as_ref()
                 .map(|ws| ws.iter().map(Vec::as_slice).collect());
             guarded(|| {
-                drive::DriveModel::fit_weighted(
+                drive::DriveModel::fit_with(
                     &drive_runs(&data, dt),
                     views.as_deref(),
                     &travels,
                     window,
                     warmup,
+                    angle,
                 )
             })
         })?;
@@ -641,10 +672,15 @@ impl DriveModel {
         })
     }
 
-    /// `[c₀, c_θ, c_ω, a₁..a_m, g, b₁..b_m]`.
+    /// `[c₀, c_θ, c_ω, a₁..a_m, (e₁..e_m,) g, b₁..b_m]` (the `eᵢ` with angle-dependent friction).
     #[getter]
     fn coefficients(&self) -> Vec<f64> {
         self.inner.coefficients().to_vec()
+    }
+    /// The span `(lo, hi)` (rad) of the angle-dependent friction, `None` when it is off.
+    #[getter]
+    fn angle_friction_span(&self) -> Option<(f64, f64)> {
+        self.inner.angle_friction_span().map(|s| (s[0], s[1]))
     }
     /// `[p₀, p₁, p₂]` of the jaw angle.
     #[getter]

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from cablekit.cli._options import outputs
+from cablekit.forceps.calibrate import DEFAULT_SHARE
 from cablekit.forceps.experiments import (
     ESTIMATORS,
     GOAL_RMSE,
@@ -405,7 +406,8 @@ def add_parser(sub: Any) -> None:
         nargs="+",
         metavar="RUN",
         help="runs of the new instrument to calibrate on: its load step (00 and 03: the slowest motion at "
-        "the lightest and the fourth load level) and, if recorded, the same at the fastest motion (40, 43)",
+        "the lightest and the heaviest load) and, if recorded, the same at the fastest motion (40, 43); "
+        "at a wrist posture, the load step at the jaw's first and last stopping positions (000 003 400 403)",
     )
     d.add_argument(
         "--calibration",
@@ -418,7 +420,8 @@ def add_parser(sub: Any) -> None:
         "--share",
         type=float,
         default=None,
-        help="prior: the calibration runs' weight as a multiple of the training runs' (default 64)",
+        help="prior: the calibration runs' weight as a multiple of the training runs' "
+        f"(default {DEFAULT_SHARE:g}, cross-validated)",
     )
     d.add_argument(
         "--accept-flagged",

@@ -59,8 +59,10 @@ def load_bench_run(
     (N), ``tau_load`` (N·m) and the raw SI signals ``spindle_angle``, ``spindle_torque``,
     ``jaw_angle``, ``jaw_torque``, ``motor_current`` (back-end, A). ``jaw_reference`` (rad, raw
     encoder angle) is the jaw angle taken as ``theta = 0``; by default the run's first sample.
-    The spindle encoder is zeroed at the start of every run by the bench; the jaw encoder is
-    not, so one reference for all runs keeps their jaw angles comparable. ``posture`` (the
+    ``x_m`` is the spindle's travel from the run's first sample (the encoder's zero is the
+    bench's: ``tool4_load_sweep``'s runs start at 0, the paper's sweep's at 60°, and a wrist
+    folder's stops share one frame, each stop's runs starting 30° further); the jaw encoder is
+    not zeroed either, so one reference for all runs keeps their jaw angles comparable. ``posture`` (the
     folder's, :func:`cablekit.forceps.posture.folder_posture`) becomes the run's attributes, with
     the jaw stopping position of a ``ZXY`` name."""
     raw = read_raw(path)

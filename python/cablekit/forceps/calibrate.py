@@ -2,9 +2,10 @@
 calibration recording of it, and the calibration's own check (issue #37 §2).
 
 The procedure a user follows (docs/forceps.md, *A new instrument*): record on the new instrument
-the **load step** — the slowest motion at the lightest load and at the fourth load level (the
+the **load step** — the slowest motion at the lightest and at the heaviest load it will see (the
 bench's runs ``00`` and ``03``) — and, if the bench allows, the same step at the fastest motion
-(``40`` and ``43``); then
+(``40`` and ``43``); at a wrist posture, the load step at the jaw's first and last stopping
+positions (``000`` + ``003`` and, e.g., ``400`` + ``403``); then
 
 ```bash
 cablekit forceps davinci TRAIN_DIR --calibrate-on NEW/00.TXT.gz NEW/03.TXT.gz [NEW/40... NEW/43...] --test NEW
@@ -18,7 +19,9 @@ docs/forceps.md):
   calibration runs, the calibration runs weighted to ``share`` times the training runs' total
   weight — a least-squares fit with the training instrument as its prior. Every coefficient may
   move (offset, transmission ratio, friction, elastic return), as far as the calibration's
-  evidence outweighs the prior;
+  evidence outweighs the prior; the physics estimator's angle-dependent friction is held inside
+  the spindle angles the calibration runs cover (the training instrument's angles are in another
+  frame);
 * ``refit``: the estimator fitted on the calibration runs alone (needs two load levels; no prior);
 * ``offset`` and ``offset + friction``: the training coefficients with the offsets (and a common
   friction scale) re-identified — the defaults of earlier versions.
@@ -54,7 +57,7 @@ METHODS = ("prior", "refit", "offset", "offset + friction")
 #: chosen by cross-validation over the pairs of ../shared (docs/forceps.md)
 DEFAULT_METHOD = "prior"
 #: the calibration runs' total weight as a multiple of the training runs' (cross-validated)
-DEFAULT_SHARE = 64.0
+DEFAULT_SHARE = 256.0
 #: the check's limits: the estimate's correlation with the measured jaw torque on its own
 #: calibration runs, as a fraction of its correlation on the training runs (and always > 0), and
 #: the RMSE (own or cross-predicted) as a multiple of the training instrument's own residual
@@ -65,9 +68,10 @@ MAX_RMSE_FACTOR = 3.0
 MAX_REPEAT = 8
 
 RECORD = (
-    "record the load step on the new instrument — the slowest motion at the lightest load and at "
-    "the fourth load level (the bench's runs 00 and 03) — and, if the bench allows, the same at the "
-    "fastest motion (40 and 43); calibrate on all of them"
+    "record the load step on the new instrument — the slowest motion at the lightest and at the "
+    "heaviest load it will see (the bench's runs 00 and 03) — and, if the bench allows, the same at the "
+    "fastest motion (40 and 43); at a wrist posture, the load step at the jaw's first and last "
+    "stopping positions (000 + 003 and, e.g., 400 + 403); calibrate on all of them"
 )
 
 
@@ -136,7 +140,12 @@ def _weighted(
     n_cal = sum(len(r.jaw_torque) - _skip(r) for r in cal)
     w = share * n_train / max(n_cal, 1)
     if isinstance(base, Physics):
-        return Physics.fit([*train, *cal], base.friction, weights=[1.0] * len(train) + [w] * len(cal))
+        # the friction's angle dependence held inside the angles the recording covers: the
+        # training instrument's angles are another instrument's (or posture's) frame
+        angles = np.concatenate([r.signals[_skip(r) :, 0] for r in cal])
+        span = (float(angles.min()), float(angles.max())) if np.ptp(angles) > 0 else None
+        weights = [1.0] * len(train) + [w] * len(cal)
+        return Physics.fit([*train, *cal], base.friction, weights=weights, span=span)
     # estimators without sample weights (the baselines): the calibration runs repeated, at most
     # MAX_REPEAT times (a network's training time grows with the rows)
     return fit([*train, *list(cal) * max(1, min(MAX_REPEAT, round(w)))])

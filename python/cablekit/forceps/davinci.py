@@ -184,10 +184,16 @@ class Physics(Estimator):
     @classmethod
     @checked
     def fit(
-        cls, runs: Sequence[BenchRun], friction: bool = False, weights: Sequence[F64 | float] | None = None
+        cls,
+        runs: Sequence[BenchRun],
+        friction: bool = False,
+        weights: Sequence[F64 | float] | None = None,
+        span: tuple[float, float] | None = None,
     ) -> Physics:
         """Fitted on ``runs``; ``weights``: per run a weight or an array of sample weights (≥ 0;
-        0 leaves a sample out of the fit)."""
+        0 leaves a sample out of the fit); ``span``: the spindle angles (rad) the friction's angle
+        dependence is held in (by default the fitted samples' range; a new instrument's
+        calibration recording's range when it is fitted beside the training runs)."""
         dts = {round(r.dt, 9) for r in runs}
         if len(dts) != 1:
             raise DataError(f"training runs have different sample periods {sorted(dts)}")
@@ -206,6 +212,7 @@ class Physics(Estimator):
             window=VELOCITY_WINDOW,
             warmup=WARMUP_S,
             weights=per_sample,
+            angle_friction=span,
         )
         return cls(model, friction)
 
@@ -459,7 +466,9 @@ def new_instrument(
         if s.outside_share > OUTSIDE_WARN:
             msg = (
                 f"{name}: up to {100 * s.outside_share:.0f} % of a test run's samples lie outside the "
-                "training ranges (spindle angle, torque or velocity): the estimate extrapolates there"
+                "training ranges (spindle angle, torque or velocity) or, for the physics estimator, the "
+                "spindle angles its calibration recording covered: the estimate extrapolates there "
+                "(calibrate on the load step at the jaw's other stopping positions too)"
             )
             res.warnings.append(msg)
             warnings.warn(msg, stacklevel=2)

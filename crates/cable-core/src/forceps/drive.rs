@@ -5,8 +5,9 @@
 //! friction of the transmission, its elastic return and its drag:
 //!
 //! ```text
-//! τ_s = c₀ + c_θ·θ_s + c_ω·ω_s + Σᵢ aᵢ·σᵢ + (g + Σᵢ bᵢ·σᵢ)·τ_j
+//! τ_s = c₀ + c_θ·θ_s + c_ω·ω_s + Σᵢ (aᵢ + eᵢ·θ̃_s)·σᵢ + (g + Σᵢ bᵢ·σᵢ)·τ_j
 //! σᵢ ← sgn(Δφ)·(1 − (1 − σᵢ·sgn Δφ)·e^{−|Δφ|/δᵢ})           Maxwell-slip element i
+//! θ̃_s = clamp(θ_s, span)                                    angle-dependent friction
 //! ```
 //!
 //! `σᵢ` are rate-independent direction states of a Maxwell-slip friction model (each element
@@ -16,6 +17,16 @@
 //! are the elements' friction torques, `g` the transmission ratio, `bᵢ` the load-dependent
 //! (capstan) part of the friction, `c_θ` an elastic return, `c_ω` drag, `c₀` zeros and preload.
 //! `ω_s` is a causal finite difference over a window.
+//!
+//! **Angle-dependent friction** ([`AngleFriction`], on by default): the friction torque of each
+//! element varies linearly with the spindle's angle, `aᵢ + eᵢ·θ̃_s`. The cables' wrap over the
+//! spindle and the wrist pulleys and the pair's tension sum (the routing is not length-preserving,
+//! so the elastic pretension changes with the configuration) both change with the angle, and
+//! capstan friction is proportional to wrap × tension; to first order that is linear in `θ_s`.
+//! The angle is held at the ends of `span` (the range the fit saw, or a calibration
+//! recording's): outside it the friction's angle dependence is not extrapolated, and samples
+//! beyond it by more than [`SPAN_MARGIN`] of its width count as outside the training ranges. Chosen by cross-validation over every pair of
+//! transmissions, sessions and wrist postures of the da Vinci bench (docs/forceps.md).
 //!
 //! **Fit** ([`DriveModel::fit`]): the forward model is linear in its coefficients, so a least
 //! squares fit of `τ_s` on the training runs (streamed normal equations on scaled columns,
@@ -37,6 +48,10 @@ use crate::error::{check, CableError, Result};
 pub const MAX_ELEMENTS: usize = 8;
 /// Longest velocity window (samples).
 pub const MAX_WINDOW: usize = 10_000;
+/// A sample's angle counts as outside the angle-dependent friction's span beyond this share of
+/// the span's width on either side (a run's sine reaching a little further than the
+/// calibration's is not an extrapolation worth a warning).
+pub const SPAN_MARGIN: f64 = 0.05;
 
 /// One run of drive-side signals (SI: rad, N·m), sampled every `dt` s, with the jaw's torque
 /// and angle where known (training and calibration runs).
@@ -100,14 +115,30 @@ pub enum Recalibrate {
     OffsetAndFriction,
 }
 
+/// Whether and over which spindle angles the friction torques depend on the angle (see the
+/// module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum AngleFriction {
+    /// Friction torques `aᵢ` independent of the angle (the model of issue #22).
+    Off,
+    /// `aᵢ + eᵢ·θ̃_s`, the angle held inside the range of the fitted samples (the default).
+    #[default]
+    FittedRange,
+    /// `aᵢ + eᵢ·θ̃_s`, the angle held inside `[lo, hi]` (rad), e.g. the range of a new
+    /// instrument's calibration recording when it is fitted beside the training runs.
+    Span([f64; 2]),
+}
+
 /// The fitted drive model; see the module docs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DriveModel {
     travels: Vec<f64>,
     window: usize,
     warmup: f64,
-    /// `[c₀, c_θ, c_ω, a₁..a_m, g, b₁..b_m]`.
+    /// `[c₀, c_θ, c_ω, a₁..a_m, (e₁..e_m,) g, b₁..b_m]` (`eᵢ` with angle-dependent friction).
     coef: Vec<f64>,
+    /// The angle range `[lo, hi]` of the angle-dependent friction, `None` without it.
+    span: Option<[f64; 2]>,
     /// `[p₀, p₁, p₂]` of the jaw angle.
     angle: [f64; 3],
     /// Training ranges `[min, max]` of `θ_s`, `τ_s`, `ω_s`.
@@ -165,14 +196,40 @@ impl Features {
 }
 
 /// The regressors of the forward model at one sample, split into the part without and the
-/// part multiplying the jaw torque: `τ_s = rest·c[..3+m] + τ_j·(gain·c[3+m..])`.
-fn regressors(theta: f64, omega: f64, states: &[f64], rest: &mut Vec<f64>, gain: &mut Vec<f64>) {
+/// part multiplying the jaw torque: `τ_s = rest·c[..r] + τ_j·(gain·c[r..])`, with the
+/// angle-dependent friction's `θ̃_s·σᵢ` in `rest` when `span` is given.
+fn regressors(
+    theta: f64,
+    omega: f64,
+    states: &[f64],
+    span: Option<[f64; 2]>,
+    rest: &mut Vec<f64>,
+    gain: &mut Vec<f64>,
+) {
     rest.clear();
     gain.clear();
     rest.extend([1.0, theta, omega]);
     rest.extend_from_slice(states);
+    if let Some(sp) = span {
+        let held = theta.clamp(sp[0], sp[1]);
+        rest.extend(states.iter().map(|s| held * s));
+    }
     gain.push(1.0);
     gain.extend_from_slice(states);
+}
+
+/// The range of the spindle angle over the samples a fit uses (after the warm-up, weight > 0).
+fn fitted_angle_range(runs: &[DriveRun<'_>], weights: Option<&[&[f64]]>, warmup: f64) -> [f64; 2] {
+    let mut range = [f64::INFINITY, f64::NEG_INFINITY];
+    for (r, run) in runs.iter().enumerate() {
+        let skip = (warmup / run.dt).ceil() as usize;
+        for (k, &th) in run.spindle_angle.iter().enumerate().skip(skip) {
+            if weights.is_none_or(|ws| ws[r][k] > 0.0) {
+                range = [range[0].min(th), range[1].max(th)];
+            }
+        }
+    }
+    range
 }
 
 impl DriveModel {
@@ -186,18 +243,38 @@ impl DriveModel {
         Self::fit_weighted(runs, None, travels, window, warmup)
     }
 
-    /// [`DriveModel::fit`] with a weight per sample of every run (`weights[r][k]` ≥ 0, finite;
-    /// 0 leaves a sample out of the fit but not out of the direction states): the runs of a new
-    /// instrument weighted against the training instrument's (in effect a prior toward the
-    /// training coefficients with the training design as its precision), or a sample-wise split
-    /// of the runs (a weight of 0 or 1 per sample). The
-    /// training ranges are those of the samples with a positive weight.
+    /// [`DriveModel::fit_with`] with the default [`AngleFriction`] (sample weights as there).
     pub fn fit_weighted(
         runs: &[DriveRun<'_>],
         weights: Option<&[&[f64]]>,
         travels: &[f64],
         window: usize,
         warmup: f64,
+    ) -> Result<Self> {
+        Self::fit_with(
+            runs,
+            weights,
+            travels,
+            window,
+            warmup,
+            AngleFriction::default(),
+        )
+    }
+
+    /// [`DriveModel::fit`] with a weight per sample of every run (`weights[r][k]` ≥ 0, finite;
+    /// 0 leaves a sample out of the fit but not out of the direction states): the runs of a new
+    /// instrument weighted against the training instrument's (in effect a prior toward the
+    /// training coefficients with the training design as its precision), or a sample-wise split
+    /// of the runs (a weight of 0 or 1 per sample); and the friction's dependence on the angle
+    /// (`angle`; a given span must be finite with `lo < hi`). The
+    /// training ranges are those of the samples with a positive weight.
+    pub fn fit_with(
+        runs: &[DriveRun<'_>],
+        weights: Option<&[&[f64]]>,
+        travels: &[f64],
+        window: usize,
+        warmup: f64,
+        angle: AngleFriction,
     ) -> Result<Self> {
         if let Some(ws) = weights {
             if ws.len() != runs.len() {
@@ -236,8 +313,28 @@ impl DriveModel {
             });
         }
         check::non_negative("warmup", warmup)?;
+        for (r, run) in runs.iter().enumerate() {
+            run.check(&format!("runs[{r}]"), true)?;
+        }
+        let span = match angle {
+            AngleFriction::Off => None,
+            AngleFriction::FittedRange => {
+                Some(fitted_angle_range(runs, weights, warmup)).filter(|s| s[0] < s[1])
+            }
+            AngleFriction::Span(sp) => {
+                check::all_finite("angle friction span", &sp, 2)?;
+                if sp[0] >= sp[1] {
+                    return Err(CableError::InvalidParameter {
+                        name: "angle friction span".into(),
+                        value: sp[1] - sp[0],
+                        requirement: "lo < hi (rad)",
+                    });
+                }
+                Some(sp)
+            }
+        };
         let m = travels.len();
-        let p = 4 + 2 * m;
+        let p = 4 + 2 * m + if span.is_some() { m } else { 0 };
         let mut ata = DMatrix::<f64>::zeros(p, p);
         let mut aty = DVector::<f64>::zeros(p);
         let mut angle_ata = DMatrix::<f64>::zeros(3, 3);
@@ -248,7 +345,6 @@ impl DriveModel {
         let mut row = vec![0.0; p];
         let (mut v, mut av) = (DVector::<f64>::zeros(p), DVector::<f64>::zeros(3));
         for (r, run) in runs.iter().enumerate() {
-            run.check(&format!("runs[{r}]"), true)?;
             let (tj, ja) = (run.jaw_torque.unwrap_or(&[]), run.jaw_angle.unwrap_or(&[]));
             let mut f = Features::new(travels, window, run.dt);
             let skip = (warmup / run.dt).ceil() as usize;
@@ -260,7 +356,7 @@ impl DriveModel {
                 if k < skip || wk == 0.0 {
                     continue;
                 }
-                regressors(th, w, &f.states, &mut rest, &mut gain);
+                regressors(th, w, &f.states, span, &mut rest, &mut gain);
                 row[..rest.len()].copy_from_slice(&rest);
                 for (j, g) in gain.iter().enumerate() {
                     row[rest.len() + j] = g * tj[k];
@@ -292,14 +388,37 @@ impl DriveModel {
             window,
             warmup,
             coef,
+            span,
             angle: [angle[0], angle[1], angle[2]],
             ranges,
         })
     }
 
-    /// Coefficients `[c₀, c_θ, c_ω, a₁..a_m, g, b₁..b_m]` (N·m, N·m/rad, N·m·s/rad, N·m…, –, –…).
+    /// Coefficients `[c₀, c_θ, c_ω, a₁..a_m, (e₁..e_m,) g, b₁..b_m]` (N·m, N·m/rad, N·m·s/rad,
+    /// N·m…, N·m/rad…, –, –…); the `eᵢ` of the angle-dependent friction only when it is on.
     pub fn coefficients(&self) -> &[f64] {
         &self.coef
+    }
+
+    /// The angle range `[lo, hi]` (rad) of the angle-dependent friction, `None` when it is off.
+    pub fn angle_friction_span(&self) -> Option<[f64; 2]> {
+        self.span
+    }
+
+    /// Number of coefficients of the part without the jaw torque (`c₀, c_θ, c_ω`, the friction).
+    fn rest_len(&self) -> usize {
+        let m = self.travels.len();
+        3 + m + if self.span.is_some() { m } else { 0 }
+    }
+
+    /// The friction torque at one sample: `Σᵢ (aᵢ + eᵢ·θ̃_s)·σᵢ`.
+    fn friction(&self, theta: f64, states: &[f64]) -> f64 {
+        let m = self.travels.len();
+        let a = dot(&self.coef[3..3 + m], states);
+        match self.span {
+            Some(sp) => a + theta.clamp(sp[0], sp[1]) * dot(&self.coef[3 + m..3 + 2 * m], states),
+            None => a,
+        }
     }
 
     /// Jaw angle coefficients `[p₀, p₁, p₂]` (rad, –, rad/(N·m)).
@@ -354,8 +473,7 @@ impl DriveModel {
     /// [`DriveModel::recalibrated`] on several runs of the new instrument at once (their
     /// samples after the warm-up pooled).
     pub fn recalibrated_on(&self, runs: &[DriveRun<'_>], what: Recalibrate) -> Result<Self> {
-        let m = self.travels.len();
-        let (c, g) = self.coef.split_at(3 + m);
+        let (c, g) = self.coef.split_at(self.rest_len());
         // residual of the drive torque without c₀ and with the friction split out:
         // τ_s − (c_θθ + c_ωω + gain·τ_j) = c₀ + α·Σaᵢσᵢ
         let (mut s00, mut s01, mut s11, mut y0, mut y1, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0usize);
@@ -377,7 +495,7 @@ impl DriveModel {
                     continue;
                 }
                 let s = &f.states;
-                let fric = dot(&c[3..], s);
+                let fric = self.friction(th, s);
                 let y = ts - c[1] * th - c[2] * w - (g[0] + dot(&g[1..], s)) * tj[k];
                 s00 += 1.0;
                 s01 += fric;
@@ -413,7 +531,7 @@ impl DriveModel {
                 let c0 = (s11 * y0 - s01 * y1) / det;
                 let alpha = (s00 * y1 - s01 * y0) / det;
                 me.coef[0] = c0;
-                for a in &mut me.coef[3..3 + m] {
+                for a in &mut me.coef[3..c.len()] {
                     *a *= alpha;
                 }
             }
@@ -439,7 +557,8 @@ pub struct JawSample {
     pub torque: f64,
     /// Estimated jaw angle (rad).
     pub angle: f64,
-    /// Whether the spindle angle, torque or velocity lies outside the training ranges.
+    /// Whether the spindle angle, torque or velocity lies outside the training ranges (or the
+    /// angle outside the angle-dependent friction's span).
     pub outside: bool,
 }
 
@@ -491,14 +610,18 @@ impl DriveObserver {
     fn step_unchecked(&mut self, th: f64, ts: f64, motor: f64) -> JawSample {
         let w = self.features.push(th, motor);
         let m = &self.model;
-        let (c, g) = m.coef.split_at(3 + m.travels.len());
+        let (c, g) = m.coef.split_at(m.rest_len());
         let s = &self.features.states;
-        let rest = c[0] + c[1] * th + c[2] * w + dot(&c[3..], s);
+        let rest = c[0] + c[1] * th + c[2] * w + m.friction(th, s);
         let gain = g[0] + dot(&g[1..], s);
         let outside = [th, ts, w]
             .iter()
             .zip(&m.ranges)
-            .any(|(v, r)| *v < r[0] || *v > r[1]);
+            .any(|(v, r)| *v < r[0] || *v > r[1])
+            || m.span.is_some_and(|sp| {
+                let margin = SPAN_MARGIN * (sp[1] - sp[0]);
+                th < sp[0] - margin || th > sp[1] + margin
+            });
         JawSample {
             torque: (ts - rest) / gain,
             angle: m.angle[0] + m.angle[1] * th + m.angle[2] * ts,
@@ -570,9 +693,19 @@ mod tests {
     /// estimate inverts it.
     type Signals = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
-    /// Runs of a synthetic instrument that follows the model with coefficients `truth`, plus
-    /// `ripple` N·m of a deterministic disturbance on the drive torque.
-    fn synthetic(travels: &[f64], truth: &[f64; 8], dt: f64, ripple: f64) -> Vec<Signals> {
+    /// Coefficients `[c₀, c_θ, c_ω, a₁, a₂, e₁, e₂, g, b₁, b₂]` of a two-element instrument.
+    type Truth = [f64; 10];
+
+    /// Runs of a synthetic instrument that follows the model with coefficients `truth` (its
+    /// angle-dependent friction held inside `span`), plus `ripple` N·m of a deterministic
+    /// disturbance on the drive torque.
+    fn synthetic(
+        travels: &[f64],
+        truth: &Truth,
+        span: [f64; 2],
+        dt: f64,
+        ripple: f64,
+    ) -> Vec<Signals> {
         let mut runs = Vec::new();
         for (freq, load) in [(0.2, 0.01), (0.4, 0.03), (0.3, 0.05)] {
             let n = 6000;
@@ -593,9 +726,13 @@ mod tests {
             for k in 0..n {
                 let w = f.push(th[k], motor[k]);
                 let s = &f.states;
-                let rest =
-                    truth[0] + truth[1] * th[k] + truth[2] * w + truth[3] * s[0] + truth[4] * s[1];
-                let gain = truth[5] + truth[6] * s[0] + truth[7] * s[1];
+                let held = th[k].clamp(span[0], span[1]);
+                let rest = truth[0]
+                    + truth[1] * th[k]
+                    + truth[2] * w
+                    + (truth[3] + truth[5] * held) * s[0]
+                    + (truth[4] + truth[6] * held) * s[1];
+                let gain = truth[7] + truth[8] * s[0] + truth[9] * s[1];
                 ts.push(rest + gain * tj[k] + ripple * (37.0 * k as f64 * dt + freq).sin());
             }
             let ja = ja
@@ -622,17 +759,30 @@ mod tests {
             .collect()
     }
 
+    const TRUTH: Truth = [
+        0.01, -0.02, 0.001, -0.04, -0.01, 0.012, -0.006, -1.05, 0.2, 0.05,
+    ];
+    /// Wider than the synthetic runs' angles (0..1 rad): nothing is held.
+    const WIDE: [f64; 2] = [-10.0, 10.0];
+
     #[test]
     fn the_fit_recovers_a_model_that_generated_the_data() {
         let travels = [0.002, 0.03];
-        let truth = [0.01, -0.02, 0.001, -0.04, -0.01, -1.05, 0.2, 0.05];
+        let truth = TRUTH;
         let dt = 1e-3;
-        let runs = synthetic(&travels, &truth, dt, 0.0);
+        let runs = synthetic(&travels, &truth, WIDE, dt, 0.0);
         let views = views(&runs, dt);
         let model = DriveModel::fit(&views, &travels, 20, 0.5).unwrap();
+        assert_eq!(model.coefficients().len(), 10);
         for (a, b) in model.coefficients().iter().zip(truth) {
             assert_relative_eq!(*a, b, epsilon = 1e-8, max_relative = 1e-6);
         }
+        // the span is the range of the fitted samples
+        let span = model.angle_friction_span().unwrap();
+        assert!(
+            span[0] < 0.01 && span[1] > 0.99 && span[1] <= 1.0,
+            "{span:?}"
+        );
         let (tau, angle, outside) = model.estimate(&views[1]).unwrap();
         for k in 600..tau.len() {
             assert_relative_eq!(tau[k], runs[1].3[k], epsilon = 1e-9);
@@ -661,16 +811,90 @@ mod tests {
         let re2 = model
             .recalibrated(&cal, Recalibrate::OffsetAndFriction)
             .unwrap();
+        // the common friction scale is 1 (the angle-dependent part scales with it)
         assert_relative_eq!(re2.coefficients()[3], truth[3], epsilon = 1e-6);
+        assert_relative_eq!(re2.coefficients()[5], truth[5], epsilon = 1e-6);
+        // a friction twice as strong at every angle: the scale finds 2 for both parts
+        let stronger: Vec<f64> = {
+            let mut f = Features::new(&travels, 20, dt);
+            (0..runs[2].0.len())
+                .map(|k| {
+                    f.push(runs[2].0[k], runs[2].2[k]);
+                    runs[2].1[k] + model.friction(runs[2].0[k], &f.states)
+                })
+                .collect()
+        };
+        cal.spindle_torque = &stronger;
+        let re3 = model
+            .recalibrated(&cal, Recalibrate::OffsetAndFriction)
+            .unwrap();
+        assert_relative_eq!(re3.coefficients()[4], 2.0 * truth[4], max_relative = 1e-6);
+        assert_relative_eq!(re3.coefficients()[6], 2.0 * truth[6], max_relative = 1e-6);
+    }
+
+    #[test]
+    fn angle_dependent_friction_is_held_outside_its_span_and_can_be_off() {
+        let travels = [0.002, 0.03];
+        let dt = 1e-3;
+        // an instrument whose friction stops changing beyond 0.2..0.7 rad
+        let span = [0.2, 0.7];
+        let runs = synthetic(&travels, &TRUTH, span, dt, 0.0);
+        let v = views(&runs, dt);
+        let model =
+            DriveModel::fit_with(&v, None, &travels, 20, 0.5, AngleFriction::Span(span)).unwrap();
+        for (a, b) in model.coefficients().iter().zip(TRUTH) {
+            assert_relative_eq!(*a, b, epsilon = 1e-8, max_relative = 1e-6);
+        }
+        let (tau, _, outside) = model.estimate(&v[0]).unwrap();
+        for k in 600..tau.len() {
+            assert_relative_eq!(tau[k], runs[0].3[k], epsilon = 1e-9);
+        }
+        // the samples beyond the span (and its margin) count as outside
+        let margin = SPAN_MARGIN * 0.5;
+        let beyond = runs[0]
+            .0
+            .iter()
+            .filter(|&&a| !(0.2 - margin..=0.7 + margin).contains(&a))
+            .count();
+        assert_relative_eq!(outside, beyond as f64 / tau.len() as f64, epsilon = 1e-12);
+        // extrapolated linearly instead (the fitted range, 0..1), the same data are not met
+        let linear = DriveModel::fit(&v, &travels, 20, 0.5).unwrap();
+        let (tau_lin, _, _) = linear.estimate(&v[0]).unwrap();
+        let worst = (600..tau.len())
+            .map(|k| (tau_lin[k] - runs[0].3[k]).abs())
+            .fold(0.0, f64::max);
+        assert!(worst > 1e-4, "{worst}");
+        // off: the issue-#22 model, 8 coefficients, exact on an instrument without it
+        let mut flat = TRUTH;
+        flat[5] = 0.0;
+        flat[6] = 0.0;
+        let runs = synthetic(&travels, &flat, WIDE, dt, 0.0);
+        let v = views(&runs, dt);
+        let off = DriveModel::fit_with(&v, None, &travels, 20, 0.5, AngleFriction::Off).unwrap();
+        assert_eq!(off.angle_friction_span(), None);
+        let expect = [&flat[..5], &flat[7..]].concat();
+        assert_eq!(off.coefficients().len(), expect.len());
+        for (a, b) in off.coefficients().iter().zip(expect) {
+            assert_relative_eq!(*a, b, epsilon = 1e-8, max_relative = 1e-6);
+        }
+        // bad spans are refused
+        for bad in [
+            [0.5, 0.5],
+            [0.7, 0.2],
+            [f64::NAN, 1.0],
+            [0.0, f64::INFINITY],
+        ] {
+            let r = DriveModel::fit_with(&v, None, &travels, 20, 0.5, AngleFriction::Span(bad));
+            assert!(r.is_err(), "{bad:?}");
+        }
     }
 
     #[test]
     fn weights_act_as_repeated_or_left_out_samples() {
         // with a disturbance the runs disagree, so every subset and weighting fits differently
         let travels = [0.002, 0.03];
-        let truth = [0.01, -0.02, 0.001, -0.04, -0.01, -1.05, 0.2, 0.05];
         let dt = 1e-3;
-        let runs = synthetic(&travels, &truth, dt, 2e-3);
+        let runs = synthetic(&travels, &TRUTH, WIDE, dt, 2e-3);
         let v = views(&runs, dt);
         let n = |r: usize| runs[r].0.len();
         let close = |a: &DriveModel, b: &DriveModel| {
