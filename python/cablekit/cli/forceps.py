@@ -321,7 +321,9 @@ def _protocols(args: argparse.Namespace) -> int:
         sections += [
             "## Across folders: another session, the other spindle, other postures",
             "Each cell: pooled RMSE / worst run after a 1 s warm-up per run. Calibrations on the scored "
-            "folder's calibration recording (its load step 00 + 03 and, where recorded, 40 + 43), never "
+            "folder's calibration recording (`calibration_runs`: the load step from the lightest to the "
+            "heaviest load at the slowest motion — 00 + 03, 00 + 09 on the paper's ten loads — and, where "
+            "recorded, the same at the fastest motion; in a wrist folder also at the last jaw stop), never "
             f"scored; prior: share {pr.DEFAULT_SHARE:g}.",
             pr.markdown(rows),
             ("Warnings:\n" + "\n".join(f"- {w}" for w in notes)) if notes else "No input left the ranges.",
