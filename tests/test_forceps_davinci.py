@@ -343,3 +343,39 @@ def test_recalibration_on_several_runs_pools_them():
     assert both.coefficients[0] == pytest.approx(0.5 * (lo + hi), abs=1e-9)
     with pytest.raises(ShapeError):
         model.recalibrated([])
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    span=st.one_of(
+        st.tuples(st.floats(), st.floats()),
+        st.none(),
+        st.text(max_size=6),
+        st.lists(st.floats(-2.0, 2.0), max_size=4),
+        st.integers(),
+    )
+)
+def test_the_physics_estimators_span_is_a_model_or_a_typed_error(span):
+    """``Physics.fit(span=...)``: a finite ``lo < hi`` gives a model holding the friction's angle
+    dependence there (a finite estimate); anything else is a typed error, never NaN."""
+    from cablekit.errors import CablekitError
+
+    runs = [
+        dv.BenchRun(f"0{i}", Path(f"0{i}"), 1e-3, r, np.zeros(len(r)), 0, i)
+        for i, r in enumerate(_synthetic(5))
+    ]
+    good = (
+        isinstance(span, tuple)
+        and all(math.isfinite(v) for v in span)
+        and span[0] < span[1]
+        and max(abs(v) for v in span) < 1e150
+    )
+    try:
+        est = dv.Physics.fit(runs, span=span)  # type: ignore[arg-type]
+    except (CablekitError, TypeError) as exc:
+        assert not good or isinstance(exc, CablekitError), exc
+        return
+    if span is not None:
+        assert est.model.angle_friction_span == pytest.approx(tuple(span))  # type: ignore[arg-type]
+    torque, _, _ = est.predict(runs[1])
+    assert np.isfinite(torque).all()
