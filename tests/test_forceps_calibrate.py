@@ -169,8 +169,15 @@ def test_a_wrist_posture_needs_its_recording_at_two_jaw_stops():
     one_stop = cal[:2]
     # scored: the runs at the stops neither recording saw but the last's neighbour
     scored = [r for r in roll if r.name[0] == "3"]
-    two = dv.score(cb.calibrate(dv.Physics.fit, train, cal).estimator, scored)
-    one = dv.score(cb.calibrate(dv.Physics.fit, train, one_stop).estimator, scored)
+    c_two, c_one = cb.calibrate(dv.Physics.fit, train, cal), cb.calibrate(dv.Physics.fit, train, one_stop)
+    two, one = dv.score(c_two.estimator, scored), dv.score(c_one.estimator, scored)
+    # the check: one stop is flagged with what to record; the documented recording is complete,
+    # and where it is flagged the message says the estimator, not the recording, falls short
+    assert not c_one.check.ok and "one jaw stop" in c_one.check.message()
+    assert "last stopping positions" in c_one.check.message() and not c_one.check.complete
+    assert c_two.check.complete and "one jaw stop" not in c_two.check.message()
+    if not c_two.check.ok:
+        assert "holds what the protocol asks for" in c_two.check.message()
     # (what remains outside with two stops is the heaviest load's torque, beyond the recording's)
     assert one.outside_share > 0.9 and two.outside_share < 0.3
     assert two.rmse_mnm < 0.7 * one.rmse_mnm

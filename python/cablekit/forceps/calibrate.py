@@ -86,6 +86,10 @@ class CalibrationCheck:
     cross_rmse_mnm: float | None
     training_rmse_mnm: float
     problems: list[str] = field(default_factory=list)
+    #: whether the recording holds what the protocol asks for (two load levels and, for runs
+    #: named by jaw stop, two stops): a flag then says the estimator fits this instrument less
+    #: well than its training one, not that the recording is short
+    complete: bool = False
 
     @property
     def ok(self) -> bool:
@@ -101,7 +105,19 @@ class CalibrationCheck:
         )
         if self.ok:
             return head + " — passes"
-        return head + " — FLAGGED: " + "; ".join(self.problems) + f". What to do: {RECORD}."
+        flagged = head + " — FLAGGED: " + "; ".join(self.problems)
+        if not self.correlation > 0:
+            return flagged + (
+                ". What to do: check the jaw torque sensor's sign and wiring and the run files (the "
+                f"estimate runs against the measured torque); then {RECORD}."
+            )
+        if self.complete:
+            return flagged + (
+                ". The recording holds what the protocol asks for: the estimator does not fit this "
+                "instrument (or posture) as well as its training one — expect held-out errors near the "
+                "cross-predicted figure, not the training fit's"
+            )
+        return flagged + f". What to do: {RECORD}."
 
 
 @dataclass(frozen=True)
@@ -123,6 +139,17 @@ def _fit(est: Estimator, runs: Sequence[BenchRun]) -> tuple[float, float]:
     rmse = float(np.sqrt(np.mean((pred - meas) ** 2))) * 1e3
     corr = float(np.corrcoef(pred, meas)[0, 1]) if pred.std() > 0 and meas.std() > 0 else 0.0
     return rmse, corr
+
+
+def _stops(runs: Sequence[BenchRun]) -> set[str]:
+    """The jaw stops of runs named ``ZXY``."""
+    return {r.name[0] for r in runs if r.name.isdigit() and len(r.name) == 3}
+
+
+def _complete(runs: Sequence[BenchRun]) -> bool:
+    """Two load levels and, where the runs are named by jaw stop, two stops."""
+    stops = _stops(runs)
+    return len(_loads(runs)) >= 2 and (not stops or len(stops) >= 2)
 
 
 def _loads(runs: Sequence[BenchRun]) -> set[str]:
@@ -227,5 +254,10 @@ def calibrate(
         )
     if len(_loads(cal)) < 2:
         problems.append("the calibration holds one load level only")
-    check = CalibrationCheck([r.name for r in cal], own, corr, cross, trained, problems)
+    if len(_stops(cal)) == 1:
+        problems.append(
+            "the calibration holds one jaw stop only (the friction changes with the spindle angle the "
+            "stop sets: runs at other stops are estimated outside the recording's angles)"
+        )
+    check = CalibrationCheck([r.name for r in cal], own, corr, cross, trained, problems, _complete(cal))
     return Calibrated(est, method, float(share), check)
