@@ -25,8 +25,9 @@
 //! capstan friction is proportional to wrap × tension; to first order that is linear in `θ_s`.
 //! The angle is held at the ends of `span` (the range the fit saw, or a calibration
 //! recording's): outside it the friction's angle dependence is not extrapolated, and samples
-//! beyond it by more than [`SPAN_MARGIN`] of its width count as outside the training ranges. Chosen by cross-validation over every pair of
-//! transmissions, sessions and wrist postures of the da Vinci bench (docs/forceps.md).
+//! beyond it by more than [`SPAN_MARGIN`] of its width count as outside the training ranges.
+//! Chosen by cross-validation over every pair of transmissions, sessions and wrist postures of
+//! the da Vinci bench (docs/forceps.md).
 //!
 //! **Fit** ([`DriveModel::fit`]): the forward model is linear in its coefficients, so a least
 //! squares fit of `τ_s` on the training runs (streamed normal equations on scaled columns,
@@ -475,7 +476,7 @@ impl DriveModel {
     pub fn recalibrated_on(&self, runs: &[DriveRun<'_>], what: Recalibrate) -> Result<Self> {
         let (c, g) = self.coef.split_at(self.rest_len());
         // residual of the drive torque without c₀ and with the friction split out:
-        // τ_s − (c_θθ + c_ωω + gain·τ_j) = c₀ + α·Σaᵢσᵢ
+        // τ_s − (c_θθ + c_ωω + gain·τ_j) = c₀ + α·Σ(aᵢ + eᵢθ̃)σᵢ
         let (mut s00, mut s01, mut s11, mut y0, mut y1, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0usize);
         let mut angle_offset = 0.0;
         for (r, run) in runs.iter().enumerate() {
