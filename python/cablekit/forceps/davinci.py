@@ -464,11 +464,13 @@ def new_instrument(
         s = score(c.estimator, test)
         scores[name] = s
         if s.outside_share > OUTSIDE_WARN:
+            angles = (
+                " or the spindle angles its calibration recording covered" if name == Physics.name else ""
+            )
             msg = (
                 f"{name}: up to {100 * s.outside_share:.0f} % of a test run's samples lie outside the "
-                "training ranges (spindle angle, torque or velocity) or, for the physics estimator, the "
-                "spindle angles its calibration recording covered: the estimate extrapolates there "
-                "(calibrate on the load step at the jaw's other stopping positions too)"
+                f"training ranges (spindle angle, torque or velocity){angles}: the estimate extrapolates "
+                "there (record the load step where the runs go: a heavier load, another jaw stop)"
             )
             res.warnings.append(msg)
             warnings.warn(msg, stacklevel=2)

@@ -126,15 +126,15 @@ def calibration_runs(runs: Sequence[BenchRun]) -> list[BenchRun]:
         out = [by_name[light], by_name[heavy]]
         if width < 2:
             return out
-        pairs = []
         lead = "0" * (width - 2)
         top = max(n[-2] for n in names if n.startswith(lead))
-        pairs.append((lead + top + "0", lead + top + top_load) if top != "0" else None)
-        if width == 3:
-            last = max(n[0] for n in names)
-            pairs.append((last + "00", last + "0" + top_load) if last != "0" else None)
-        for pair in pairs:
-            if pair is not None and all(p in by_name for p in pair):
+        last = max(n[0] for n in names) if width == 3 else "0"
+        # the same step at the fastest motion, then at the last jaw stop, where recorded
+        for step, pair in (
+            (top, (lead + top + "0", lead + top + top_load)),
+            (last, (last + "00", last + "0" + top_load)),
+        ):
+            if step != "0" and all(p in by_name for p in pair):
                 out += [by_name[p] for p in pair]
         return out
     raise DataError(
