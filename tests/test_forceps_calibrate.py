@@ -167,8 +167,9 @@ def test_a_wrist_posture_needs_its_recording_at_two_jaw_stops():
     cal = pr.calibration_runs(roll)
     assert [c.name for c in cal] == ["000", "003", "400", "403"]
     one_stop = cal[:2]
-    # scored: the runs at the stops neither recording saw but the last's neighbour
-    scored = [r for r in roll if r.name[0] == "3"]
+    # scored: the middle stops, which neither recording saw and beyond the first stop's reach
+    # (at its neighbour, stop 1, the two recordings tie within 10 %)
+    scored = [r for r in roll if r.name[0] in "23"]
     c_two, c_one = cb.calibrate(dv.Physics.fit, train, cal), cb.calibrate(dv.Physics.fit, train, one_stop)
     two, one = dv.score(c_two.estimator, scored), dv.score(c_one.estimator, scored)
     # the check: one stop is flagged with what to record; the documented recording is complete,
@@ -180,7 +181,7 @@ def test_a_wrist_posture_needs_its_recording_at_two_jaw_stops():
         assert "holds what the protocol asks for" in c_two.check.message()
     # (what remains outside with two stops is the heaviest load's torque, beyond the recording's)
     assert one.outside_share > 0.9 and two.outside_share < 0.3
-    assert two.rmse_mnm < 0.7 * one.rmse_mnm
+    assert two.rmse_mnm < 0.8 * one.rmse_mnm
 
 
 def test_the_paper_protocol_and_the_strict_folds_on_the_papers_folder():
@@ -193,6 +194,10 @@ def test_the_paper_protocol_and_the_strict_folds_on_the_papers_folder():
     by = {r.estimator: r for r in rows}
     phys = by["physics (drive model), their training samples + non-closing samples"]
     assert np.isfinite(phys.rmse_mnm) and phys.worst_run_mnm >= phys.rmse_mnm
+    # their closing samples alone move the spindle one way: the row fits the motor-driven
+    # friction only, and is finite (the spindle-driven elements would make the design singular)
+    motor = by["physics (drive model, motor-driven friction only), their training samples"]
+    assert np.isfinite(motor.rmse_mnm) and not motor.notes
     strict = {(r.protocol, r.estimator): r for r in pp.strict_folds(runs, {dv.Physics.name: dv.Physics.fit})}
     load_out = strict[("leave one load out", dv.Physics.name)]
     assert load_out.rmse_mnm > phys.rmse_mnm

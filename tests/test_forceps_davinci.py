@@ -20,12 +20,13 @@ from tests.bench_data import davinci_dir
 from tests.reference import drive as ref
 
 TRAVELS = [0.002, 0.02, 0.2]
+SPINDLE_TRAVELS = [0.01, 0.1]
 
 
-def _synthetic(seed: int, loads=(0.01, 0.03, 0.05), n: int = 3000, dt: float = 1e-3):
+def _synthetic(seed: int, loads=(0.01, 0.03, 0.05), n: int = 3000, dt: float = 1e-3, spindle=(0.0, 0.0)):
     """Runs of an instrument that follows the drive model plus noise: a sine of the spindle,
     the motor ahead of it, friction by direction and varying with the angle, a load level per
-    run."""
+    run; ``spindle``: the friction of elements driven by the spindle (``SPINDLE_TRAVELS``)."""
     rng = np.random.default_rng(seed)
     runs = []
     for i, load in enumerate(loads):
@@ -35,6 +36,7 @@ def _synthetic(seed: int, loads=(0.01, 0.03, 0.05), n: int = 3000, dt: float = 1
         s = ref.states(motor, TRAVELS)
         tj = -load - 0.01 * th + 0.0005 * rng.standard_normal(n)
         friction = s @ [-0.02, -0.015, -0.01] + th * (s @ [0.008, -0.004, 0.003])
+        friction = friction + ref.states(th, SPINDLE_TRAVELS) @ np.asarray(spindle)
         ts = 0.004 - 0.02 * th + friction + (-1.05 + s @ [0.1, 0.05, 0.02]) * tj
         ts = ts + 0.0005 * rng.standard_normal(n)
         ja = 0.4 + 0.95 * th + 0.3 * ts
@@ -47,19 +49,25 @@ def _synthetic(seed: int, loads=(0.01, 0.03, 0.05), n: int = 3000, dt: float = 1
     seed=st.integers(0, 2**32 - 1),
     window=st.integers(1, 40),
     angle=st.sampled_from(["default", "fitted", "off", "span"]),
+    spindle=st.booleans(),
 )
-def test_drive_model_equals_the_numpy_reference(seed, window, angle):
-    runs = _synthetic(seed)
+def test_drive_model_equals_the_numpy_reference(seed, window, angle, spindle):
+    # the instrument has spindle-driven friction; fitted with or without those elements
+    runs = _synthetic(seed, spindle=(0.04, -0.02))
     kw = {} if angle == "default" else {"angle_friction": (0.2, 0.7) if angle == "span" else angle}
+    sp_travels = SPINDLE_TRAVELS if spindle else []
+    if spindle:
+        kw["spindle_travels"] = sp_travels
     model = DriveModel.fit(runs, TRAVELS, dt=1e-3, window=window, warmup=0.2, **kw)
+    assert model.spindle_travels == sp_travels
     span = {"off": None, "span": (0.2, 0.7)}.get(angle, "fitted")
-    c, p = ref.fit(runs, TRAVELS, 1e-3, window, 0.2, span=span)
+    c, p = ref.fit(runs, TRAVELS, 1e-3, window, 0.2, span=span, spindle_travels=sp_travels)
     span = ref.fitted_span(runs, 1e-3, 0.2) if span == "fitted" else span
     assert model.angle_friction_span == (None if span is None else pytest.approx(span, abs=0))
     np.testing.assert_allclose(model.coefficients, c, rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(model.angle_coefficients, p, rtol=1e-6, atol=1e-9)
     est = model.estimate(runs[1][:, :3].copy(), dt=1e-3)
-    torque, angle_ref = ref.estimate(c, p, runs[1], TRAVELS, 1e-3, window, span)
+    torque, angle_ref = ref.estimate(c, p, runs[1], TRAVELS, 1e-3, window, span, sp_travels)
     np.testing.assert_allclose(est.torque, torque, rtol=0, atol=1e-8)
     np.testing.assert_allclose(est.angle, angle_ref, rtol=0, atol=1e-8)
     # one sample at a time, as a controller calls it, gives the same numbers
@@ -68,11 +76,11 @@ def test_drive_model_equals_the_numpy_reference(seed, window, angle):
         sample = obs.step(*runs[1][k, :3])
         assert sample.torque == est.torque[k] and sample.angle == est.angle[k]
     # the model recovers the jaw torque it was built on, to the noise's order; without the
-    # angle-dependent friction the instrument's is left in the estimate
+    # angle-dependent friction or the spindle's elements the instrument's is left in the estimate
     rmse = np.sqrt(np.mean((est.torque[500:] - runs[1][500:, 3]) ** 2))
-    if angle in ("default", "fitted"):
+    if angle in ("default", "fitted") and spindle:
         assert rmse < 1e-3
-    elif angle == "off":
+    elif angle == "off" or not spindle:
         assert rmse > 1.5e-3
 
 
@@ -110,6 +118,9 @@ def test_drive_model_refuses_bad_input_and_recalibrates_an_offset():
         DriveModel.fit(runs, [])
     with pytest.raises(ParameterError, match="travels"):
         DriveModel.fit(runs, [-0.1])
+    for bad in ([0.0], [-0.1], [np.nan], [np.inf], [0.1] * 9):
+        with pytest.raises(ParameterError, match="spindle_travels"):
+            DriveModel.fit(runs, TRAVELS, spindle_travels=bad)
     constant = runs[0].copy()
     constant[:, 3] = -0.02  # a jaw torque that never varies: no transmission ratio to find
     with pytest.raises(ParameterError, match="design"):

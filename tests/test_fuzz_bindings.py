@@ -252,6 +252,9 @@ def _calls() -> dict[str, Call]:
     out["DriveModel.fit(angle_friction)"] = Call(
         DriveModel.fit, (drive_runs[:2], [0.01, 0.1]), {**fit_kw, "angle_friction": (0.1, 0.9)}
     )
+    out["DriveModel.fit(spindle_travels)"] = Call(
+        DriveModel.fit, (drive_runs[:2], [0.01, 0.1]), {**fit_kw, "spindle_travels": [0.03]}
+    )
     out["DriveModel.estimate"] = Call(drive.estimate, (drive_runs[0][:, :3].copy(),), dict(dt=1e-3))
     from cablekit.cdpr import Winch
 

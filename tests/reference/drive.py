@@ -1,6 +1,7 @@
 """NumPy reference of the drive model (``cablekit.DriveModel``, issue #22 §3), written from its
 equations: the Maxwell-slip direction states as relaxations toward ``sgn Δφ``, the causal
-velocity by array indexing, the angle-dependent friction ``eᵢ·clip(θ, span)·σᵢ`` (issue #37),
+velocity by array indexing, the angle-dependent friction ``eᵢ·clip(θ, span)·σᵢ`` and the
+elements driven by the spindle angle ``hₖ·ρₖ`` (issue #37),
 the forward model fitted by ``numpy.linalg.lstsq`` on the full design (not streamed normal
 equations), the estimate by inverting it."""
 
@@ -39,11 +40,11 @@ def fitted_span(runs, dt, warmup, weights=None):
     return float(th.min()), float(th.max())
 
 
-def fit(runs, travels, dt, window, warmup, weights=None, span="fitted"):
+def fit(runs, travels, dt, window, warmup, weights=None, span="fitted", spindle_travels=()):
     """``(coefficients, angle coefficients)`` from ``(T, 5)`` runs; ``weights``: per run an array
     of sample weights (weighted least squares: each row scaled by the weight's square root);
     ``span``: ``"fitted"`` (the fitted samples' angle range), ``None`` (no angle-dependent
-    friction) or ``(lo, hi)``."""
+    friction) or ``(lo, hi)``; ``spindle_travels``: elements driven by the spindle angle."""
     if span == "fitted":
         span = fitted_span(runs, dt, warmup, weights)
     rows, ys, arows, ays = [], [], [], []
@@ -54,7 +55,8 @@ def fit(runs, travels, dt, window, warmup, weights=None, span="fitted"):
         w = velocity(th, dt, window)
         k = int(np.ceil(warmup / dt))
         angle = [] if span is None else [np.clip(th, *span)[:, None] * s]
-        a = np.column_stack([np.ones_like(th), th, w, s, *angle, tj, s * tj[:, None]])
+        rho = [states(th, spindle_travels)] if len(spindle_travels) else []
+        a = np.column_stack([np.ones_like(th), th, w, s, *angle, *rho, tj, s * tj[:, None]])
         rows.append((a * sw[:, None])[k:])
         ys.append((ts * sw)[k:])
         arows.append((np.column_stack([np.ones_like(th), th, ts]) * sw[:, None])[k:])
@@ -64,8 +66,9 @@ def fit(runs, travels, dt, window, warmup, weights=None, span="fitted"):
     return c, p
 
 
-def estimate(c, p, run, travels, dt, window, span=None):
-    """Jaw torque and angle; ``span`` as the fit's (``None``: no angle-dependent friction)."""
+def estimate(c, p, run, travels, dt, window, span=None, spindle_travels=()):
+    """Jaw torque and angle; ``span`` and ``spindle_travels`` as the fit's (``None``, ``()``:
+    without them)."""
     th, ts, motor = run[:, 0], run[:, 1], run[:, 2]
     m = len(travels)
     s = states(motor, travels)
@@ -75,5 +78,9 @@ def estimate(c, p, run, travels, dt, window, span=None):
     if span is not None:
         rest = rest + np.clip(th, *span) * (s @ c[r : r + m])
         r += m
+    q = len(spindle_travels)
+    if q:
+        rest = rest + states(th, spindle_travels) @ c[r : r + q]
+        r += q
     gain = c[r] + s @ c[r + 1 :]
     return (ts - rest) / gain, p[0] + p[1] * th + p[2] * ts

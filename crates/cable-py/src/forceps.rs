@@ -477,7 +477,7 @@ impl From<physics::Calibration> for PhysicsCalibration {
 }
 
 /// Jaw torque from drive-side signals (`cable_core::forceps::drive`): a transmission with
-/// Maxwell-slip friction driven by the motor angle, fitted by least squares on runs with a
+/// Maxwell-slip friction driven by the motor angle (and optionally by the spindle's), fitted by least squares on runs with a
 /// measured jaw, inverted per sample. A run is a `(T, 5)` array of `[spindle_angle (rad),
 /// spindle_torque (N·m), motor_angle (rad), jaw_torque (N·m), jaw_angle (rad)]` sampled every
 /// `dt` s (for `estimate` the jaw columns may be absent: `(T, 3)`). Immutable.
@@ -581,9 +581,11 @@ impl DriveModel {
     /// `weights` (optional): one `(T,)` array of sample weights ≥ 0 per run (0 leaves a sample
     /// out of the fit, 2 counts it twice); `angle_friction`: the friction's dependence on the
     /// spindle angle — `"fitted"` (the default: held inside the fitted samples' range), `"off"`,
-    /// or a span `(lo, hi)` in rad to hold it in (a calibration recording's range).
+    /// or a span `(lo, hi)` in rad to hold it in (a calibration recording's range);
+    /// `spindle_travels`: travels (rad of spindle angle) of Maxwell-slip elements driven by the
+    /// spindle beside those driven by the motor (none by default).
     #[staticmethod]
-    #[pyo3(signature = (runs, travels, *, dt = 1e-3, window = 20, warmup = 1.0, weights = None, angle_friction = None))]
+    #[pyo3(signature = (runs, travels, *, dt = 1e-3, window = 20, warmup = 1.0, weights = None, angle_friction = None, spindle_travels = None))]
     #[allow(clippy::too_many_arguments)]
     fn fit(
         py: Python<'_>,
@@ -594,7 +596,9 @@ impl DriveModel {
         warmup: f64,
         weights: Option<Vec<Bound<'_, PyAny>>>,
         angle_friction: Option<Bound<'_, PyAny>>,
+        spindle_travels: Option<Vec<f64>>,
     ) -> PyResult<Self> {
+        let spindle_travels = spindle_travels.unwrap_or_default();
         let angle = self::angle_friction(angle_friction.as_ref())?;
         let data = runs
             .iter()
@@ -614,6 +618,7 @@ impl DriveModel {
                     window,
                     warmup,
                     angle,
+                    &spindle_travels,
                 )
             })
         })?;
@@ -672,7 +677,8 @@ impl DriveModel {
         })
     }
 
-    /// `[c₀, c_θ, c_ω, a₁..a_m, (e₁..e_m,) g, b₁..b_m]` (the `eᵢ` with angle-dependent friction).
+    /// `[c₀, c_θ, c_ω, a₁..a_m, (e₁..e_m,) h₁..h_q, g, b₁..b_m]` (the `eᵢ` with angle-dependent
+    /// friction, the `hₖ` with spindle-driven elements).
     #[getter]
     fn coefficients(&self) -> Vec<f64> {
         self.inner.coefficients().to_vec()
@@ -691,6 +697,11 @@ impl DriveModel {
     #[getter]
     fn travels(&self) -> Vec<f64> {
         self.inner.travels().to_vec()
+    }
+    /// The spindle-driven Maxwell-slip elements' travels (rad of spindle angle; empty without).
+    #[getter]
+    fn spindle_travels(&self) -> Vec<f64> {
+        self.inner.spindle_travels().to_vec()
     }
     /// Training ranges `[[min, max]]` of spindle angle, torque and velocity.
     #[getter]

@@ -395,10 +395,12 @@ def add_parser(sub: Any) -> None:
         "davinci",
         help="jaw torque from drive-side signals on a real bench: held-out folds, new-instrument protocol",
         description="Without --calibrate-on: leave one frequency out, leave one load out, and the "
-        "new-instrument path on DIR itself (calibrated on its 00 run, scored on the others). With "
-        "--calibrate-on FILE: train on every run of DIR, recalibrate on FILE (a run of the new instrument, "
-        "e.g. NEW/00.TXT.gz: 0.1 Hz, 10 %% load), score every other run of --test (default: FILE's "
-        "folder). Warns when the new runs leave the training ranges.",
+        "new-instrument path on DIR itself (calibrated on its own calibration recording, scored on the "
+        "other runs). With --calibrate-on RUN...: train on every run of DIR, calibrate on the new "
+        "instrument's recording (the load step from the lightest to the heaviest load, e.g. NEW/00.TXT.gz "
+        "NEW/03.TXT.gz, at the fastest motion too if recorded; at a wrist posture also at the last jaw "
+        "stop), check the calibration on its own runs, score every other run of --test (default: the "
+        "recording's folder). Warns when the new runs leave the training ranges.",
     )
     d.add_argument(
         "directory", help="bench folder of the training instrument (../shared/data/davinci-maryland-bench)"
@@ -446,8 +448,12 @@ def add_parser(sub: Any) -> None:
         help="jaw torque across sessions, spindles and wrist postures of the da Vinci bench (issue #37)",
         description="Every estimator trained on one folder of the bench and scored on another: another "
         "session (tool4_load_sweep <-> tool4_L4_paper_sweep), the other spindle (tool4_load_sweep <-> "
-        "tool4_right_spindle), every wrist posture (tool4_load_sweep -> tool4_wrist/*); uncalibrated, "
-        "offset and offset + friction on the new folder's run 00, and refitted on its load step 00 + 03.",
+        "tool4_right_spindle), every wrist posture (tool4_load_sweep -> tool4_wrist/*) and each posture "
+        "left out of the others; calibrated on the scored folder's calibration recording (the load step "
+        "from the lightest to the heaviest load, at the slowest and the fastest motion and, at a wrist "
+        "posture, at the first and the last jaw stop) by none, offset, offset + friction, refit and the "
+        "prior (the default), and scored on the folder's other runs. Also O'Neill et al.'s own protocol "
+        "and the strict folds on tool4_L4_paper_sweep.",
     )
     q.add_argument("directory", help="the bench folder (../shared/data/davinci-maryland-bench)")
     q.add_argument(

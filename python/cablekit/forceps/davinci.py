@@ -41,6 +41,9 @@ F64 = NDArray[np.float64]
 
 #: Maxwell-slip element travels of the physics model (degrees of motor angle)
 TRAVELS_DEG = (0.1, 0.5, 2.0, 8.0, 32.0)
+#: ... and of the elements driven by the spindle angle (degrees of spindle angle): the same
+#: travels, chosen by the all-pairs calibration cross-validation (docs/forceps.md)
+SPINDLE_TRAVELS_DEG = TRAVELS_DEG
 WARMUP_S = 1.0
 VELOCITY_WINDOW = 20
 #: the published figure on this bench (O'Neill et al. 2018), mN·m
@@ -189,11 +192,14 @@ class Physics(Estimator):
         friction: bool = False,
         weights: Sequence[F64 | float] | None = None,
         span: tuple[float, float] | None = None,
+        spindle: bool = True,
     ) -> Physics:
         """Fitted on ``runs``; ``weights``: per run a weight or an array of sample weights (≥ 0;
         0 leaves a sample out of the fit); ``span``: the spindle angles (rad) the friction's angle
         dependence is held in (by default the fitted samples' range; a new instrument's
-        calibration recording's range when it is fitted beside the training runs)."""
+        calibration recording's range when it is fitted beside the training runs); ``spindle``:
+        with the friction elements driven by the spindle angle (the default; samples that move
+        the spindle one way only cannot identify them)."""
         dts = {round(r.dt, 9) for r in runs}
         if len(dts) != 1:
             raise DataError(f"training runs have different sample periods {sorted(dts)}")
@@ -213,6 +219,7 @@ class Physics(Estimator):
             warmup=WARMUP_S,
             weights=per_sample,
             angle_friction=span,
+            spindle_travels=[math.radians(d) for d in SPINDLE_TRAVELS_DEG] if spindle else [],
         )
         return cls(model, friction)
 

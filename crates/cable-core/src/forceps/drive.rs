@@ -5,8 +5,9 @@
 //! friction of the transmission, its elastic return and its drag:
 //!
 //! ```text
-//! τ_s = c₀ + c_θ·θ_s + c_ω·ω_s + Σᵢ (aᵢ + eᵢ·θ̃_s)·σᵢ + (g + Σᵢ bᵢ·σᵢ)·τ_j
-//! σᵢ ← sgn(Δφ)·(1 − (1 − σᵢ·sgn Δφ)·e^{−|Δφ|/δᵢ})           Maxwell-slip element i
+//! τ_s = c₀ + c_θ·θ_s + c_ω·ω_s + Σᵢ (aᵢ + eᵢ·θ̃_s)·σᵢ + Σₖ hₖ·ρₖ + (g + Σᵢ bᵢ·σᵢ)·τ_j
+//! σᵢ ← sgn(Δφ)·(1 − (1 − σᵢ·sgn Δφ)·e^{−|Δφ|/δᵢ})           Maxwell-slip element i (motor)
+//! ρₖ ← the same along the spindle angle θ_s, travel δ'ₖ     Maxwell-slip element k (spindle)
 //! θ̃_s = clamp(θ_s, span)                                    angle-dependent friction
 //! ```
 //!
@@ -17,6 +18,15 @@
 //! are the elements' friction torques, `g` the transmission ratio, `bᵢ` the load-dependent
 //! (capstan) part of the friction, `c_θ` an elastic return, `c_ω` drag, `c₀` zeros and preload.
 //! `ω_s` is a causal finite difference over a window.
+//!
+//! **Friction driven by the spindle** (`spindle_travels`, none unless given): Maxwell-slip
+//! elements `ρₖ` driven by the spindle's own angle, beside those driven by the motor. At a
+//! reversal the motor elements describe what the sensor sees while the spindle still sticks (the
+//! compliant coupling winds up as the motor turns); once the spindle moves, the cables' friction
+//! over the spindle and the wrist pulleys reverses along the cables' own travel — distributed
+//! pre-sliding whose length grows with the wrap, so it matters most at a bent or rolled wrist.
+//! Chosen by cross-validation over every pair of the bench's transmissions, sessions and
+//! postures (docs/forceps.md).
 //!
 //! **Angle-dependent friction** ([`AngleFriction`], on by default): the friction torque of each
 //! element varies linearly with the spindle's angle, `aᵢ + eᵢ·θ̃_s`. The cables' wrap over the
@@ -45,7 +55,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::error::{check, CableError, Result};
 
-/// Most Maxwell-slip elements a model may have.
+/// Most Maxwell-slip elements a model may have per driving angle (motor, spindle).
 pub const MAX_ELEMENTS: usize = 8;
 /// Longest velocity window (samples).
 pub const MAX_WINDOW: usize = 10_000;
@@ -134,9 +144,12 @@ pub enum AngleFriction {
 #[derive(Debug, Clone, PartialEq)]
 pub struct DriveModel {
     travels: Vec<f64>,
+    /// Travels of the elements driven by the spindle angle (rad; may be empty).
+    spindle_travels: Vec<f64>,
     window: usize,
     warmup: f64,
-    /// `[c₀, c_θ, c_ω, a₁..a_m, (e₁..e_m,) g, b₁..b_m]` (`eᵢ` with angle-dependent friction).
+    /// `[c₀, c_θ, c_ω, a₁..a_m, (e₁..e_m,) h₁..h_q, g, b₁..b_m]` (`eᵢ` with angle-dependent
+    /// friction, `hₖ` of the spindle-driven elements).
     coef: Vec<f64>,
     /// The angle range `[lo, hi]` of the angle-dependent friction, `None` without it.
     span: Option<[f64; 2]>,
@@ -146,12 +159,16 @@ pub struct DriveModel {
     ranges: [[f64; 2]; 3],
 }
 
-/// Per-sample state of an estimate: the direction states and the angle history for `ω_s`.
+/// Per-sample state of an estimate: the direction states (motor- and spindle-driven) and the
+/// angle history for `ω_s`.
 #[derive(Debug, Clone)]
 struct Features {
     travels: Vec<f64>,
     states: Vec<f64>,
+    spindle_travels: Vec<f64>,
+    spindle_states: Vec<f64>,
     last_motor: Option<f64>,
+    last_spindle: Option<f64>,
     history: Vec<f64>,
     head: usize,
     filled: usize,
@@ -159,11 +176,14 @@ struct Features {
 }
 
 impl Features {
-    fn new(travels: &[f64], window: usize, dt: f64) -> Self {
+    fn new(travels: &[f64], spindle_travels: &[f64], window: usize, dt: f64) -> Self {
         Self {
             travels: travels.to_vec(),
             states: vec![0.0; travels.len()],
+            spindle_travels: spindle_travels.to_vec(),
+            spindle_states: vec![0.0; spindle_travels.len()],
             last_motor: None,
+            last_spindle: None,
             history: vec![0.0; window + 1],
             head: 0,
             filled: 0,
@@ -177,6 +197,11 @@ impl Features {
         self.last_motor = Some(motor);
         for (st, &d) in self.states.iter_mut().zip(&self.travels) {
             *st = super::physics::direction(*st, dx, d);
+        }
+        let ds = self.last_spindle.map_or(0.0, |s| spindle - s);
+        self.last_spindle = Some(spindle);
+        for (st, &d) in self.spindle_states.iter_mut().zip(&self.spindle_travels) {
+            *st = super::physics::direction(*st, ds, d);
         }
         let len = self.history.len();
         self.history[self.head] = spindle;
@@ -198,15 +223,17 @@ impl Features {
 
 /// The regressors of the forward model at one sample, split into the part without and the
 /// part multiplying the jaw torque: `τ_s = rest·c[..r] + τ_j·(gain·c[r..])`, with the
-/// angle-dependent friction's `θ̃_s·σᵢ` in `rest` when `span` is given.
+/// angle-dependent friction's `θ̃_s·σᵢ` in `rest` when `span` is given and the spindle-driven
+/// elements' `ρₖ` after them.
 fn regressors(
     theta: f64,
     omega: f64,
-    states: &[f64],
+    f: &Features,
     span: Option<[f64; 2]>,
     rest: &mut Vec<f64>,
     gain: &mut Vec<f64>,
 ) {
+    let states = &f.states;
     rest.clear();
     gain.clear();
     rest.extend([1.0, theta, omega]);
@@ -215,8 +242,24 @@ fn regressors(
         let held = theta.clamp(sp[0], sp[1]);
         rest.extend(states.iter().map(|s| held * s));
     }
+    rest.extend_from_slice(&f.spindle_states);
     gain.push(1.0);
     gain.extend_from_slice(states);
+}
+
+/// At most [`MAX_ELEMENTS`] travels, each finite and > 0.
+fn check_travels(name: &str, travels: &[f64], requirement: &'static str) -> Result<()> {
+    if travels.len() > MAX_ELEMENTS {
+        return Err(CableError::InvalidParameter {
+            name: name.into(),
+            value: travels.len() as f64,
+            requirement,
+        });
+    }
+    for (i, &d) in travels.iter().enumerate() {
+        check::positive(&format!("{name}[{i}]"), d)?;
+    }
+    Ok(())
 }
 
 /// The range of the spindle angle over the samples a fit uses (after the warm-up, weight > 0).
@@ -244,7 +287,8 @@ impl DriveModel {
         Self::fit_weighted(runs, None, travels, window, warmup)
     }
 
-    /// [`DriveModel::fit_with`] with the default [`AngleFriction`] (sample weights as there).
+    /// [`DriveModel::fit_with`] with the default [`AngleFriction`] and no spindle-driven
+    /// elements (sample weights as there).
     pub fn fit_weighted(
         runs: &[DriveRun<'_>],
         weights: Option<&[&[f64]]>,
@@ -259,6 +303,7 @@ impl DriveModel {
             window,
             warmup,
             AngleFriction::default(),
+            &[],
         )
     }
 
@@ -267,8 +312,9 @@ impl DriveModel {
     /// instrument weighted against the training instrument's (in effect a prior toward the
     /// training coefficients with the training design as its precision), or a sample-wise split
     /// of the runs (a weight of 0 or 1 per sample); and the friction's dependence on the angle
-    /// (`angle`; a given span must be finite with `lo < hi`). The
-    /// training ranges are those of the samples with a positive weight.
+    /// (`angle`; a given span must be finite with `lo < hi`); and the travels of
+    /// Maxwell-slip elements driven by the spindle angle (`spindle_travels`, rad, 0..=8 values
+    /// > 0). The training ranges are those of the samples with a positive weight.
     pub fn fit_with(
         runs: &[DriveRun<'_>],
         weights: Option<&[&[f64]]>,
@@ -276,6 +322,7 @@ impl DriveModel {
         window: usize,
         warmup: f64,
         angle: AngleFriction,
+        spindle_travels: &[f64],
     ) -> Result<Self> {
         if let Some(ws) = weights {
             if ws.len() != runs.len() {
@@ -296,15 +343,18 @@ impl DriveModel {
                 }
             }
         }
-        if travels.is_empty() || travels.len() > MAX_ELEMENTS {
+        check_travels("travels", travels, "1 to 8 Maxwell-slip elements")?;
+        check_travels(
+            "spindle_travels",
+            spindle_travels,
+            "0 to 8 Maxwell-slip elements",
+        )?;
+        if travels.is_empty() {
             return Err(CableError::InvalidParameter {
                 name: "travels".into(),
-                value: travels.len() as f64,
+                value: 0.0,
                 requirement: "1 to 8 Maxwell-slip elements",
             });
-        }
-        for (i, &d) in travels.iter().enumerate() {
-            check::positive(&format!("travels[{i}]"), d)?;
         }
         if !(1..=MAX_WINDOW).contains(&window) {
             return Err(CableError::InvalidParameter {
@@ -335,7 +385,7 @@ impl DriveModel {
             }
         };
         let m = travels.len();
-        let p = 4 + 2 * m + if span.is_some() { m } else { 0 };
+        let p = 4 + 2 * m + if span.is_some() { m } else { 0 } + spindle_travels.len();
         let mut ata = DMatrix::<f64>::zeros(p, p);
         let mut aty = DVector::<f64>::zeros(p);
         let mut angle_ata = DMatrix::<f64>::zeros(3, 3);
@@ -347,7 +397,7 @@ impl DriveModel {
         let (mut v, mut av) = (DVector::<f64>::zeros(p), DVector::<f64>::zeros(3));
         for (r, run) in runs.iter().enumerate() {
             let (tj, ja) = (run.jaw_torque.unwrap_or(&[]), run.jaw_angle.unwrap_or(&[]));
-            let mut f = Features::new(travels, window, run.dt);
+            let mut f = Features::new(travels, spindle_travels, window, run.dt);
             let skip = (warmup / run.dt).ceil() as usize;
             let weight = weights.map(|ws| ws[r]);
             for k in 0..run.len() {
@@ -357,7 +407,7 @@ impl DriveModel {
                 if k < skip || wk == 0.0 {
                     continue;
                 }
-                regressors(th, w, &f.states, span, &mut rest, &mut gain);
+                regressors(th, w, &f, span, &mut rest, &mut gain);
                 row[..rest.len()].copy_from_slice(&rest);
                 for (j, g) in gain.iter().enumerate() {
                     row[rest.len() + j] = g * tj[k];
@@ -386,6 +436,7 @@ impl DriveModel {
         let angle = solve_normal(&angle_ata, &angle_aty, "jaw angle model")?;
         Ok(Self {
             travels: travels.to_vec(),
+            spindle_travels: spindle_travels.to_vec(),
             window,
             warmup,
             coef,
@@ -395,8 +446,9 @@ impl DriveModel {
         })
     }
 
-    /// Coefficients `[c₀, c_θ, c_ω, a₁..a_m, (e₁..e_m,) g, b₁..b_m]` (N·m, N·m/rad, N·m·s/rad,
-    /// N·m…, N·m/rad…, –, –…); the `eᵢ` of the angle-dependent friction only when it is on.
+    /// Coefficients `[c₀, c_θ, c_ω, a₁..a_m, (e₁..e_m,) h₁..h_q, g, b₁..b_m]` (N·m, N·m/rad,
+    /// N·m·s/rad, N·m…, N·m/rad…, N·m…, –, –…); the `eᵢ` of the angle-dependent friction only
+    /// when it is on, the `hₖ` of the spindle-driven elements only when there are any.
     pub fn coefficients(&self) -> &[f64] {
         &self.coef
     }
@@ -409,17 +461,20 @@ impl DriveModel {
     /// Number of coefficients of the part without the jaw torque (`c₀, c_θ, c_ω`, the friction).
     fn rest_len(&self) -> usize {
         let m = self.travels.len();
-        3 + m + if self.span.is_some() { m } else { 0 }
+        3 + m + if self.span.is_some() { m } else { 0 } + self.spindle_travels.len()
     }
 
-    /// The friction torque at one sample: `Σᵢ (aᵢ + eᵢ·θ̃_s)·σᵢ`.
-    fn friction(&self, theta: f64, states: &[f64]) -> f64 {
+    /// The friction torque at one sample: `Σᵢ (aᵢ + eᵢ·θ̃_s)·σᵢ + Σₖ hₖ·ρₖ`.
+    fn friction(&self, theta: f64, f: &Features) -> f64 {
         let m = self.travels.len();
-        let a = dot(&self.coef[3..3 + m], states);
-        match self.span {
-            Some(sp) => a + theta.clamp(sp[0], sp[1]) * dot(&self.coef[3 + m..3 + 2 * m], states),
-            None => a,
+        let states = &f.states;
+        let mut at = 3 + m;
+        let mut fr = dot(&self.coef[3..at], states);
+        if let Some(sp) = self.span {
+            fr += theta.clamp(sp[0], sp[1]) * dot(&self.coef[at..at + m], states);
+            at += m;
         }
+        fr + dot(&self.coef[at..self.rest_len()], &f.spindle_states)
     }
 
     /// Jaw angle coefficients `[p₀, p₁, p₂]` (rad, –, rad/(N·m)).
@@ -427,9 +482,14 @@ impl DriveModel {
         self.angle
     }
 
-    /// Travels of the Maxwell-slip elements (rad).
+    /// Travels of the Maxwell-slip elements driven by the motor (rad).
     pub fn travels(&self) -> &[f64] {
         &self.travels
+    }
+
+    /// Travels of the Maxwell-slip elements driven by the spindle (rad; empty without them).
+    pub fn spindle_travels(&self) -> &[f64] {
+        &self.spindle_travels
     }
 
     /// Velocity window (samples) and warm-up (s).
@@ -465,6 +525,11 @@ impl DriveModel {
         Ok((torque, angle, outside as f64 / run.len().max(1) as f64))
     }
 
+    /// Fresh per-run features (direction states at 0, empty velocity window).
+    fn features(&self, dt: f64) -> Features {
+        Features::new(&self.travels, &self.spindle_travels, self.window, dt)
+    }
+
     /// The same model adapted to a new instrument from one run with its jaw torque and angle
     /// (see [`Recalibrate`]); the samples after the warm-up are used.
     pub fn recalibrated(&self, run: &DriveRun<'_>, what: Recalibrate) -> Result<Self> {
@@ -476,7 +541,7 @@ impl DriveModel {
     pub fn recalibrated_on(&self, runs: &[DriveRun<'_>], what: Recalibrate) -> Result<Self> {
         let (c, g) = self.coef.split_at(self.rest_len());
         // residual of the drive torque without c₀ and with the friction split out:
-        // τ_s − (c_θθ + c_ωω + gain·τ_j) = c₀ + α·Σ(aᵢ + eᵢθ̃)σᵢ
+        // τ_s − (c_θθ + c_ωω + gain·τ_j) = c₀ + α·(Σ(aᵢ + eᵢθ̃)σᵢ + Σhₖρₖ)
         let (mut s00, mut s01, mut s11, mut y0, mut y1, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0usize);
         let mut angle_offset = 0.0;
         for (r, run) in runs.iter().enumerate() {
@@ -487,7 +552,7 @@ impl DriveModel {
             };
             run.check(&what_run, true)?;
             let (tj, ja) = (run.jaw_torque.unwrap_or(&[]), run.jaw_angle.unwrap_or(&[]));
-            let mut f = Features::new(&self.travels, self.window, run.dt);
+            let mut f = self.features(run.dt);
             let skip = (self.warmup / run.dt).ceil() as usize;
             for k in 0..run.len() {
                 let (th, ts) = (run.spindle_angle[k], run.spindle_torque[k]);
@@ -496,7 +561,7 @@ impl DriveModel {
                     continue;
                 }
                 let s = &f.states;
-                let fric = self.friction(th, s);
+                let fric = self.friction(th, &f);
                 let y = ts - c[1] * th - c[2] * w - (g[0] + dot(&g[1..], s)) * tj[k];
                 s00 += 1.0;
                 s01 += fric;
@@ -575,7 +640,7 @@ impl DriveObserver {
     /// An observer of `model` for samples every `dt` s.
     pub fn new(model: DriveModel, dt: f64) -> Result<Self> {
         check::positive("dt", dt)?;
-        let features = Features::new(&model.travels, model.window, dt);
+        let features = model.features(dt);
         Ok(Self { model, features })
     }
 
@@ -586,7 +651,7 @@ impl DriveObserver {
 
     /// Forget the friction states and the velocity window (a new run starts).
     pub fn reset(&mut self) {
-        self.features = Features::new(&self.model.travels, self.model.window, self.features.dt);
+        self.features = self.model.features(self.features.dt);
     }
 
     /// One sample: spindle angle (rad), spindle torque (N·m), motor angle (rad). Errors on a
@@ -612,9 +677,9 @@ impl DriveObserver {
         let w = self.features.push(th, motor);
         let m = &self.model;
         let (c, g) = m.coef.split_at(m.rest_len());
-        let s = &self.features.states;
-        let rest = c[0] + c[1] * th + c[2] * w + m.friction(th, s);
-        let gain = g[0] + dot(&g[1..], s);
+        let f = &self.features;
+        let rest = c[0] + c[1] * th + c[2] * w + m.friction(th, f);
+        let gain = g[0] + dot(&g[1..], &f.states);
         let outside = [th, ts, w]
             .iter()
             .zip(&m.ranges)
@@ -722,7 +787,7 @@ mod tests {
                 .zip(&tj)
                 .map(|(a, j)| 0.3 + 0.9 * a + 0.5 * j)
                 .collect();
-            let mut f = Features::new(travels, 20, dt);
+            let mut f = Features::new(travels, &[], 20, dt);
             let mut ts = Vec::with_capacity(n);
             for k in 0..n {
                 let w = f.push(th[k], motor[k]);
@@ -758,6 +823,29 @@ mod tests {
                 dt,
             })
             .collect()
+    }
+
+    /// `model` recalibrated (offset and friction scale) on `run` (viewed as `cal`) of an
+    /// instrument whose friction is twice `model`'s.
+    fn recalibrated_on_doubled_friction(
+        model: &DriveModel,
+        run: &Signals,
+        cal: DriveRun<'_>,
+    ) -> DriveModel {
+        let mut f = model.features(cal.dt);
+        let stronger: Vec<f64> = (0..run.0.len())
+            .map(|k| {
+                f.push(run.0[k], run.2[k]);
+                run.1[k] + model.friction(run.0[k], &f)
+            })
+            .collect();
+        let cal = DriveRun {
+            spindle_torque: &stronger,
+            ..cal
+        };
+        model
+            .recalibrated(&cal, Recalibrate::OffsetAndFriction)
+            .unwrap()
     }
 
     const TRUTH: Truth = [
@@ -816,19 +904,7 @@ mod tests {
         assert_relative_eq!(re2.coefficients()[3], truth[3], epsilon = 1e-6);
         assert_relative_eq!(re2.coefficients()[5], truth[5], epsilon = 1e-6);
         // a friction twice as strong at every angle: the scale finds 2 for both parts
-        let stronger: Vec<f64> = {
-            let mut f = Features::new(&travels, 20, dt);
-            (0..runs[2].0.len())
-                .map(|k| {
-                    f.push(runs[2].0[k], runs[2].2[k]);
-                    runs[2].1[k] + model.friction(runs[2].0[k], &f.states)
-                })
-                .collect()
-        };
-        cal.spindle_torque = &stronger;
-        let re3 = model
-            .recalibrated(&cal, Recalibrate::OffsetAndFriction)
-            .unwrap();
+        let re3 = recalibrated_on_doubled_friction(&model, &runs[2], cal);
         assert_relative_eq!(re3.coefficients()[4], 2.0 * truth[4], max_relative = 1e-6);
         assert_relative_eq!(re3.coefficients()[6], 2.0 * truth[6], max_relative = 1e-6);
     }
@@ -842,7 +918,8 @@ mod tests {
         let runs = synthetic(&travels, &TRUTH, span, dt, 0.0);
         let v = views(&runs, dt);
         let model =
-            DriveModel::fit_with(&v, None, &travels, 20, 0.5, AngleFriction::Span(span)).unwrap();
+            DriveModel::fit_with(&v, None, &travels, 20, 0.5, AngleFriction::Span(span), &[])
+                .unwrap();
         for (a, b) in model.coefficients().iter().zip(TRUTH) {
             assert_relative_eq!(*a, b, epsilon = 1e-8, max_relative = 1e-6);
         }
@@ -871,7 +948,8 @@ mod tests {
         flat[6] = 0.0;
         let runs = synthetic(&travels, &flat, WIDE, dt, 0.0);
         let v = views(&runs, dt);
-        let off = DriveModel::fit_with(&v, None, &travels, 20, 0.5, AngleFriction::Off).unwrap();
+        let off =
+            DriveModel::fit_with(&v, None, &travels, 20, 0.5, AngleFriction::Off, &[]).unwrap();
         assert_eq!(off.angle_friction_span(), None);
         let expect = [&flat[..5], &flat[7..]].concat();
         assert_eq!(off.coefficients().len(), expect.len());
@@ -885,8 +963,72 @@ mod tests {
             [f64::NAN, 1.0],
             [0.0, f64::INFINITY],
         ] {
-            let r = DriveModel::fit_with(&v, None, &travels, 20, 0.5, AngleFriction::Span(bad));
+            let r =
+                DriveModel::fit_with(&v, None, &travels, 20, 0.5, AngleFriction::Span(bad), &[]);
             assert!(r.is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn spindle_driven_friction_is_recovered_and_scaled_with_the_rest() {
+        // an instrument whose motor leads the spindle by 15 ms (a compliant coupling) and whose
+        // friction has elements driven by each: the two sets differ at every reversal
+        let (travels, spindle_travels) = ([0.002, 0.03], [0.01, 0.1]);
+        let h = [0.015, -0.008];
+        let dt = 1e-3;
+        let mut runs = Vec::new();
+        for (freq, load) in [(0.2, 0.01), (0.4, 0.03), (0.3, 0.05)] {
+            let n = 6000;
+            let angle = |t: f64| 0.5 * (1.0 - (std::f64::consts::TAU * freq * t).cos());
+            let th: Vec<f64> = (0..n).map(|k| angle(k as f64 * dt)).collect();
+            let motor: Vec<f64> = (0..n).map(|k| angle(k as f64 * dt + 0.015)).collect();
+            let tj: Vec<f64> = th.iter().map(|&a| -load - 0.01 * a).collect();
+            let mut f = Features::new(&travels, &spindle_travels, 20, dt);
+            let ts: Vec<f64> = (0..n)
+                .map(|k| {
+                    let w = f.push(th[k], motor[k]);
+                    let (s, r) = (&f.states, &f.spindle_states);
+                    TRUTH[0]
+                        + TRUTH[1] * th[k]
+                        + TRUTH[2] * w
+                        + (TRUTH[3] + TRUTH[5] * th[k]) * s[0]
+                        + (TRUTH[4] + TRUTH[6] * th[k]) * s[1]
+                        + h[0] * r[0]
+                        + h[1] * r[1]
+                        + (TRUTH[7] + TRUTH[8] * s[0] + TRUTH[9] * s[1]) * tj[k]
+                })
+                .collect();
+            let ja: Vec<f64> = th.iter().map(|a| 0.3 + 0.9 * a).collect();
+            runs.push((th, ts, motor, tj, ja));
+        }
+        let v = views(&runs, dt);
+        let fit = |st: &[f64]| {
+            DriveModel::fit_with(&v, None, &travels, 20, 0.5, AngleFriction::Span(WIDE), st)
+        };
+        let model = fit(&spindle_travels).unwrap();
+        assert_eq!(model.spindle_travels(), spindle_travels);
+        let expect = [&TRUTH[..7], &h[..], &TRUTH[7..]].concat();
+        assert_eq!(model.coefficients().len(), expect.len());
+        for (a, b) in model.coefficients().iter().zip(&expect) {
+            assert_relative_eq!(*a, *b, epsilon = 1e-8, max_relative = 1e-6);
+        }
+        let (tau, _, _) = model.estimate(&v[1]).unwrap();
+        for k in 600..tau.len() {
+            assert_relative_eq!(tau[k], runs[1].3[k], epsilon = 1e-9);
+        }
+        // without them the same data are not met: the spindle's elements are seen
+        let (tau_m, _, _) = fit(&[]).unwrap().estimate(&v[1]).unwrap();
+        let worst = (600..tau.len())
+            .map(|k| (tau_m[k] - runs[1].3[k]).abs())
+            .fold(0.0, f64::max);
+        assert!(worst > 1e-4, "{worst}");
+        // a friction twice as strong: the common scale doubles the spindle's elements as well
+        let re = recalibrated_on_doubled_friction(&model, &runs[2], v[2]);
+        assert_relative_eq!(re.coefficients()[7], 2.0 * h[0], max_relative = 1e-6);
+        assert_relative_eq!(re.coefficients()[8], 2.0 * h[1], max_relative = 1e-6);
+        // bad spindle travels are refused
+        for bad in [vec![0.0], vec![-0.1], vec![f64::NAN], vec![0.1; 9]] {
+            assert!(fit(&bad).is_err(), "{bad:?}");
         }
     }
 
