@@ -390,3 +390,27 @@ def test_the_physics_estimators_span_is_a_model_or_a_typed_error(span):
         assert est.model.angle_friction_span == pytest.approx(tuple(span))  # type: ignore[arg-type]
     torque, _, _ = est.predict(runs[1])
     assert np.isfinite(torque).all()
+
+
+@settings(max_examples=20, deadline=None)
+@given(spindle=st.one_of(st.booleans(), st.integers(), st.text(max_size=4), st.none(), st.floats()))
+def test_the_physics_estimators_spindle_elements_are_a_switch(spindle):
+    """``Physics.fit(spindle=...)``: ``True`` fits the spindle-driven friction elements with the
+    motor's travels, ``False`` leaves them out (five coefficients fewer); any other value is a
+    typed error."""
+    from cablekit.errors import CablekitError
+
+    runs = [
+        dv.BenchRun(f"0{i}", Path(f"0{i}"), 1e-3, r, np.zeros(len(r)), 0, i)
+        for i, r in enumerate(_synthetic(5, spindle=(0.04, -0.02)))
+    ]
+    if not isinstance(spindle, bool):
+        with pytest.raises(CablekitError):
+            dv.Physics.fit(runs, spindle=spindle)  # type: ignore[arg-type]
+        return
+    est = dv.Physics.fit(runs, spindle=spindle)
+    without = dv.Physics.fit(runs, spindle=False)
+    expect = [math.radians(d) for d in dv.SPINDLE_TRAVELS_DEG] if spindle else []
+    assert est.model.spindle_travels == pytest.approx(expect)
+    assert len(est.model.coefficients) == len(without.model.coefficients) + len(expect)
+    assert np.isfinite(est.predict(runs[1])[0]).all()
