@@ -4,11 +4,13 @@ the run loader against any bytes and any cell."""
 from __future__ import annotations
 
 import csv
+import functools
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import cablekit as ck
@@ -187,3 +189,63 @@ def test_a_creeping_cable_is_found_across_runs_with_estimated_rest_lengths(tmp_p
             assert got is None and d.length.status == "no gap", d.summary()
         else:
             assert got is not None and (got.effect, got.cable) == (effect, cable), d.summary()
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    blob=st.one_of(
+        st.binary(max_size=200),
+        st.sampled_from(
+            [b'motion = "planar"\ncables = []\n', b'model = "antagonistic_joint"\n', b"\xff\xfe", b""]
+        ),
+    )
+)
+def test_is_robot_file_answers_for_any_bytes(tmp_path_factory, blob):
+    """Any file: a bool, never an exception; the shipped robot file is one, a joint model is not."""
+    from importlib import resources
+
+    from cablekit.cdpr.diagnose import is_robot_file
+
+    p = tmp_path_factory.mktemp("any") / "model.toml"
+    p.write_bytes(blob)
+    assert is_robot_file(p) is (blob.startswith(b'motion = "planar"'))
+    mini = resources.files("cablekit.cdpr") / "robots" / "seed002_mini.toml"
+    assert is_robot_file(Path(str(mini))) is True
+
+
+@functools.cache
+def _short_run():
+    """4 s of a twin run without poses (the force channel only), read as a run file would be."""
+    from cablekit.cdpr.formats import RunFile
+
+    twin = twin_run(None, 0, seed=1)
+    k = 4000
+    return RunFile(twin.t[:k], twin.alpha[:k], twin.current[:k], twin.sensor[:k], None)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    n_fit=st.one_of(st.integers(-(2**65), 2**65), st.floats(), st.text(max_size=3), st.none(), st.booleans()),
+    runs=st.sampled_from(["ok", "empty", "not pairs", "names"]),
+)
+@example(n_fit=1, runs="ok")
+def test_diagnose_loaded_refuses_bad_splits_and_runs(n_fit, runs):
+    """``diagnose_loaded``: a split without a fit or a held-out run, a wrong-typed count or run
+    list is a typed error before any work; a valid split of two runs gives a diagnosis."""
+    from cablekit.cdpr.diagnose import diagnose_loaded
+
+    run = _short_run()
+    given_runs = {
+        "ok": [("a", run), ("b", run)],
+        "empty": [],
+        "not pairs": [run, run],
+        "names": [(1, run), (2, run)],
+    }[runs]
+    robot = shipped("seed002_mini")
+    valid = runs == "ok" and type(n_fit) is int and n_fit == 1
+    if not valid:
+        with pytest.raises(ck.CablekitError):
+            diagnose_loaded(given_runs, n_fit, robot)  # type: ignore[arg-type]
+        return
+    d = diagnose_loaded(given_runs, n_fit, robot)
+    assert d.length is None and np.isfinite(d.force.noise) and d.status in ("found", "unexplained", "no gap")

@@ -1,5 +1,6 @@
 """Campaigns (``cablekit diagnose --many``): the manifest loader's errors, and the Ray path (a
-local Ray with 2 workers) giving exactly the serial path's results."""
+local Ray with 2 workers) giving exactly the serial path's results, for joint, cable-network and
+parallel-robot groups in one campaign."""
 
 from __future__ import annotations
 
@@ -39,6 +40,26 @@ def _campaign(root: Path) -> Path:
     from tests.test_diagnose_network import network_group
 
     lines += network_group(root / "network")
+    # a parallel-robot group (issue #39 §4): the Mini CDPR twin with a Dahl pulley before cable 6's
+    # sensor, its robot file as the group's model
+    from importlib import resources
+
+    from cablekit.cdpr.diagnose import twin_run
+    from tests.test_cdpr_diagnose import _write
+
+    (root / "robot").mkdir()
+    for name, seed in (("fit", 3), ("hold", 4)):
+        _write(root / "robot" / f"{name}.csv", twin_run("pulley_friction", 5, seed=seed))
+    mini = resources.files("cablekit.cdpr") / "robots" / "seed002_mini.toml"
+    (root / "robot" / "mini.toml").write_text(mini.read_text(encoding="utf-8"), encoding="utf-8")
+    lines += [
+        "[[group]]",
+        'name = "robot"',
+        'model = "robot/mini.toml"',
+        'fit = ["robot/fit.csv"]',
+        'held_out = ["robot/hold.csv"]',
+        "",
+    ]
     (root / "manifest.toml").write_text("\n".join(lines))
     return root
 
@@ -50,9 +71,10 @@ def campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _docs(out: Path) -> dict[str, dict]:
     docs = {}
-    for name in ("lag", "control", "network"):
+    for name in ("lag", "control", "network", "robot"):
         doc = json.loads((out / name / "diagnosis.json").read_text())
-        doc["meta"].pop("options")  # holds the executor-independent knobs only; compared below
+        if "meta" in doc:  # (the grey-box engine's; a parallel robot's has no options)
+            doc["meta"].pop("options")  # holds the executor-independent knobs only; compared below
         docs[name] = doc
     return docs
 
@@ -81,10 +103,10 @@ def test_ray_campaign_equals_the_serial_campaign(campaign, tmp_path):
         distributed = run_many(campaign, tmp_path / "ray", engine="ray", progress=False, html=False)
     finally:
         ray.shutdown()
-    assert [r.error for r in serial + distributed] == [None] * 6
+    assert [r.error for r in serial + distributed] == [None] * 8
     summary = json.loads((tmp_path / "ray" / "summary.json").read_text())
     groups = [g["group"] for g in summary["groups"]]
-    assert summary["engine"] == "ray" and groups == ["lag", "control", "network"]
+    assert summary["engine"] == "ray" and groups == ["lag", "control", "network", "robot"]
     assert json.loads((tmp_path / "serial" / "summary.json").read_text())["engine"] == "serial"
     # the same results, whichever process fitted them: names, verdicts and flags exactly, numbers
     # to 1e-9 (the parameter intervals' linear algebra runs single-threaded in Ray's workers and
@@ -94,6 +116,19 @@ def test_ray_campaign_equals_the_serial_campaign(campaign, tmp_path):
     assert by["lag"] is not None and by["lag"].effects[0].name == "sensor_lag"
     assert by["control"] is not None and by["control"].verdict == "no_significant_gap"
     assert by["network"] is not None and by["network"].effects[0].site == "joint.jaw"
+    # the parallel robot's group: the force channel names the pulley at its cable, as the single
+    # diagnosis of the same files does, and the summary row says so
+    from cablekit.cdpr import Robot
+    from cablekit.cdpr.diagnose import diagnose_runs
+
+    robot = by["robot"]
+    here = campaign / "robot"
+    alone = diagnose_runs([here / "fit.csv"], [here / "hold.csv"], Robot.load(here / "mini.toml"))
+    assert robot is not None and robot.to_dict() == alone.to_dict()
+    assert [(f.effect, f.cable) for f in robot.findings][:1] == [("pulley_friction", 5)]
+    row = summary["groups"][3]
+    assert row["verdict"] == "found" and row["selected"][0] == "pulley_friction@cable.6"
+    assert "pulley_friction at cable 6" in (tmp_path / "serial" / "robot" / "diagnose.md").read_text()
 
 
 def test_a_failing_group_is_reported_and_the_others_go_on(campaign, tmp_path):
@@ -104,8 +139,10 @@ def test_a_failing_group_is_reported_and_the_others_go_on(campaign, tmp_path):
             (broken / p.relative_to(campaign)).parent.mkdir(parents=True, exist_ok=True)
             (broken / p.relative_to(campaign)).write_bytes(p.read_bytes())
     (broken / "lag" / "hold.csv").write_text("t,theta\n0,1\n")  # lacks the model's columns
+    (broken / "robot" / "hold.csv").write_text("t,alpha_1\n0,1\n")  # lacks the robot's columns
     res = run_many(broken, tmp_path / "out", engine="serial", progress=False, html=False)
     assert res[0].error is not None and "DataError" in res[0].error
+    assert res[3].error is not None and "DataError" in res[3].error and "hold.csv" in res[3].error
     assert res[1].error is None and res[1].diagnosis is not None
     assert "error" in (tmp_path / "out" / "summary.txt").read_text()
 

@@ -344,6 +344,38 @@ class CdprDiagnosis:
         """One line per channel, joined."""
         return "; ".join(c.summary() for c in self.channels)
 
+    def to_dict(self) -> dict[str, Any]:
+        """The diagnosis as JSON-ready data (``diagnosis.json`` of a campaign group): status,
+        findings (cables 1-based) and, per channel, its verdict, noise, per-cable held-out gaps and
+        ranked candidates; not the residual time series."""
+
+        def cand(c: Candidate) -> dict[str, Any]:
+            return {
+                "effect": c.effect,
+                "cable": c.cable + 1,
+                "closed": float(c.closed),
+                "coefficients": [float(v) for v in c.coefficients],
+            }
+
+        return {
+            "kind": "cable_robot",
+            "status": self.status,
+            "findings": [cand(c) for c in self.findings],
+            "channels": [
+                {
+                    "name": ch.name,
+                    "status": ch.status,
+                    "noise": float(ch.noise),
+                    "residual_rms": [float(v) for v in ch.residual_rms],
+                    "gap_rms": [float(v) for v in ch.gap_rms],
+                    "significant": [bool(v) for v in ch.significant],
+                    "candidates": [cand(c) for c in ch.candidates],
+                }
+                for ch in self.channels
+            ],
+            "notes": list(self.notes),
+        }
+
 
 def _locate(
     name: str,
@@ -618,6 +650,21 @@ def diagnose_file(
 
 
 @checked
+def is_robot_file(path: str | Path) -> bool:
+    """Whether ``path`` is a cable robot's file (``motion`` and ``[[cables]]``) rather than a
+    joint, transmission or network model file: the diagnosis then runs the CDPR engine. A file
+    that is not TOML is not a robot file (the model loader reports it)."""
+    from cablekit._files import load_toml
+    from cablekit.errors import DataError
+
+    try:
+        doc = load_toml(path, "model file")
+    except DataError:
+        return False
+    return "cables" in doc and "motion" in doc
+
+
+@checked
 def diagnose_runs(
     fit: list[str | Path],
     holdout: list[str | Path],
@@ -633,17 +680,54 @@ def diagnose_runs(
     sample (:func:`rest_from_first_sample`)."""
     if not fit or not holdout:
         raise ParameterError("give at least one fit run and one held-out run")
+    runs = [(Path(p).name, load_cdpr_run(p, robot)) for p in [*fit, *holdout]]
+    return diagnose_loaded(runs, len(fit), robot, winch, platform_side=platform_side, effects=effects)
+
+
+@checked
+def diagnose_loaded(
+    runs: list[tuple[str, RunFile]],
+    n_fit: int,
+    robot: Robot,
+    winch: Winch | None = None,
+    *,
+    platform_side: Mapping[str, Any] | None = None,
+    effects: tuple[str, ...] = EFFECTS,
+) -> CdprDiagnosis:
+    """:func:`diagnose_runs` on runs already read (``(name, run)``, the first ``n_fit`` fitted,
+    the others held out): a campaign's worker receives them so, not the files."""
+    if not 0 < n_fit < len(runs):
+        raise ParameterError(
+            f"give at least one fit run and one held-out run (n_fit={n_fit} of {len(runs)} runs)"
+        )
     winch = winch or Winch.seed003()
     segments, notes = [], []
-    for path in [*fit, *holdout]:
-        run = load_cdpr_run(path, robot)
-        notes += [f"{Path(path).name}: {n}" for n in run.notes]
+    for name, run in runs:
+        notes += [f"{name}: {n}" for n in run.notes]
         lengths = None
         if run.poses is not None:
             rest = rest_from_first_sample(robot, winch, run)
             lengths = Lengths(robot, rest, run.poses, platform_side, estimated_rest=True)
         segments.append(_Segment(run.t, run.alpha, run.current, run.sensor, lengths))
-    return replace(_checked(winch, segments, len(fit), effects, 0.01), notes=tuple(notes))
+    return replace(_checked(winch, segments, n_fit, effects, 0.01), notes=tuple(notes))
+
+
+@checked
+def run_report(
+    robot_name: str, d: CdprDiagnosis, fit: list[str], holdout: list[str] | None, figure: str | None = None
+) -> str:
+    """The Markdown page of a run diagnosis (``diagnose.md``): what was fitted and held out, then
+    :func:`report`, and the figure's link if one was written."""
+    names = ", ".join(Path(p).name for p in fit)
+    split = (
+        f"fitted on {names}, held out {', '.join(Path(p).name for p in holdout)}"
+        if holdout
+        else f"{names}, fitted on its first half and held out on its second"
+    )
+    text = f"# Where {robot_name} disagrees with its nominal model\n\n{split}\n\n" + report(d)
+    if figure:
+        text += f"\n![each channel's residual and finding]({figure})\n"
+    return text
 
 
 @checked

@@ -215,19 +215,11 @@ def write_run_diagnosis(
 ) -> None:
     """``diagnose.md`` (and ``diagnose.png``) of a run diagnosis (also ``cablekit diagnose`` with a
     robot file)."""
-    from cablekit.cdpr.diagnose import plot, report
+    from cablekit.cdpr.diagnose import plot, run_report
 
-    names = ", ".join(Path(p).name for p in fit)
-    split = (
-        f"fitted on {names}, held out {', '.join(Path(p).name for p in holdout)}"
-        if holdout
-        else f"{names}, fitted on its first half and held out on its second"
-    )
-    text = f"# Where {robot.name} disagrees with its nominal model\n\n{split}\n\n" + report(d)
     out.mkdir(parents=True, exist_ok=True)
-    if plots and (fig := plot(d, out / "diagnose.png")):
-        text += f"\n![each channel's residual and finding]({fig.name})\n"
-    _write_text(out, text, quiet)
+    fig = plot(d, out / "diagnose.png") if plots else None
+    _write_text(out, run_report(robot.name, d, fit, holdout, fig.name if fig else None), quiet)
 
 
 def _write_diagnosis(args: argparse.Namespace, text: str) -> None:

@@ -182,7 +182,9 @@ def _diagnose(args: argparse.Namespace) -> int:
             [Path(p) for p in args.holdout],
             Path(args.model),
         )
-    if _is_robot_file(model_path):
+    from cablekit.cdpr.diagnose import is_robot_file
+
+    if is_robot_file(model_path):
         from cablekit.cdpr import Robot
         from cablekit.cdpr.diagnose import diagnose_runs
         from cablekit.cli.cdpr import write_run_diagnosis
@@ -200,17 +202,6 @@ def _diagnose(args: argparse.Namespace) -> int:
     fit = [load_run(p) for p in fit_paths]
     hold = [load_run(p) for p in hold_paths]
     return _run_diagnosis(spec, fit, hold, out, args, str(model_path))
-
-
-def _is_robot_file(path: Path) -> bool:
-    """A cable robot's file (``motion`` and ``[[cables]]``) rather than a joint model's."""
-    from cablekit._files import load_toml
-
-    try:
-        doc = load_toml(path, "model file")
-    except DataError:
-        return False  # the model loader reports it
-    return "cables" in doc and "motion" in doc
 
 
 def _run_diagnosis(
@@ -326,7 +317,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "(pip install 'cablekit[scale]'), locally or on a cluster; without Ray the groups run serially. "
         "Writes OUT/<group>/diagnosis.json, OUT/summary.json and OUT/summary.txt.",
     )
-    m.add_argument("--many", metavar="DIR", help="diagnose every group of DIR/manifest.toml")
+    m.add_argument(
+        "--many",
+        metavar="DIR",
+        help="diagnose every group of DIR/manifest.toml (each with its model file: a joint, a "
+        "transmission, a cable network or a cable robot's file)",
+    )
     m.add_argument(
         "--address", help="Ray cluster address (e.g. ray://head:10001 or auto); default: local Ray"
     )

@@ -12,7 +12,10 @@ nominal model file, the fit runs and the held-out runs::
     held_out = ["day1/c.csv"]
 
 Paths are relative to the folder. Every group is diagnosed exactly as ``cablekit diagnose`` would
-diagnose it alone; the results stream into one summary table as groups finish.
+diagnose it alone; the results stream into one summary table as groups finish. A group's model
+file may be a joint, transmission or cable-network model file (the grey-box engine) or a cable
+robot's file (``motion`` and ``[[cables]]``: the parallel robots' diagnosis, ``cablekit.cdpr``;
+its runs are CDPR run tables) — one campaign can hold all of them.
 
 **Ray.** With Ray installed (``pip install 'cablekit[scale]'``) the candidate fits of every group
 fan out as Ray tasks — locally by default (``ray.init()`` with this machine's cores) or on a
@@ -20,7 +23,9 @@ cluster (``--address``). Each task receives its group's runs and model from Ray'
 (put once per group), prepares the group's problems once per worker process, and fits one
 candidate; the driver keeps several groups in flight so the cluster stays busy while a group waits
 for its slowest fit. Without Ray the same command runs serially (groups one after another, the
-candidates of a group in this machine's threads). Both paths give the same numbers.
+candidates of a group in this machine's threads). A parallel-robot group is one Ray task (its
+runs, read by the driver, and its robot file's text go through the object store; its candidate
+fits are closed-form and take seconds). Both paths give the same numbers.
 """
 
 from __future__ import annotations
@@ -33,7 +38,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cablekit._files import load_toml
+from cablekit._files import load_toml, read_text
+from cablekit.cdpr.diagnose import CdprDiagnosis, is_robot_file
 from cablekit.diagnose.data import Run, load_run
 from cablekit.diagnose.engine import diagnose
 from cablekit.diagnose.fit import CandidateFit, fit_candidate
@@ -72,13 +78,27 @@ class GroupResult:
     """A group's diagnosis (or the error that stopped it) and its wall time."""
 
     group: Group
-    diagnosis: Diagnosis | None
+    #: the grey-box engine's diagnosis, or a parallel robot's
+    diagnosis: Diagnosis | CdprDiagnosis | None
     error: str | None
     seconds: float
 
     def row(self) -> dict[str, Any]:
-        """The group's line of the summary."""
+        """The group's line of the summary (a parallel robot's: its status as the verdict, each
+        channel's finding as ``effect@cable.<j>``, the least of the findings' closed shares)."""
         d = self.diagnosis
+        if isinstance(d, CdprDiagnosis):
+            found = d.findings
+            return {
+                "group": self.group.name,
+                "verdict": d.status,
+                "selected": [f"{c.effect}@cable.{c.cable + 1}" for c in found],
+                "held_out_closed": min((float(c.closed) for c in found), default=None),
+                "gap_held_out": None,
+                "flags": [],
+                "error": self.error,
+                "seconds": self.seconds,
+            }
         return {
             "group": self.group.name,
             "verdict": d.verdict if d else "error",
@@ -220,6 +240,39 @@ class RayFits:
         return [c for c in out if c is not None]
 
 
+def _cdpr_task(robot_text: str, source: str, runs: list[Any], n_fit: int) -> CdprDiagnosis:
+    """A parallel-robot group's diagnosis (a Ray task, or called directly without Ray)."""
+    from cablekit.cdpr import Robot
+    from cablekit.cdpr.diagnose import diagnose_loaded
+
+    return diagnose_loaded(runs, n_fit, Robot.from_toml(robot_text, source))
+
+
+def _cdpr_group(g: Group, ray: Any, out: Path, html: bool) -> CdprDiagnosis:
+    """Diagnose a parallel-robot group (on Ray when given) and write its ``diagnosis.json`` and
+    ``diagnose.md`` (and ``diagnose.png`` with ``html``)."""
+    from cablekit.cdpr import Robot
+    from cablekit.cdpr.diagnose import plot, run_report
+    from cablekit.cdpr.formats import load_cdpr_run
+
+    text = read_text(g.model, "robot file")
+    robot = Robot.from_toml(text, str(g.model))
+    runs = [(p.name, load_cdpr_run(p, robot)) for p in (*g.fit, *g.held_out)]
+    if ray is not None:
+        task = ray.remote(_cdpr_task)
+        d = ray.get(task.remote(text, str(g.model), runs, len(g.fit)))
+    else:
+        d = _cdpr_task(text, str(g.model), runs, len(g.fit))
+    gdir = out / g.name
+    gdir.mkdir(parents=True, exist_ok=True)
+    (gdir / "diagnosis.json").write_text(json.dumps(d.to_dict(), indent=2))
+    fig = plot(d, gdir / "diagnose.png") if html else None
+    fit, hold = [str(p) for p in g.fit], [str(p) for p in g.held_out]
+    page = run_report(robot.name, d, fit, hold, fig.name if fig else None)
+    (gdir / "diagnose.md").write_text(page, encoding="utf-8")
+    return d
+
+
 def _import_ray() -> Any:
     try:
         import ray
@@ -242,7 +295,8 @@ def run_many(
     interval_refits: int = 0,
 ) -> list[GroupResult]:
     """Diagnose every group of ``DIR/manifest.toml``; write ``OUT/<group>/diagnosis.json`` (and
-    ``.html``), ``OUT/summary.json`` and ``OUT/summary.txt``. ``engine``: ``"ray"``, ``"serial"``
+    ``.html``; a parallel robot's group ``diagnose.md`` and its figure), ``OUT/summary.json`` and
+    ``OUT/summary.txt``. ``engine``: ``"ray"``, ``"serial"``
     or ``"auto"`` (Ray when installed). A group that fails is reported with its error; the others
     go on."""
     from cablekit.diagnose.report import write_html, write_json
@@ -271,6 +325,12 @@ def run_many(
 
     def one(g: Group) -> GroupResult:
         t0 = time.perf_counter()
+        if is_robot_file(g.model):
+            try:
+                d = _cdpr_group(g, ray if executor is not None else None, out, html)
+            except Exception as exc:
+                return GroupResult(g, None, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
+            return GroupResult(g, d, None, time.perf_counter() - t0)
         try:
             spec = load_model_spec(g.model)
             fit = [load_run(p) for p in g.fit]
