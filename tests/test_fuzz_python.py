@@ -209,6 +209,8 @@ NOT_IN_TABLE = {
     "cablekit.cdpr.formats.read_trajectory": "a run file: test_fuzz_loaders.py",
     "cablekit.cdpr.diagnose.diagnose_file": "a run file, then diagnose",
     "cablekit.cdpr.diagnose.diagnose_runs": "run files, then diagnose",
+    "cablekit.cdpr.diagnose.is_robot_file": "a model file: test_cdpr_diagnose.py feeds it any bytes",
+    "cablekit.cdpr.diagnose.diagnose_loaded": "runs read from files: test_cdpr_diagnose.py draws its splits",
     "cablekit.forceps.bench.read_raw": "a bench file: test_fuzz_loaders.py",
     "cablekit.forceps.davinci.bench_folder": "a folder",
     "cablekit.forceps.davinci.read_bench_file": "a bench file: test_fuzz_loaders.py",
@@ -221,7 +223,8 @@ NOT_IN_TABLE = {
         f"cablekit.{name}": "renders a result object"
         for name in (
             "cdpr.compensate.plot_cable cdpr.compensate.report cdpr.compensate.table_markdown "
-            "cdpr.diagnose.markdown cdpr.diagnose.plot cdpr.diagnose.report cdpr.force.markdown "
+            "cdpr.diagnose.markdown cdpr.diagnose.plot cdpr.diagnose.report cdpr.diagnose.run_report "
+            "cdpr.force.markdown "
             "cdpr.force.plot cdpr.planar.markdown cdpr.planar.plot cdpr.planar.report "
             "cdpr.sensors.calibration_table cdpr.sensors.fig18_table cdpr.sensors.plot_fig18 "
             "cdpr.winch.plot_root_locus cdpr.winch.plot_steps cdpr.winch.report "

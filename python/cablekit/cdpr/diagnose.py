@@ -344,6 +344,7 @@ class CdprDiagnosis:
         """One line per channel, joined."""
         return "; ".join(c.summary() for c in self.channels)
 
+    @checked
     def to_dict(self) -> dict[str, Any]:
         """The diagnosis as JSON-ready data (``diagnosis.json`` of a campaign group): status,
         findings (cables 1-based) and, per channel, its verdict, noise, per-cable held-out gaps and
