@@ -375,3 +375,196 @@ def test_independent_simulators_play_and_presliding_are_named_at_their_elements(
         assert rows[name]["held_out_closed"] > 0.9
         assert rows[name]["verdict"] in ("explained", "ambiguous"), rows[name]
     assert rows[names[2]]["verdict"] == "no_significant_gap", rows[names[2]]
+
+
+_ANY = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.integers(-(10**12), 10**12),
+    st.booleans(),
+    st.text(max_size=3),
+    st.none(),
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    joints=st.lists(
+        st.fixed_dictionaries(
+            {"name": st.text(min_size=1, max_size=4)}, optional={"coulomb": _ANY, "smoothing": _ANY}
+        ),
+        max_size=4,
+    ),
+    motors=st.lists(
+        st.fixed_dictionaries(
+            {"name": st.text(min_size=1, max_size=4), "drive": st.sampled_from(["torque", "position", 3])},
+            optional={"coulomb": _ANY, "smoothing": _ANY},
+        ),
+        max_size=3,
+    ),
+    eps=st.one_of(st.floats(min_value=1e-12, max_value=1.0), st.floats(allow_nan=True, allow_infinity=True)),
+)
+def test_sharpening_a_networks_dry_friction_touches_only_its_dry_friction(joints, motors, eps):
+    """Each joint and torque-driven motor with dry friction (a finite ``coulomb`` > 0) smoothed
+    more widely than ``eps`` gets ``eps`` and is named; everything else — position motors,
+    frictionless or malformed tables, every other key — is as it was, and the input is unchanged."""
+    from cablekit.diagnose.spec import JOINT_SMOOTHING_DEFAULT, MOTOR_SMOOTHING_DEFAULT, sharpen_dry_friction
+    from cablekit.errors import ParameterError
+
+    doc = {"name": "n", "joints": joints, "motors": motors, "cables": [{"name": "c"}]}
+    before = copy.deepcopy(doc)
+    if not (math.isfinite(eps) and eps > 0):
+        with pytest.raises(ParameterError):
+            sharpen_dry_friction(doc, eps)
+        return
+    out, changed = sharpen_dry_friction(doc, eps)
+    assert doc == before and out["cables"] == doc["cables"] and out["name"] == "n"
+
+    def real(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+    expected = []
+    for key, default, what in (
+        ("joints", JOINT_SMOOTHING_DEFAULT, "joint"),
+        ("motors", MOTOR_SMOOTHING_DEFAULT, "motor"),
+    ):
+        for old, new in zip(doc[key], out[key], strict=True):
+            c, w = old.get("coulomb", 0.0), old.get("smoothing", default)
+            dry = (what == "joint" or old["drive"] == "torque") and real(c) and real(w) and c > 0 and w > eps
+            if dry:
+                expected.append(f"{what}.{old['name']}")
+                assert new == dict(old, smoothing=eps)
+            else:
+                assert new == old
+    assert changed == expected
+    with pytest.raises(CablekitError):
+        sharpen_dry_friction([doc], eps)  # type: ignore[arg-type]
+
+
+def test_a_network_that_sticks_gets_a_sharp_nominal_and_one_that_creeps_keeps_its_file():
+    """The diagnosis replays the fit runs with the file's smoothed dry friction and with it
+    resolved sharply, and keeps the sharp one only where the runs stick: runs of the file's own
+    law keep the file (no note), runs of a plant whose joints stick get the sharp nominal with a
+    note naming the joints — and then nothing left to explain."""
+    from dataclasses import replace
+
+    from cablekit.diagnose.spec import SHARP_DRY_FRICTION
+
+    spec = model_spec_from_dict(_doc())
+    fit, hold = _runs(nw.shipped_document("two_stage_forceps"), 3)
+    prep = prepare(spec, fit, hold)
+    assert prep.spec.extra["sharp_dry_friction"] is None
+    assert not any("resolved sharply" in w for w in prep.warnings)
+    # the same motions on a plant that sticks: its outputs from the diagnosis's own sharp replay
+    sticky = replace(spec, extra={"sharp_dry_friction": SHARP_DRY_FRICTION})
+    sp = prepare(sticky, fit, hold)
+    rng = np.random.default_rng(4)
+    q = 2 * math.pi / 2**14
+
+    def like(run: Run, problem, k: int) -> Run:
+        y = problem.predict(np.zeros(0), k)
+        cols = dict(run.columns)
+        for c, name in enumerate(sp.columns):
+            cols[name] = (
+                y[:, c] + rng.normal(0.0, 2e-4, len(y)) if name == "torque" else np.round(y[:, c] / q) * q
+            )
+        return Run(run.name, run.t, cols)
+
+    fit_s, hold_s = [like(fit[0], sp.fit0, 0)], [like(hold[0], sp.hold0, 0)]
+    got = prepare(spec, fit_s, hold_s)
+    assert got.spec.extra["sharp_dry_friction"] == SHARP_DRY_FRICTION
+    note = next(w for w in got.warnings if "resolved sharply" in w)
+    assert "joint.spindle" in note and "joint.jaw" in note
+    # the decision is kept by a re-preparation (intervals, a worker), whatever its runs
+    assert prepare(got.spec, fit, hold).spec.extra["sharp_dry_friction"] == SHARP_DRY_FRICTION
+    g_file = float(np.mean(prep.fit0.residuals(np.zeros(0)) ** 2))
+    g_sharp = float(np.mean(got.fit0.residuals(np.zeros(0)) ** 2))
+    assert g_sharp < 2.0 and g_file < 2.0
+
+
+def _finger_runs(doc: dict, seed: int, seconds: float = 2.0) -> tuple[list[Run], list[Run]]:
+    """Runs of a torque-driven tendon finger: the motors' holding torques plus slow sines, 14-bit
+    joint encoders, 18-bit motor encoders (a motor's encoder is the finer one on a geared drive:
+    the replay carries its quantisation into the joints), four tension cells (0.05 N)."""
+    net = nw.from_dict(doc)
+    names = list(net.output_names)
+    motors = list(net.motor_names)
+    probe = ck.simulate(net, np.zeros((2, net.n_inputs)), DT)
+    hold = [probe.outputs[0, names.index(f"load_m:{m}")] for m in motors]
+    rng = np.random.default_rng(seed)
+    q = 2 * math.pi / 2**14
+    out = []
+    for held in (False, True):
+        t = np.arange(round(seconds / DT)) * DT
+        u = np.zeros((len(t), net.n_inputs))
+        for i, h in enumerate(hold):
+            f = (0.7 + 0.3 * i) * (1.4 if held else 1.0)
+            u[:, i] = h * (1.0 + 0.3 * np.sin(2 * math.pi * f * t + i))
+        y = ck.simulate(net, u, DT, substeps=8 * ck.propose_step(net, DT).substeps).outputs
+        cols = {f"u_{m}": u[:, i] for i, m in enumerate(motors)}
+        for k, name in enumerate(names):
+            if name.startswith(("q:", "q_m:")):
+                step = q if name.startswith("q:") else q / 16
+                cols[name] = np.round(y[:, k] / step) * step
+            elif name.startswith("T:"):
+                cols[name] = y[:, k] + rng.normal(0.0, 0.05, len(t))
+        out.append(Run("held_out" if held else "fit", t, cols))
+    return [out[0]], [out[1]]
+
+
+def _finger_doc(definition: dict | None = None, **diagnosis: object) -> dict:
+    net = nw.shipped("tendon_finger")
+    outs = [n for n in net.output_names if n.startswith(("q:", "q_m:", "T:"))]
+    return {
+        "model": "cable_network",
+        "parameters": {"definition": definition} if definition else {"network": "tendon_finger"},
+        "inputs": {m: f"u_{m}" for m in net.motor_names},
+        "outputs": {o: o for o in outs},
+        "diagnosis": {"warmup": 0.1, **diagnosis},
+    }
+
+
+def test_torque_driven_motors_are_replayed_from_their_measured_angles():
+    """A finger whose four motors are torque-driven and whose motor encoders are measured: the
+    diagnosis drives the network by the measured motor angles (a note says so), scores the
+    torques as ``load_m = τ − J·q̈`` instead of the encoders, and on the file's own runs the gap
+    is noise on every channel — where the open-loop torque replay drifts by orders of magnitude.
+    ``replay`` chooses; asking for the measured angles without them is a typed error."""
+    doc = nw.shipped_document("tendon_finger")
+    for m in doc["motors"]:
+        m["inertia"] = 2e-5  # a geared motor's reflected inertia: its mode with the tendons ~25 Hz
+    fit, hold = _finger_runs(doc, 6)
+    prep = prepare(model_spec_from_dict(_finger_doc(doc)), fit, hold)
+    motors = list(nw.shipped("tendon_finger").motor_names)
+    assert [c for c in prep.channel_names if c.startswith("load_m:")] == [f"load_m:{m}" for m in motors]
+    assert not any(c.startswith("q_m:") for c in prep.channel_names)
+    assert any("replayed from their measured angles" in w for w in prep.warnings)
+    from cablekit.diagnose.fit import baseline
+    from cablekit.diagnose.select import gap
+
+    base = baseline(prep)
+    per_channel = np.mean(np.concatenate(base.hold_resid) ** 2, axis=0)
+    assert gap(base.hold_resid) < 1.3 and per_channel.max() < 1.6, dict(
+        zip(prep.channel_names, per_channel, strict=True)
+    )
+    # the open-loop replay of the same runs: the motors' rigid-body modes drift
+    open_loop = prepare(model_spec_from_dict(_finger_doc(doc, replay="open_loop")), fit, hold)
+    assert "q_m:m1" in open_loop.channel_names and not any("measured angles" in w for w in open_loop.warnings)
+    assert gap(baseline(open_loop).hold_resid) > 10 * gap(base.hold_resid)
+    # asked for, but a motor's angle is not measured
+    asked = _finger_doc(doc, replay="measured_motors")
+    del asked["outputs"]["q_m:m3"]
+    with pytest.raises(DataError, match="m3"):
+        prepare(model_spec_from_dict(asked), fit, hold)
+    for bad in ("closed_loop", 3, None):
+        with pytest.raises(DataError, match="replay"):
+            model_spec_from_dict(_finger_doc(replay=bad))
+    with pytest.raises(DataError, match="replay"):
+        model_spec_from_dict(
+            {
+                "model": "antagonistic_joint",
+                "parameters": {},
+                "inputs": {"x_m": "x"},
+                "outputs": {"tension_motor_drive": "t"},
+                "diagnosis": {"replay": "open_loop"},
+            }
+        )

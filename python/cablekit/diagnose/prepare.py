@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 import uuid
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -15,7 +15,15 @@ from numpy.typing import NDArray
 from cablekit._cablekit import JointProblem, JointRun, effect_catalogue
 from cablekit.diagnose import localise
 from cablekit.diagnose.data import Run, check_units
-from cablekit.diagnose.spec import NOT_IN_NETWORK, NOT_IN_TRANSMISSION, ModelSpec
+from cablekit.diagnose.spec import (
+    NOT_IN_NETWORK,
+    NOT_IN_TRANSMISSION,
+    SHARP_DRY_FRICTION,
+    ModelSpec,
+    _network_document,
+    network_output_info,
+    sharpen_dry_friction,
+)
 from cablekit.errors import DataError
 from cablekit.simulation import state_indices
 
@@ -156,6 +164,7 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
         raise DataError("the diagnosis needs at least one fit run")
     if not hold_runs:
         raise DataError("the diagnosis needs at least one held-out run (a different trajectory, load or rig)")
+    spec, fit_runs, hold_runs, replay_notes = _measured_motor_replay(spec, fit_runs, hold_runs)
     for run in fit_runs + hold_runs:
         check_units(run, spec.units())
         if spec.warmup >= 0.5 * run.duration:
@@ -169,8 +178,25 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     columns = [c for _, c in spec.outputs]
     # measurement error per channel: white noise plus stationary mains lines, pooled over fit runs
     sigma_list, lines = [], []
+    derived = spec.extra.get("derived_load", {})
     for c in columns:
-        per_run = [localise.measurement_sigma(r.column(c), r.dt) for r in fit_runs]
+        if c in derived:  # τ_m − J·q̈_m: the torque's noise and the encoder's through the difference
+            tau, enc, inertia = derived[c]
+            per_run = [
+                (
+                    math.hypot(
+                        localise.measurement_sigma(r.column(tau), r.dt)[0],
+                        inertia
+                        * float(np.linalg.norm(_ACCEL_STENCIL))
+                        * localise.measurement_sigma(r.column(enc), r.dt)[0]
+                        / r.dt**2,
+                    ),
+                    [],
+                )
+                for r in fit_runs
+            ]
+        else:
+            per_run = [localise.measurement_sigma(r.column(c), r.dt) for r in fit_runs]
         sigma_list.append(math.sqrt(np.mean([s * s for s, _ in per_run])))
         lines.append(sorted({f for _, ls in per_run for f, _ in ls}))
     sigma = np.array(sigma_list)
@@ -179,6 +205,8 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     fit_core = [joint_run(spec, r, columns, model) for r in fit_runs]
     hold_core = [joint_run(spec, r, columns, model) for r in hold_runs]
     servo = spec.servo()
+    spec, nominal_notes = _dry_friction_nominal(spec, chans, fit_core)
+    model = spec.model()
     probe = JointProblem(model, chans, fit_core, [], 1, servo)
     substeps = spec.substeps or max(1, probe.advised_substeps(np.zeros(0)))
     fit0 = JointProblem(model, chans, fit_core, [], substeps, servo)
@@ -217,7 +245,11 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
         else:
             skipped[e] = "no site of this plant where it can act on the measured channels"
     candidates = list(info)
-    warnings = _servo_saturation(spec, model, fit_runs + hold_runs, fit_core + hold_core, substeps)
+    warnings = (
+        replay_notes
+        + nominal_notes
+        + _servo_saturation(spec, model, fit_runs + hold_runs, fit_core + hold_core, substeps)
+    )
     warnings += unknown_conditions(spec, fit_runs, hold_runs)
     return Prepared(
         spec,
@@ -235,6 +267,155 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
         info,
         interference_hz=lines,
     )
+
+
+#: the five-point central stencil of ``q̈·dt²`` (error O(dt⁴): 0.07 % at a tenth of the sampling
+#: rate where the three-point one is off by 3 % — a motor's mode with its cables at 80 Hz
+#: otherwise leaves its ``J·q̈`` error in the load channel)
+_ACCEL_STENCIL = np.array([-1.0, 16.0, -30.0, 16.0, -1.0]) / 12.0
+
+
+def _acceleration(q: _F, dt: float) -> _F:
+    """``q̈`` by the five-point central stencil (the two samples at each end repeat their
+    neighbour's)."""
+    a = np.empty_like(q)
+    if len(q) < 5:
+        a[:] = 0.0
+        return a
+    a[2:-2] = np.correlate(q, _ACCEL_STENCIL, mode="valid") / (dt * dt)
+    a[:2], a[-2:] = a[2], a[-3]
+    return a
+
+
+def _measured_motor_replay(
+    spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]
+) -> tuple[ModelSpec, list[Run], list[Run], list[str]]:
+    """A network whose torque-driven motors all have a measured angle is replayed with those
+    angles as the motors' positions (``[diagnosis] replay = "measured_motors"``, the default
+    ``"auto"``), not open loop from their torques (``"open_loop"``).
+
+    An open-loop torque replay integrates the rigid-body modes of every motor and joint: a
+    2e-5 rad error of the initial state, or any effect, makes it drift by hundreds or millions of
+    noise units (docs/diagnosis.md), so that a control case shows a gap and every fit starts far
+    from its answer. Driven by the measured motor angles, the cables and joints are anchored to
+    the data as a position-driven instrument is. The torque input then becomes a measured
+    channel: ``load_m:<motor>`` (what the cables and the motor's own friction take) is compared
+    with ``τ_m − J_m·q̈_m``, ``q̈_m`` the encoder's second difference; the encoder channel itself
+    is the input and is no longer scored. Returns the spec, the runs with the derived columns and
+    a note for the diagnosis's warnings.
+    """
+    mode = spec.extra.get("replay", "auto")
+    if spec.kind != "cable_network" or mode == "open_loop":
+        return spec, fit_runs, hold_runs, []
+    doc, _ = _network_document(spec.parameters, spec.source)
+    net = spec.network()
+    motors = list(net.motor_names)
+    tables = {m.get("name"): m for m in doc.get("motors", []) if isinstance(m, dict)}
+    torque = [m for m in motors if tables.get(m, {}).get("drive") == "torque"]
+    names = list(net.output_names)
+    encoder: dict[str, tuple[str, str]] = {}
+    for out, col in spec.outputs:
+        base = names[network_output_info(net, out)[0]]
+        if base.startswith("q_m:") and base[4:] in torque:
+            encoder.setdefault(base[4:], (out, col))
+    missing = [m for m in torque if m not in encoder]
+    if not torque or missing:
+        if mode == "measured_motors":
+            raise DataError(
+                f'{spec.source}: [diagnosis] replay = "measured_motors" needs a measured angle (an output '
+                f"q_m:<motor>) for every torque-driven motor; "
+                + (f"missing for {missing}" if torque else "the network has no torque-driven motor")
+            )
+        return spec, fit_runs, hold_runs, []
+    derived = {m: f"{spec.inputs[motors.index(m)]} − J·q̈ ({m})" for m in torque}
+
+    def with_load(run: Run) -> Run:
+        cols = dict(run.columns)
+        for m in torque:
+            inertia = float(tables[m].get("inertia", 0.0))
+            tau = run.column(spec.inputs[motors.index(m)])
+            cols[derived[m]] = tau - inertia * _acceleration(run.column(encoder[m][1]), run.dt)
+        return replace(run, columns=cols)
+
+    new_doc = dict(
+        doc, motors=[dict(t, drive="position") if t.get("name") in torque else t for t in doc["motors"]]
+    )
+    scored = {encoder[m] for m in torque}
+    new = replace(
+        spec,
+        parameters={"definition": new_doc},
+        inputs=[encoder[m][1] if m in torque else c for m, c in zip(motors, spec.inputs, strict=True)],
+        outputs=[oc for oc in spec.outputs if oc not in scored]
+        + [(f"load_m:{m}", derived[m]) for m in torque],
+        extra={k: v for k, v in spec.extra.items() if k != "_network"}
+        | {
+            "replay": "measured_motors",
+            "derived_load": {
+                derived[m]: (
+                    spec.inputs[motors.index(m)],
+                    encoder[m][1],
+                    float(tables[m].get("inertia", 0.0)),
+                )
+                for m in torque
+            },
+        },
+    )
+    note = (
+        f"the torque-driven motors {', '.join(torque)} are replayed from their measured angles "
+        f"({', '.join(encoder[m][1] for m in torque)}), not open loop from their torques; their torques are "
+        "scored as load_m = τ_m − J_m·q̈_m; "
+        '[diagnosis] replay = "open_loop" replays the torques'
+    )
+    return new, [with_load(r) for r in fit_runs], [with_load(r) for r in hold_runs], [note]
+
+
+#: a network's dry friction is resolved sharply when that leaves at most this share of the file's
+#: nominal gap on the fit runs (:func:`_dry_friction_nominal`)
+SHARPEN_SHARE = 0.5
+
+
+def _dry_friction_nominal(
+    spec: ModelSpec, chans: list[tuple[int, float, bool]], fit_core: list[JointRun]
+) -> tuple[ModelSpec, list[str]]:
+    """The nominal a network diagnosis replays: the file's dry friction, or the same resolved
+    sharply (:func:`~cablekit.diagnose.spec.sharpen_dry_friction`) when the fit runs say so.
+
+    A network file's ``smoothing`` of a joint's (or a torque-driven motor's) Coulomb friction is a
+    regularisation of the sign: the format's default, 1e-3 rad/s, lets a joint at rest under a
+    load below its friction creep, where real dry friction sticks. A plant that sticks then shows
+    a gap on every run — controls included — that no inserted effect explains. The diagnosis
+    replays the fit runs (never the held-out ones) with both and keeps the sharp one when its gap
+    is at most :data:`SHARPEN_SHARE` of the file's and the file's is above noise; a note says so.
+    The decision is recorded in the returned spec (``extra["sharp_dry_friction"]``, ``None`` for
+    the file's), so that a re-preparation of the same diagnosis (intervals, a worker) keeps it.
+    """
+    if spec.kind != "cable_network" or "sharp_dry_friction" in spec.extra:
+        return spec, []
+    keep = {k: v for k, v in spec.extra.items() if k != "_network"}
+    as_file = replace(spec, extra=keep | {"sharp_dry_friction": None})
+    doc, _ = _network_document(spec.parameters, spec.source)
+    changed = sharpen_dry_friction(doc)[1]
+    if not changed:
+        return as_file, []
+    sharp = replace(spec, extra=keep | {"sharp_dry_friction": SHARP_DRY_FRICTION})
+
+    def nominal_gap(s: ModelSpec) -> float:
+        model = s.model()
+        probe = JointProblem(model, chans, fit_core, [], 1, s.servo())
+        substeps = s.substeps or max(1, probe.advised_substeps(np.zeros(0)))
+        r = JointProblem(model, chans, fit_core, [], substeps, s.servo()).residuals(np.zeros(0))
+        return float(np.mean(r * r))
+
+    g_file, g_sharp = nominal_gap(as_file), nominal_gap(sharp)
+    if not (g_file > NOISE_LEVEL and g_sharp <= SHARPEN_SHARE * g_file):
+        return as_file, []
+    return sharp, [
+        f"the nominal's dry friction at {', '.join(changed)} is resolved sharply (sign smoothing "
+        f"{SHARP_DRY_FRICTION:g} rad/s or m/s instead of the network file's): the fit runs stick where the "
+        f"file's smoothed law creeps — the nominal gap on the fit runs falls from {g_file:.3g} to "
+        f"{g_sharp:.3g} noise units (a mechanism whose friction does creep at rest has viscous friction: "
+        "state it as such)"
+    ]
 
 
 #: share of a run's samples at the servo's torque limit above which the replay is flagged

@@ -62,17 +62,27 @@ sampling, gain/bias) act on force sensors only.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from cablekit._args import checked, real
 from cablekit._cablekit import AntagonisticJoint, CableNetwork, CableTransmission, Model, effect_catalogue
+from cablekit._files import parse_toml, read_text
 from cablekit.diagnose.data import Run
 from cablekit.errors import CablekitError, DataError
 
-__all__ = ["OUTPUTS", "ModelSpec", "load_model_spec", "model_spec_from_dict", "output_info"]
+__all__ = [
+    "OUTPUTS",
+    "ModelSpec",
+    "load_model_spec",
+    "model_spec_from_dict",
+    "output_info",
+    "sharpen_dry_friction",
+]
 
 #: antagonistic joint: output name → (index in the model outputs, unit, is a force sensor)
 OUTPUTS: dict[str, tuple[int, str, bool]] = {
@@ -205,7 +215,9 @@ class ModelSpec:
         """The nominal network (built once per spec)."""
         net = self.extra.get("_network")
         if net is None:
-            net = self.extra["_network"] = _network(self.parameters, self.source)
+            net = self.extra["_network"] = _network(
+                self.parameters, self.source, self.extra.get("sharp_dry_friction")
+            )
         return net
 
     def output(self, name: str) -> tuple[int, str, bool]:
@@ -221,6 +233,8 @@ class ModelSpec:
             unit = self.output(out)[1]
             if (self.kind == "cable_transmission" and unit == "rad") or unit == "rad|m":
                 continue  # revolute (rad) or prismatic (m): not checkable by name
+            if self.kind == "cable_network" and unit == "rad" and self._base_output(out).startswith("q_m:"):
+                continue  # a motor turns many times: its angle's size says nothing of the unit
             u[col] = unit
         return u
 
@@ -269,6 +283,11 @@ class ModelSpec:
             if cols[col] == "rad|m" and self.kind == "cable_network" and not out.startswith(("q:", "q_m:")):
                 cols[col] = None  # a joint torque: N·m, or N on a prismatic joint
         return cols
+
+    def _base_output(self, name: str) -> str:
+        """A network output's own name (``q_m:m1``) for a name or a sensor's name."""
+        net = self.network()
+        return list(net.output_names)[network_output_info(net, name)[0]]
 
     def channels(self) -> list[tuple[int, bool]]:
         """``(output index, is force sensor)`` per measured column, in file order."""
@@ -321,7 +340,8 @@ class ModelSpec:
                 "inputs": inputs,
                 "outputs": dict(self.outputs),
                 "diagnosis": {"warmup": self.warmup, "substeps": self.substeps}
-                | ({"effects": self.effects} if self.effects else {}),
+                | ({"effects": self.effects} if self.effects else {})
+                | ({"replay": self.extra["replay"]} if "replay" in self.extra else {}),
             }
             | ({"servo": dict(zip(SERVO_GAINS, map(list, servo), strict=True))} if servo else {})
             | ({"units": {c: d for c, (_, _, d) in self.column_units.items()}} if self.column_units else {})
@@ -332,7 +352,9 @@ class ModelSpec:
 #: the tables and keys a model file may hold (anything else is a DataError: a misspelt key
 #: must not be silently ignored)
 TOP_LEVEL = {"model", "parameters", "inputs", "outputs", "diagnosis", "servo", "units", "conditions"}
-DIAGNOSIS_KEYS = {"warmup", "substeps", "effects"}
+DIAGNOSIS_KEYS = {"warmup", "substeps", "effects", "replay"}
+#: how a network with torque-driven motors is replayed (prepare._measured_motor_replay)
+REPLAYS = ("auto", "measured_motors", "open_loop")
 SERVO_GAINS = ("kp", "kd", "torque_limit")
 SERVO_KEYS = {"preset", *SERVO_GAINS}
 #: the most RK4 substeps per sample the core accepts (cable_core::integrate::MAX_SUBSTEPS)
@@ -419,9 +441,10 @@ def _transmission(params: dict[str, Any], links: int) -> CableTransmission:
 NETWORK_SOURCES = ("network", "file", "definition")
 
 
-def _network(params: dict[str, Any], source: str) -> CableNetwork:
-    """The network a model file's ``[parameters]`` name: a shipped network (``network``), a
-    network file (``file``, relative to the model file) or an inline ``definition`` table."""
+def _network_document(params: dict[str, Any], source: str) -> tuple[dict[str, Any], str]:
+    """The network document a model file's ``[parameters]`` name, and a label for its errors: a
+    shipped network (``network``), a network file (``file``, relative to the model file) or an
+    inline ``definition`` table."""
     from cablekit import network as nw
 
     given = [k for k in NETWORK_SOURCES if k in params]
@@ -436,12 +459,79 @@ def _network(params: dict[str, Any], source: str) -> CableNetwork:
     if given[0] == "definition":
         if not isinstance(value, dict):
             raise DataError(f"{source}: [parameters] definition must be a table (a network document)")
-        return nw.from_dict(value, f"{source}: [parameters.definition]")
+        return value, f"{source}: [parameters.definition]"
     if not isinstance(value, str):
         raise DataError(f"{source}: [parameters] {given[0]} must be a string, got {type(value).__name__}")
     if given[0] == "network":
-        return nw.shipped(value)
-    return nw.load(_network_file(value, source))
+        return nw.shipped_document(value), f"{value}.toml"
+    path = _network_file(value, source)
+    return parse_toml(read_text(path, "network file"), str(path)), str(path)
+
+
+#: sign smoothing (rad/s or m/s) of a network's dry friction when the diagnosis resolves it
+#: sharply (:func:`sharpen_dry_friction`): a stick to 1 µrad/s; the diagnosis's replay integrates
+#: stiff friction implicitly (``cable_core::identify::netplant``)
+SHARP_DRY_FRICTION = 1e-6
+
+
+@checked
+def sharpen_dry_friction(
+    doc: dict[str, Any], smoothing: float = SHARP_DRY_FRICTION
+) -> tuple[dict[str, Any], list[str]]:
+    """``doc`` (a network document; not changed) with the Coulomb friction of every joint and
+    torque-driven motor resolved to ``smoothing`` (> 0, rad/s or m/s), and the elements changed
+    (``joint.<name>``, ``motor.<name>``: those with dry friction smoothed more widely).
+
+    A network file's ``smoothing`` regularises the sign of dry friction; at rest under a load
+    below its level a smoothed law creeps at ``ε·τ/F_c`` where real dry friction sticks. Tables
+    whose numbers are not numbers are left as they are: the network's reader names them.
+    """
+    eps = real(smoothing, "smoothing", lo=0.0, lo_open=True)
+    changed: list[str] = []
+
+    def number(v: Any) -> float | None:
+        ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(float(v))
+        return float(v) if ok else None
+
+    def sharp(table: Any, default: float, what: str) -> Any:
+        if not isinstance(table, dict):
+            return table
+        coulomb, width = number(table.get("coulomb", 0.0)), number(table.get("smoothing", default))
+        if coulomb is None or width is None or coulomb <= 0.0 or width <= eps:
+            return table
+        changed.append(f"{what}.{table.get('name', '?')}")
+        return dict(table, smoothing=eps)
+
+    out = dict(doc)
+    for key, default, what in (
+        ("joints", JOINT_SMOOTHING_DEFAULT, "joint"),
+        ("motors", MOTOR_SMOOTHING_DEFAULT, "motor"),
+    ):
+        tables = doc.get(key)
+        if isinstance(tables, list):
+            out[key] = [
+                sharp(t, default, what)
+                if what == "joint" or (isinstance(t, dict) and t.get("drive") == "torque")
+                else t
+                for t in tables
+            ]
+    return out, changed
+
+
+#: the network format's defaults for a joint's and a motor's ``smoothing`` (docs/models.md)
+JOINT_SMOOTHING_DEFAULT = 1e-3
+MOTOR_SMOOTHING_DEFAULT = 0.1
+
+
+def _network(params: dict[str, Any], source: str, sharp: float | None = None) -> CableNetwork:
+    """The network a model file's ``[parameters]`` name (:func:`_network_document`), its dry
+    friction resolved to ``sharp`` if given."""
+    from cablekit import network as nw
+
+    doc, label = _network_document(params, source)
+    if sharp is not None:
+        doc = sharpen_dry_friction(doc, sharp)[0]
+    return nw.from_dict(doc, label)
 
 
 def _network_file(value: str, source: str) -> Path:
@@ -576,6 +666,14 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
                 f"{source}: [diagnosis] effects {bad} unknown; choose from {sorted(known)} "
                 "(an effect, or effect@site, effect@site/form: see docs/diagnosis.md)"
             )
+    replay = diag.get("replay", "auto")
+    if replay not in REPLAYS or (replay != "auto" and kind != "cable_network"):
+        raise DataError(
+            f"{source}: [diagnosis] replay must be one of {list(REPLAYS)} (a cable_network's torque-driven "
+            f"motors), got {replay!r}"
+        )
+    if kind == "cable_network" and replay != "auto":
+        extra["replay"] = replay
     spec = ModelSpec(
         kind=kind,
         parameters=dict(doc["parameters"]),
