@@ -546,6 +546,10 @@ def test_torque_driven_motors_are_replayed_from_their_measured_angles():
     assert gap(base.hold_resid) < 1.3 and per_channel.max() < 1.6, dict(
         zip(prep.channel_names, per_channel, strict=True)
     )
+    # a re-preparation of the prepared spec and runs (intervals, a Ray worker) is the same problem
+    again = prepare(prep.spec, prep.fit_runs, prep.hold_runs)
+    assert again.channel_names == prep.channel_names and np.allclose(again.sigma, prep.sigma)
+    assert np.array_equal(again.fit0.residuals(np.zeros(0)), prep.fit0.residuals(np.zeros(0)))
     # the open-loop replay of the same runs: the motors' rigid-body modes drift
     open_loop = prepare(model_spec_from_dict(_finger_doc(doc, replay="open_loop")), fit, hold)
     assert "q_m:m1" in open_loop.channel_names and not any("measured angles" in w for w in open_loop.warnings)

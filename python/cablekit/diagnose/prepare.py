@@ -305,8 +305,8 @@ def _measured_motor_replay(
     a note for the diagnosis's warnings.
     """
     mode = spec.extra.get("replay", "auto")
-    if spec.kind != "cable_network" or mode == "open_loop":
-        return spec, fit_runs, hold_runs, []
+    if spec.kind != "cable_network" or mode == "open_loop" or "derived_load" in spec.extra:
+        return spec, fit_runs, hold_runs, []  # (a re-preparation's spec and runs are replayed so already)
     doc, _ = _network_document(spec.parameters, spec.source)
     net = spec.network()
     motors = list(net.motor_names)
