@@ -300,7 +300,7 @@ def _measured_motor_replay(
     from its answer. Driven by the measured motor angles, the cables and joints are anchored to
     the data as a position-driven instrument is. The torque input then becomes a measured
     channel: ``load_m:<motor>`` (what the cables and the motor's own friction take) is compared
-    with ``τ_m − J_m·q̈_m``, ``q̈_m`` the encoder's second difference; the encoder channel itself
+    with ``τ_m − J_m·q̈_m``, ``q̈_m`` the encoder's five-point central difference; the encoder itself
     is the input and is no longer scored. Returns the spec, the runs with the derived columns and
     a note for the diagnosis's warnings.
     """
