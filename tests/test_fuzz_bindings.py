@@ -560,3 +560,43 @@ def test_a_bad_argument_is_a_typed_error_or_a_finite_result(name, data):
         return
     if finite:
         assert _finite_numbers(result), f"{name}{args, kwargs} returned non-finite numbers"
+
+
+def _clamped_mean(x: np.ndarray, w: int) -> np.ndarray:
+    """NumPy reference of ``Channel.window``: a centred mean of ``w`` samples whose window stays
+    inside the series (the whole series when it is shorter)."""
+    n = len(x)
+    w = min(w, n)
+    lo = np.clip(np.arange(n) - w // 2, 0, n - w)
+    return np.array([x[a : a + w].mean() for a in lo])
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    window=st.one_of(
+        st.integers(-3, 400),
+        st.sampled_from([2**40, 2**64, -(2**63)]),
+        st.floats(allow_nan=True),
+        st.text(max_size=3),
+        st.none(),
+    )
+)
+def test_a_channels_window_averages_its_residual_or_is_a_typed_error(window):
+    """``JointProblem`` channels ``(output, weight, sensor, window)``: an odd window scores the
+    centred mean of the plain channel's residual (NumPy reference, clamped at the ends; a window
+    longer than the run is the run's mean), the other channels untouched; anything else is a
+    typed error."""
+    t = np.arange(120) * 1e-3
+    rng = np.random.default_rng(1)
+    run = JointRun(1e-3, 1e-3 * np.sin(6 * t), rng.normal(0, 0.1, (120, 2)))
+    plain = JointProblem(AJ, [(0, 2.0, True), (4, 50.0, False)], [run], [], substeps=4)
+    try:
+        windowed = JointProblem(AJ, [(0, 2.0, True, window), (4, 50.0, False)], [run], [], substeps=4)
+    except ck.CablekitError:
+        assert not (isinstance(window, int) and window >= 1 and window % 2 == 1 and window < 2**63)
+        return
+    assert isinstance(window, int) and window % 2 == 1
+    r0 = plain.residuals(np.zeros(0)).reshape(-1, 2)
+    r1 = windowed.residuals(np.zeros(0)).reshape(-1, 2)
+    assert np.array_equal(r0[:, 1], r1[:, 1])
+    np.testing.assert_allclose(r1[:, 0], _clamped_mean(r0[:, 0], window), rtol=1e-12, atol=1e-14)

@@ -257,7 +257,7 @@ class JointProblem:
     def __new__(
         cls,
         model: Model,
-        channels: list[tuple[int, float, bool]],
+        channels: Sequence[tuple[int, float, bool] | tuple[int, float, bool, int]],
         runs: Sequence[JointRun],
         effects: list[str],
         substeps: int = 1,

@@ -130,10 +130,30 @@ fn candidate_dict<'py>(
     Ok(d)
 }
 
+/// A channel as Python gives it: `(output, weight, sensor)`, or with the residual's averaging
+/// window `(output, weight, sensor, window)`.
+#[derive(FromPyObject)]
+enum ChannelTuple {
+    Windowed((usize, f64, bool, usize)),
+    Plain((usize, f64, bool)),
+}
+
+impl ChannelTuple {
+    fn channel(self) -> core::Channel {
+        match self {
+            Self::Plain((o, w, s)) => core::Channel::new(o, w, s),
+            Self::Windowed((o, w, s, n)) => core::Channel::new(o, w, s).with_window(n),
+        }
+    }
+}
+
 /// Grey-box least-squares problem of a nominal model (an `AntagonisticJoint` or a
 /// `CableTransmission`) with a set of candidate effects.
 ///
-/// `channels` is a list of `(output_index, weight, is_force_sensor)`; joint output indices are
+/// `channels` is a list of `(output_index, weight, is_force_sensor)`, or `(output_index,
+/// weight, is_force_sensor, window)` with the odd width of a centred moving average applied to
+/// the channel's residual before weighting (1: none; for a channel whose noise is blue, such as a
+/// load derived from an encoder's second difference); joint output indices are
 /// `[T_m1, T_m2, T_j1, T_j2, theta, contact_force, T_m1 - T_m2]`, transmission ones the model's
 /// outputs (5 per link). `runs` is a list of `JointRun`. With `servo = (kp, kd, torque_limit)` a
 /// transmission is replayed in closed loop under its motor PD servo: each run's `input` is then
@@ -162,16 +182,9 @@ impl JointProblem {
     ) -> PyResult<Self> {
         let plant = guarded(|| core::Plant::of(&model.get().inner, servo))?;
         let runs = runs.iter().map(|r| r.inner.clone()).collect();
-        let what = "a list of (output, weight, sensor) triples";
-        let channels: Vec<(usize, f64, bool)> = tuples(channels, "channels", what)?;
-        let channels = channels
-            .into_iter()
-            .map(|(output, weight, sensor)| core::Channel {
-                output,
-                weight,
-                sensor,
-            })
-            .collect();
+        let what = "a list of (output, weight, sensor) or (output, weight, sensor, window) tuples";
+        let channels: Vec<ChannelTuple> = tuples(channels, "channels", what)?;
+        let channels = channels.into_iter().map(ChannelTuple::channel).collect();
         let bare = guarded(|| core::JointProblem::new(plant, channels, runs, vec![], substeps))?
             .with_kink_refine(kink_refine);
         let candidates = candidates_from(&bare, &effects)?;

@@ -323,9 +323,20 @@ def diagnose(
             "fit_runs": [_run_info(r) for r in fit_runs],
             "held_out_runs": [_run_info(r) for r in hold_runs],
             "channels": [
-                {"output": o, "column": c, "noise_sigma": float(s), "interference_hz": hz}
-                for o, c, s, hz in zip(
-                    prep.channel_names, prep.columns, prep.sigma, prep.interference_hz, strict=False
+                {
+                    "output": o,
+                    "column": c,
+                    "noise_sigma": float(s),
+                    "interference_hz": hz,
+                    "residual_window": w,
+                }
+                for o, c, s, hz, w in zip(
+                    prep.channel_names,
+                    prep.columns,
+                    prep.sigma,
+                    prep.interference_hz,
+                    prep.windows or [1] * prep.q,
+                    strict=False,
                 )
             ],
             "substeps": prep.substeps,

@@ -93,6 +93,9 @@ class Prepared:
     info: dict[str, dict[str, Any]] = field(default_factory=dict)
     #: per channel: mains-interference lines (Hz) found in the fit runs, counted as noise
     interference_hz: list[list[float]] = field(default_factory=list)
+    #: per channel: the width (samples) of the centred mean its residual is scored through (1:
+    #: sample by sample; a derived load channel's, :func:`_load_window`)
+    windows: list[int] = field(default_factory=list)
     #: identity of this preparation (a distributed executor ships its data once per token)
     token: str = field(default_factory=lambda: uuid.uuid4().hex)
 
@@ -177,30 +180,32 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     names = [o for o, _ in spec.outputs]
     columns = [c for _, c in spec.outputs]
     # measurement error per channel: white noise plus stationary mains lines, pooled over fit runs
-    sigma_list, lines = [], []
+    sigma_list, lines, windows = [], [], []
     derived = spec.extra.get("derived_load", {})
     for c in columns:
         if c in derived:  # τ_m − J·q̈_m: the torque's noise and the encoder's through the difference
             tau, enc, inertia = derived[c]
-            per_run = [
-                (
-                    math.hypot(
-                        localise.measurement_sigma(r.column(tau), r.dt)[0],
-                        inertia
-                        * float(np.linalg.norm(_ACCEL_STENCIL))
-                        * localise.measurement_sigma(r.column(enc), r.dt)[0]
-                        / r.dt**2,
-                    ),
-                    [],
-                )
-                for r in fit_runs
-            ]
-        else:
-            per_run = [localise.measurement_sigma(r.column(c), r.dt) for r in fit_runs]
-        sigma_list.append(math.sqrt(np.mean([s * s for s, _ in per_run])))
+            dt = fit_runs[0].dt
+            s_tau = _pooled([localise.measurement_sigma(r.column(tau), r.dt)[0] for r in fit_runs])
+            s_acc = (
+                inertia
+                * _pooled([localise.measurement_sigma(r.column(enc), r.dt)[0] for r in fit_runs])
+                / dt**2
+            )
+            window, s = _load_window(s_tau, s_acc, dt)
+            sigma_list.append(s)
+            lines.append([])
+            windows.append(window)
+            continue
+        per_run = [localise.measurement_sigma(r.column(c), r.dt) for r in fit_runs]
+        sigma_list.append(_pooled([s for s, _ in per_run]))
         lines.append(sorted({f for _, ls in per_run for f, _ in ls}))
+        windows.append(1)
     sigma = np.array(sigma_list)
-    chans = [(spec.output(o)[0], 1.0 / s, spec.output(o)[2]) for o, s in zip(names, sigma, strict=False)]
+    chans = [
+        (spec.output(o)[0], 1.0 / s, spec.output(o)[2], w)
+        for o, s, w in zip(names, sigma, windows, strict=True)
+    ]
     model = spec.model()
     fit_core = [joint_run(spec, r, columns, model) for r in fit_runs]
     hold_core = [joint_run(spec, r, columns, model) for r in hold_runs]
@@ -266,13 +271,66 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
         warnings,
         info,
         interference_hz=lines,
+        windows=windows,
     )
+
+
+#: the longest averaging of a derived load channel's residual (s): a motor's friction, a routing
+#: friction or a delay of its command changes the load at the trajectory's frequencies, well
+#: below the 50 Hz this window still passes (the parallel robots' length channel uses the same)
+LOAD_WINDOW_S = 0.02
+
+
+def _pooled(sigmas: list[float]) -> float:
+    return math.sqrt(float(np.mean(np.square(sigmas))))
+
+
+def _load_window(sigma_tau: float, sigma_acc: float, dt: float) -> tuple[int, float]:
+    """The averaging window (odd, samples) of a load channel ``τ − J·q̈`` and the noise of its
+    averaged residual: the torque's white noise ``sigma_tau`` through :data:`_HELD_TORQUE` and
+    ``sigma_acc = J·σ_q/dt²`` of the encoder through the five-point stencil.
+
+    The stencil's noise is blue (it rises as ω² and dwarfs the torque's at a few mN·m for a 14-bit
+    encoder at 1 kHz), which hides a motor's friction of 1 mN·m sample by sample. A centred mean
+    over ``k`` samples telescopes the stencil to its ends (noise ∝ 1/k) and the torque's by √k;
+    the window is the shortest for which the encoder's part is no larger than the torque's, and
+    at most :data:`LOAD_WINDOW_S`. The noise is exact for the stated noises (the mean's weights
+    through the stencil), so that a correct model still scores 1.
+    """
+    k_max = max(1, int(LOAD_WINDOW_S / dt))
+    k_max -= 1 - k_max % 2
+    best = (1, math.hypot(sigma_tau, sigma_acc))
+    for k in range(1, k_max + 1, 2):
+        mean = np.full(k, 1.0 / k)
+        acc = sigma_acc * float(np.linalg.norm(np.convolve(mean, _ACCEL_STENCIL)))
+        tau = sigma_tau * float(np.linalg.norm(np.convolve(mean, _HELD_TORQUE)))
+        best = (k, math.hypot(tau, acc))
+        if acc <= tau:
+            break
+    return best
 
 
 #: the five-point central stencil of ``q̈·dt²`` (error O(dt⁴): 0.07 % at a tenth of the sampling
 #: rate where the three-point one is off by 3 % — a motor's mode with its cables at 80 Hz
 #: otherwise leaves its ``J·q̈`` error in the load channel)
 _ACCEL_STENCIL = np.array([-1.0, 16.0, -30.0, 16.0, -1.0]) / 12.0
+
+
+#: the torque a zero-order-held command applies over the five-point stencil's span: the stencil
+#: weighs ``q̈`` on the four sample intervals around ``t_k`` by ``[−1, 13, 13, −1]/24``, so that
+#: ``J·q̈_k`` balances this mean of ``τ_{k−2} … τ_{k+1}``, not ``τ_k`` (which would leave
+#: ``τ̇·dt/2`` in the load: 10–40 µN·m on a finger moved at 1–2 Hz, above an averaged load's noise)
+_HELD_TORQUE = np.array([-1.0, 13.0, 13.0, -1.0]) / 24.0
+
+
+def _held_torque(tau: _F) -> _F:
+    """A held torque command as the five-point acceleration of the same sample sees it
+    (:data:`_HELD_TORQUE`; the ends repeat their neighbour's)."""
+    a = np.array(tau, dtype=float)
+    if len(a) >= 4:
+        a[2:-1] = np.correlate(tau, _HELD_TORQUE, mode="valid")
+        a[:2], a[-1] = a[2], a[-2]
+    return a
 
 
 def _acceleration(q: _F, dt: float) -> _F:
@@ -334,7 +392,7 @@ def _measured_motor_replay(
         for m in torque:
             inertia = float(tables[m].get("inertia", 0.0))
             tau = run.column(spec.inputs[motors.index(m)])
-            cols[derived[m]] = tau - inertia * _acceleration(run.column(encoder[m][1]), run.dt)
+            cols[derived[m]] = _held_torque(tau) - inertia * _acceleration(run.column(encoder[m][1]), run.dt)
         return replace(run, columns=cols)
 
     new_doc = dict(
@@ -375,7 +433,7 @@ SHARPEN_SHARE = 0.5
 
 
 def _dry_friction_nominal(
-    spec: ModelSpec, chans: list[tuple[int, float, bool]], fit_core: list[JointRun]
+    spec: ModelSpec, chans: list[tuple[int, float, bool, int]], fit_core: list[JointRun]
 ) -> tuple[ModelSpec, list[str]]:
     """The nominal a network diagnosis replays: the file's dry friction, or the same resolved
     sharply (:func:`~cablekit.diagnose.spec.sharpen_dry_friction`) when the fit runs say so.

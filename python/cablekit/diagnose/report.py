@@ -122,6 +122,18 @@ def _fmt(v: Any, digits: int = 3) -> str:
     return str(v)
 
 
+def _centred_mean(x: np.ndarray, w: int) -> np.ndarray:
+    """The core's residual averaging (``Channel.window``): a centred mean of ``w`` samples, its
+    window clamped inside the series."""
+    n = len(x)
+    if w <= 1 or n == 0:
+        return x
+    w = min(w, n)
+    c = np.concatenate([[0.0], np.cumsum(x)])
+    lo = np.clip(np.arange(n) - w // 2, 0, n - w)
+    return (c[lo + w] - c[lo]) / w
+
+
 def _figures(result: Diagnosis) -> dict[str, str]:
     """Plots from the internal objects of a fresh result (not available from JSON alone)."""
     from cablekit.plotting import pyplot_or_none
@@ -159,9 +171,23 @@ def _figures(result: Diagnosis) -> dict[str, str]:
         ax.set_ylabel(name)
         ax.legend(loc="upper right", fontsize=7)
         ax = axes[2 * c + 1]
-        ax.plot(t, nominal[:, c] - meas[:, c], color="tab:red", lw=0.7, label="residual, nominal")
+        w = prep.windows[c] if prep.windows else 1
+        tag = f" ({w}-sample mean, as scored)" if w > 1 else ""
+        ax.plot(
+            t,
+            _centred_mean(nominal[:, c] - meas[:, c], w),
+            color="tab:red",
+            lw=0.7,
+            label="residual, nominal" + tag,
+        )
         if current.effects:
-            ax.plot(t, aug[:, c] - meas[:, c], color="tab:blue", lw=0.7, label="residual, augmented")
+            ax.plot(
+                t,
+                _centred_mean(aug[:, c] - meas[:, c], w),
+                color="tab:blue",
+                lw=0.7,
+                label="residual, augmented" + tag,
+            )
         ax.axhspan(-prep.sigma[c], prep.sigma[c], color="0.85", label="±1σ noise")
         if worst is not None and (worst.family, worst.condition) in masks:
             m = masks[(worst.family, worst.condition)]

@@ -253,12 +253,15 @@ class RunInfo:
 @dataclass(frozen=True)
 class ChannelInfo:
     """A measured channel: model output, run column, measurement-error standard deviation (white
-    noise and any stationary mains lines, whose frequencies are listed)."""
+    noise and any stationary mains lines, whose frequencies are listed). ``residual_window``:
+    the samples of the centred mean its residual is scored through (1: sample by sample; a load
+    derived as ``τ − J·q̈``, whose noise is blue), ``noise_sigma`` then being the mean's."""
 
     output: str
     column: str
     noise_sigma: float
     interference_hz: list[float] = field(default_factory=list)
+    residual_window: int = 1
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,28 @@ pub struct Channel {
     /// Whether sensor-stage effects (lag, sampling, gain/bias) apply: force sensors yes,
     /// encoders no.
     pub sensor: bool,
+    /// Width (odd, ≥ 1) of a centred moving average applied to the channel's residual
+    /// `prediction − measurement` before weighting (1: none). For a channel whose noise is blue
+    /// — a load derived as `τ − J·q̈` from an encoder — the weight is then 1 / the noise of the
+    /// *averaged* residual; the window is clamped at the ends of the scored samples.
+    pub window: usize,
+}
+
+impl Channel {
+    /// A channel scored sample by sample (`window = 1`).
+    pub fn new(output: usize, weight: f64, sensor: bool) -> Self {
+        Self {
+            output,
+            weight,
+            sensor,
+            window: 1,
+        }
+    }
+
+    /// The same channel with its residual averaged over `window` samples.
+    pub fn with_window(self, window: usize) -> Self {
+        Self { window, ..self }
+    }
 }
 
 /// One recorded run.
