@@ -386,6 +386,10 @@ pub fn augment_network(nom: &Network, effects: &[(Candidate, &[f64])]) -> Networ
             (Site::NetRouting(k), Effect::CapstanFriction) => {
                 m.set_routing_friction(usize::from(k), p[0], p[1]);
             }
+            // the routing's friction ramps over a break-away sliding after each reversal
+            (Site::NetRouting(k), Effect::DahlHysteresis) => {
+                m.set_routing_dahl(usize::from(k), p[0], p[1]);
+            }
             (Site::NetMotor(i), e) => {
                 let i = usize::from(i);
                 let rho = m.motor_rho(i);

@@ -994,6 +994,7 @@ mod tests {
             "slack@cable.return",
             "nonlinear_stiffness@cable.return/scale",
             "capstan_friction@routing.drive",
+            "dahl_hysteresis@routing.return",
             "coulomb_friction@motor.motor",
             "sensor_gain_bias@sensor.load_m:motor",
         ] {
@@ -1024,6 +1025,9 @@ mod tests {
             ("creep@cable.drive", vec![0.3, 0.4]),
             ("creep@cable.return/whole", vec![0.2, 0.8]),
             ("backlash@motor.motor", vec![6e-5]),
+            // a routing's friction with pre-sliding: 0.15 above the nominal's μφ, the break-away
+            // at the data's stretch scale
+            ("dahl_hysteresis@routing.drive", vec![0.15, f64::NAN]),
         ] {
             let c = probe.parse_candidate(id).unwrap();
             let base = probe.with_candidates(vec![c], 4).unwrap();

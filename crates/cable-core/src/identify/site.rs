@@ -631,8 +631,8 @@ impl Candidate {
                 .chain(cables().map(|x| x.with_form(Form::Scale)))
                 .collect(),
             CableDamping | Slack => cables().collect(),
-            // pre-sliding of a joint's dry friction
-            DahlHysteresis => joints().collect(),
+            // pre-sliding of a joint's dry friction, or of a routing's (a pulley's bristles)
+            DahlHysteresis => joints().chain(routings()).collect(),
             Creep => cables()
                 .chain(cables().map(|x| x.with_form(Form::Whole)))
                 .collect(),
@@ -819,6 +819,17 @@ impl Candidate {
                 let mut v = base;
                 v.push(p("n", "1", 1.0, 1.0, 0.3, 4.0, 0.5).starts(&[2.0]));
                 v
+            }
+            (Effect::DahlHysteresis, Site::NetRouting(_), _) => {
+                // level: the routing's capstan exponent μφ (added to the nominal's); break-away:
+                // hauled cable (m)
+                let st = s.stretch.max(1e-9);
+                let lo = (s.motor_speed * s.dt * 0.1).max(1e-9);
+                vec![
+                    p("mu_phi", "1", 0.0, 0.02, 0.0, 3.0, 0.1),
+                    p("x_d", "m", st, st, lo, 0.5 * s.travel.max(10.0 * st), st)
+                        .starts(&[0.1 * st, 10.0 * st]),
+                ]
             }
             (Effect::DahlHysteresis, Site::Contact(_), _) => {
                 // level: the contact's capstan exponent μφ; break-away: cable sliding (m)

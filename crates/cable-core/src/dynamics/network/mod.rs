@@ -42,7 +42,11 @@
 //! stage the contacts before the first one with friction (`J_d`, the driver's moment arms) —
 //! and the friction contacts carries the driver-side tension `T_m`. So the capstan losses act in
 //! the dynamics: a torque-driven motor, or the driven stage, pulls `T_m` where the joint feels
-//! `T` (the Euler–Eytelwein ratio `e^{±μφ}` as the cable is hauled in or paid out).
+//! `T` (the Euler–Eytelwein ratio `e^{±μφ}` as the cable is hauled in or paid out). A diagnosis
+//! may give a routing **pre-sliding** (a pulley's bristles, seed 002 eq. 8): the sign `σ_ε(v_h)`
+//! becomes a state `ζ ∈ [−1, 1]`, `ζ̇ = (v_h − |v_h|·ζ)/x_d`, which slides to `±1` over `x_d` m
+//! of hauled cable after each reversal (so the ratio ramps instead of jumping); its friction then
+//! stays explicit in the diagnosis's replay.
 //!
 //! `σ_c = ±1` is the sense in which the motor hauls cable `c` in. A position-driven motor takes
 //! `q_m`, `q̇_m` as inputs instead of states. The antagonistic joint of seed 000
@@ -298,6 +302,9 @@ struct Cable {
     smoothing: f64,
     /// Creep of its tension and the index of its state.
     creep: Option<(TensionCreep, usize)>,
+    /// Pre-sliding of its routing friction: the break-away sliding `x_d` (m of cable) and the
+    /// index of its state `ζ` (module docs); `None`: the sign law.
+    routing_dahl: Option<(f64, usize)>,
 }
 
 /// One motor of a built network.
@@ -461,6 +468,7 @@ impl Network {
                 driver_arms,
                 smoothing: spec.capstan_smoothing,
                 creep: None,
+                routing_dahl: None,
             });
         }
         for (i, name) in motor_names.iter().enumerate() {
@@ -950,10 +958,24 @@ impl Network {
         (e, de)
     }
 
+    /// The speed `v_h` at which cable `c` is hauled through its friction contacts — by its
+    /// motor (`σ·ρ·q̇_m`) and by the contacts before them on a driven stage's pulley.
+    #[inline]
+    fn haul_speed(&self, c: usize, x: &[f64], u: &[f64]) -> f64 {
+        let cable = &self.cables[c];
+        let mut haul = match cable.motor {
+            Some(i) => self.capstan_at(i, x, u).1 * self.motors[i].rho * cable.sense,
+            None => 0.0,
+        };
+        for (j, a) in cable.driver_arms.iter().enumerate() {
+            haul -= a * x[2 * j + 1];
+        }
+        haul
+    }
+
     /// Joint-side and motor-side tension of cable `c` (N): the routing's capstan losses
-    /// `T_m = T·exp(Σμφ·σ_ε(v_h))` follow the speed `v_h` at which the cable is hauled through
-    /// its friction contacts — by its motor (`σ·ρ·q̇_m`) and by the contacts before them on a
-    /// driven stage's pulley.
+    /// `T_m = T·exp(Σμφ·σ_ε(v_h))` follow the haul speed `v_h` ([`Self::haul_speed`]), or with
+    /// pre-sliding at the routing `T_m = T·exp(Σμφ·ζ)`, `ζ` its state.
     #[inline]
     fn cable_tensions(&self, c: usize, x: &[f64], u: &[f64]) -> (f64, f64) {
         let (e, de) = self.elongation(c, x, u);
@@ -962,17 +984,11 @@ impl Network {
         if cable.capstan == 0.0 {
             return (t, t);
         }
-        let mut haul = match cable.motor {
-            Some(i) => self.capstan_at(i, x, u).1 * self.motors[i].rho * cable.sense,
-            None => 0.0,
+        let sign = match cable.routing_dahl {
+            Some((_, k)) => x[k].clamp(-1.0, 1.0),
+            None => smooth_sign(self.haul_speed(c, x, u), cable.smoothing),
         };
-        for (j, a) in cable.driver_arms.iter().enumerate() {
-            haul -= a * x[2 * j + 1];
-        }
-        (
-            t,
-            t * (cable.capstan * smooth_sign(haul, cable.smoothing)).exp(),
-        )
+        (t, t * (cable.capstan * sign).exp())
     }
 
     /// Joint-side tension of every cable (N) at state `x`, input `u`.
@@ -1065,7 +1081,7 @@ impl Network {
     /// shows in its load only), a cable without friction, or driver-side contacts on several
     /// joints.
     pub fn cable_driver(&self, c: usize) -> Option<(usize, f64)> {
-        if self.cables[c].capstan == 0.0 {
+        if self.cables[c].capstan == 0.0 || self.cables[c].routing_dahl.is_some() {
             return None;
         }
         self.routing_driver(c)
@@ -1142,6 +1158,16 @@ impl Network {
         let cable = &mut self.cables[c];
         cable.capstan = (cable.capstan + a).max(0.0);
         cable.smoothing = smoothing;
+    }
+
+    /// Give cable `c`'s routing friction pre-sliding: add `a` to its `Σ μ_k·φ_k` (kept ≥ 0) and
+    /// replace the sign of its haul speed by a Dahl state `ζ` that slides to `±1` over `x_d` m of
+    /// cable (`ζ̇ = (v_h − |v_h|·ζ)/x_d`; a pulley's bristles, seed 002 eq. 8), with a state.
+    pub(crate) fn set_routing_dahl(&mut self, c: usize, a: f64, breakaway: f64) {
+        let slot = self.state_slot(self.cables[c].routing_dahl.map(|(_, k)| k));
+        let cable = &mut self.cables[c];
+        cable.capstan = (cable.capstan + a).max(0.0);
+        cable.routing_dahl = Some((breakaway.max(f64::MIN_POSITIVE), slot));
     }
 
     /// Give joint `j` a pre-sliding (Dahl) friction (replacing any it had), with a state.
@@ -1417,6 +1443,10 @@ impl Model for Network {
                 }
                 dx[k] = (cr.fraction * target - x[k]) / cr.time_constant;
             }
+            if let Some((x_d, k)) = cable.routing_dahl {
+                let v = self.haul_speed(c, x, u);
+                dx[k] = (v - v.abs() * x[k].clamp(-1.0, 1.0)) / x_d;
+            }
         }
         for m in &self.motors {
             if m.drive == Drive::Torque {
@@ -1502,6 +1532,9 @@ impl Model for Network {
         for (c, name) in self.cables.iter().zip(&self.cable_names) {
             if let Some((_, k)) = c.creep {
                 out[k] = format!("creep:{name}");
+            }
+            if let Some((_, k)) = c.routing_dahl {
+                out[k] = format!("z_routing:{name}");
             }
         }
         out

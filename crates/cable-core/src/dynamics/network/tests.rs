@@ -468,3 +468,65 @@ fn motor_play_is_a_dead_band_between_motor_and_joint() {
     let short = (without - with) * j.radius;
     assert!((short - delta).abs() < 0.03 * delta, "{short} vs {delta}");
 }
+
+/// A routing with pre-sliding of a break-away far below the motion is the capstan of its level
+/// (the motor-side tension agrees with the sign law away from reversals); one far above the
+/// motion barely loads the motor side; its state stays in [−1, 1].
+#[test]
+fn routing_presliding_tends_to_the_capstan_and_stays_bounded() {
+    let j = joint();
+    let sharp = {
+        let mut n = Network::new(&NetworkSpec::from_joint(&j).unwrap()).unwrap();
+        for c in 0..2 {
+            n.set_routing_friction(c, 0.0, 1e-7);
+        }
+        n
+    };
+    let mu_phi: Vec<f64> = (0..2).map(|c| sharp.cable_capstan(c)).collect();
+    assert!(mu_phi.iter().all(|a| *a > 0.05), "{mu_phi:?}");
+    let dahl = |x_d: f64| {
+        let mut n = sharp.clone();
+        for (c, a) in mu_phi.iter().enumerate() {
+            n.set_routing_friction(c, -a, 1e-7);
+            n.set_routing_dahl(c, *a, x_d);
+        }
+        n
+    };
+    let w = 2.0 * std::f64::consts::PI;
+    let (dt, len, amp) = (1e-3, 2000, 4e-4);
+    let u = driven(|t| (amp * (w * t).sin(), amp * w * (w * t).cos()), len, dt);
+    let opts = SimOptions::new(dt, 32, InputHold::Foh).unwrap();
+    let p = sharp.n_outputs();
+    let m = sharp.n_cables();
+    let (n_j, n_m) = (sharp.n_joints(), sharp.n_motors());
+    let motor_side = |y: &[f64], k: usize| y[k * p + n_j + n_m + m];
+    let joint_side = |y: &[f64], k: usize| y[k * p + n_j + n_m];
+    let a = simulate(&sharp, &u, &[0.0; 2], &opts).unwrap();
+    let small = dahl(1e-3 * amp);
+    assert_eq!(small.n_states(), 4);
+    assert_eq!(small.state_names()[2], "z_routing:drive");
+    let b = simulate(&small, &u, &[0.0; 4], &opts).unwrap();
+    // away from the reversals (speed above a tenth of its peak) the ratios agree
+    let mut worst: f64 = 0.0;
+    for k in len / 4..len {
+        let speed = (w * k as f64 * dt).cos().abs();
+        if speed > 0.1 {
+            let ra = motor_side(&a.outputs, k) / joint_side(&a.outputs, k);
+            let rb = motor_side(&b.outputs, k) / joint_side(&b.outputs, k);
+            worst = worst.max((ra - rb).abs() / (ra - 1.0).abs().max(1e-12));
+        }
+    }
+    assert!(worst < 0.02, "{worst}");
+    // a break-away a hundred times the motion: the ratio stays within a few % of its swing
+    let big = simulate(&dahl(100.0 * amp), &u, &[0.0; 4], &opts).unwrap();
+    let swing = (0..len)
+        .map(|k| (motor_side(&big.outputs, k) / joint_side(&big.outputs, k) - 1.0).abs())
+        .fold(0.0_f64, f64::max);
+    assert!(swing < 0.05 * (mu_phi[0].exp() - 1.0), "{swing}");
+    let z_max = b
+        .states
+        .chunks(4)
+        .map(|x| x[2].abs().max(x[3].abs()))
+        .fold(0.0_f64, f64::max);
+    assert!(z_max <= 1.0 + 1e-9 && z_max > 0.99, "{z_max}");
+}
