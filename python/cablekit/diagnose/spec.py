@@ -133,7 +133,8 @@ def network_output_info(network: CableNetwork, name: str) -> tuple[int, str | No
         index = names.index(name)
     else:
         index = dict(network.sensors)[name]
-    unit, force = NETWORK_OUTPUTS[names[index].split(":", 1)[0]]
+    # (a tension between two contacts is ``T@<pulley>:<cable>``)
+    unit, force = NETWORK_OUTPUTS[names[index].split(":", 1)[0].split("@", 1)[0]]
     return index, unit, force
 
 

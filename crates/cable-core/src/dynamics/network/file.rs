@@ -49,6 +49,9 @@ const CABLE: &[&str] = &[
     "length_scale",
     "damping",
     "pretension",
+    "end_motor",
+    "end_sense",
+    "free_length",
 ];
 const CONTACT: &[&str] = &["pulley", "wrap", "sense", "mu"];
 const MOTOR: &[&str] = &[
@@ -240,6 +243,17 @@ impl NetworkSpec {
                     .map(|_| t.text("motor", None))
                     .transpose()?,
                 motor_sense: t.num("motor_sense", Some(1.0))?,
+                end_motor: t
+                    .map
+                    .get("end_motor")
+                    .map(|_| t.text("end_motor", None))
+                    .transpose()?,
+                end_sense: t.num("end_sense", Some(1.0))?,
+                free_length: t
+                    .map
+                    .get("free_length")
+                    .map(|_| t.num("free_length", None))
+                    .transpose()?,
             })
         })?;
         let sensors = each(top.list("sensors")?, "sensor", SENSOR, |t, name| {

@@ -176,6 +176,17 @@ pub struct CableSpec {
     pub motor: Option<String>,
     /// +1: the motor hauls it in when `q_m` increases; −1 the other way.
     pub motor_sense: f64,
+    /// A position-driven motor that moves the cable's far end (its termination beyond the last
+    /// contact: a parallel robot's platform, whose measured pose sets it); `None`: the end is
+    /// anchored.
+    pub end_motor: Option<String>,
+    /// +1: the end motor stretches the cable when its angle increases; −1 the other way.
+    pub end_sense: f64,
+    /// The cable's free length (m) between its motor's capstan and its end with every motor at
+    /// 0, when its motor winds it up (a winch): its elastic tension then scales as
+    /// `length / (length − σ·ρ·q_m)` (a rod's `E·A/L` with `L` the free length); `None`: a
+    /// fixed length (a tendon sliding over its pulleys).
+    pub free_length: Option<f64>,
 }
 
 /// A motor with its capstan.
@@ -305,6 +316,10 @@ struct Cable {
     /// Pre-sliding of its routing friction: the break-away sliding `x_d` (m of cable) and the
     /// index of its state `ζ` (module docs); `None`: the sign law.
     routing_dahl: Option<(f64, usize)>,
+    /// The position-driven motor at its far end and the sense it stretches it.
+    end: Option<(usize, f64)>,
+    /// Free length at every motor's 0 when its motor winds it up (m).
+    free_length: Option<f64>,
 }
 
 /// One motor of a built network.
@@ -323,6 +338,13 @@ struct Motor {
     play: f64,
 }
 
+/// A tension tap between two contacts of a cable: `(cable, output name, Σ μφ of the contacts
+/// between the tap and the cable's elastic piece)`.
+type Tap = (usize, String, f64);
+
+/// A sensor's name and the output it reads.
+type SensorOutput = (String, usize);
+
 /// A validated cable network; a [`Model`] (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Network {
@@ -336,6 +358,9 @@ pub struct Network {
     motor_names: Vec<String>,
     /// Per sensor: its name and the output it reads.
     sensors: Vec<(String, usize)>,
+    /// Tension taps between contacts (outputs after `load_m`): `(cable, name, Σ μφ of the
+    /// contacts between the tap and the cable's elastic piece)`.
+    taps: Vec<Tap>,
     capstan_smoothing: f64,
     n_states: usize,
     n_inputs: usize,
@@ -388,10 +413,12 @@ impl Network {
         ] {
             unique(kind, names)?;
         }
-        if spec.joints.is_empty() {
+        // (no joint is a network of drives alone: cables between motors, as a parallel robot's
+        // winches and the platform's measured attachment points)
+        if spec.cables.is_empty() {
             return Err(invalid(
-                "joints".into(),
-                "a network needs at least one joint",
+                "cables".into(),
+                "a network needs at least one cable",
             ));
         }
         if body_names.contains(&"base") {
@@ -418,6 +445,28 @@ impl Network {
                 .map(|m| lookup(&motor_names, m, &el, "motor"))
                 .transpose()?;
             let sense = Self::sense(cs.motor_sense, &format!("{el}.motor_sense"))?;
+            let end = match &cs.end_motor {
+                None => None,
+                Some(name) => {
+                    let i = lookup(&motor_names, name, &el, "motor")?;
+                    if motor == Some(i) {
+                        return Err(invalid(
+                            format!("{el}.end_motor"),
+                            format!("motor {name:?} already hauls the cable at its other end"),
+                        ));
+                    }
+                    if spec.motors[i].drive != Drive::Position {
+                        return Err(invalid(
+                            format!("{el}.end_motor"),
+                            format!("motor {name:?} must be position-driven to move a cable's end"),
+                        ));
+                    }
+                    Some((i, Self::sense(cs.end_sense, &format!("{el}.end_sense"))?))
+                }
+            };
+            if let Some(l) = cs.free_length {
+                check::positive(&format!("{el}.free_length"), l)?;
+            }
             let mut capstan = 0.0;
             let mut driver_arms = vec![0.0; n];
             for (k, ct) in cs.routing.iter().enumerate() {
@@ -469,10 +518,15 @@ impl Network {
                 smoothing: spec.capstan_smoothing,
                 creep: None,
                 routing_dahl: None,
+                end,
+                free_length: cs.free_length,
             });
         }
         for (i, name) in motor_names.iter().enumerate() {
-            if !cables.iter().any(|c| c.motor == Some(i)) {
+            if !cables
+                .iter()
+                .any(|c| c.motor == Some(i) || c.end.is_some_and(|(e, _)| e == i))
+            {
                 return Err(invalid(format!("motor {name:?}"), "hauls no cable"));
             }
         }
@@ -482,9 +536,10 @@ impl Network {
             }
         }
         Self::controllable(&arms, spec.cables.len(), &joint_names)?;
-        let sensors = Self::sensors(spec, &joint_names, &motor_names, &cable_names)?;
+        let (sensors, taps) = Self::sensors(spec, &joint_names, &motor_names, &cable_names)?;
         Ok(Self {
             sensors,
+            taps,
             joints,
             cables,
             motors,
@@ -504,11 +559,12 @@ impl Network {
         joints: &[&str],
         motors: &[&str],
         cables: &[&str],
-    ) -> Result<Vec<(String, usize)>> {
+    ) -> Result<(Vec<SensorOutput>, Vec<Tap>)> {
         let names: Vec<&str> = spec.sensors.iter().map(|s| s.name.as_str()).collect();
         unique("sensor", &names)?;
         let (n, p, m) = (joints.len(), motors.len(), cables.len());
         let mut out = Vec::with_capacity(spec.sensors.len());
+        let mut taps: Vec<Tap> = Vec::new();
         for s in &spec.sensors {
             let el = format!("sensor {:?}", s.name);
             let find = |names: &[&str], what: &str| lookup(names, &s.target, &el, what);
@@ -516,8 +572,28 @@ impl Network {
                 ("encoder", _) => find(joints, "joint").or_else(|_| Ok::<_, CableError>(n + find(motors, "joint or motor")?))?,
                 ("tension", "joint") => n + p + find(cables, "cable")?,
                 ("tension", "motor") => n + p + m + find(cables, "cable")?,
+                // between two contacts: the tension beyond the contact on pulley `at` (its
+                // side towards the cable's end)
                 ("tension", at) => {
-                    return Err(invalid(el, format!("at must be \"motor\" or \"joint\", got {at:?}")))
+                    let c = find(cables, "cable")?;
+                    let routing = &spec.cables[c].routing;
+                    let Some(k) = routing.iter().position(|ct| ct.pulley == at) else {
+                        return Err(invalid(
+                            el,
+                            format!(
+                                "at must be \"motor\", \"joint\" or a pulley of cable {:?}'s \
+                                 routing, got {at:?}",
+                                s.target
+                            ),
+                        ));
+                    };
+                    let beyond: f64 = routing[k + 1..].iter().map(|ct| ct.mu * ct.wrap).sum();
+                    let name = format!("T@{at}:{}", s.target);
+                    let t = taps.iter().position(|(_, nm, _)| *nm == name).unwrap_or_else(|| {
+                        taps.push((c, name, beyond));
+                        taps.len() - 1
+                    });
+                    2 * n + 2 * p + 2 * m + t
                 }
                 ("joint_torque", _) => n + p + 2 * m + find(joints, "joint")?,
                 ("motor_current", _) => 2 * n + p + 2 * m + find(motors, "motor")?,
@@ -532,7 +608,7 @@ impl Network {
             };
             out.push((s.name.clone(), index));
         }
-        Ok(out)
+        Ok((out, taps))
     }
 
     /// The sensors: each channel's name and the output it reads.
@@ -660,6 +736,9 @@ impl Network {
     /// Refuse a coupling that cannot move every joint independently (rank of `J` below `n`).
     fn controllable(arms: &[f64], m: usize, joint_names: &[&str]) -> Result<()> {
         let n = joint_names.len();
+        if n == 0 {
+            return Ok(());
+        }
         for (j, name) in joint_names.iter().enumerate() {
             #[allow(clippy::float_cmp)]
             if (0..m).all(|c| arms[c * n + j] == 0.0) {
@@ -851,7 +930,12 @@ impl Network {
         for (c, cable) in self.cables.iter().enumerate() {
             if cable.motor == Some(i) {
                 let row = &self.arms[c * n..(c + 1) * n];
-                let p: f64 = row.iter().enumerate().map(|(j, a)| a * x[2 * j]).sum();
+                let p: f64 = row
+                    .iter()
+                    .enumerate()
+                    .map(|(j, a)| a * x[2 * j])
+                    .sum::<f64>()
+                    - self.end_of(c, u).0;
                 if k < stack.len() {
                     stack[k] = (c, cable.sense, p);
                 } else {
@@ -869,7 +953,8 @@ impl Network {
             for &(c, s, p) in cables {
                 let run = &self.cables[c].run;
                 let e = s * rho * qc - p;
-                let t = run.pretension + run.law.elastic(e) - self.creep_of(c, x);
+                let t = (run.pretension + run.law.elastic(e)) * self.length_scale(c, qc)
+                    - self.creep_of(c, x);
                 if t > 0.0 {
                     g += s * t;
                     dg += rho * run.law.slope(e);
@@ -908,7 +993,9 @@ impl Network {
         for &(c, s, p) in cables {
             let run = &self.cables[c].run;
             let e = s * rho * q - p;
-            if run.pretension + run.law.elastic(e) - self.creep_of(c, x) > 0.0 {
+            if (run.pretension + run.law.elastic(e)) * self.length_scale(c, q) - self.creep_of(c, x)
+                > 0.0
+            {
                 let kc = run.law.slope(e);
                 let row = &self.arms[c * n..(c + 1) * n];
                 let dp: f64 = row.iter().enumerate().map(|(j, a)| a * x[2 * j + 1]).sum();
@@ -925,15 +1012,42 @@ impl Network {
         self.cables[c].creep.map_or(0.0, |(_, k)| x[k])
     }
 
-    /// Joint-side tension of cable `c` at elongation `e`, rate `de`: its law less its creep.
+    /// Joint-side tension of cable `c` at elongation `e`, rate `de`: its law (scaled by
+    /// [`Self::length_scale`] `f`) less its creep.
     #[inline]
-    fn tension_of(&self, c: usize, e: f64, de: f64, x: &[f64]) -> f64 {
+    fn tension_of(&self, c: usize, e: f64, de: f64, x: &[f64], f: f64) -> f64 {
         let run = &self.cables[c].run;
+        #[allow(clippy::float_cmp)] // exactly 1 for a cable of fixed length
         match self.cables[c].creep {
-            None => run.tension(e, de),
+            None if f == 1.0 => run.tension(e, de),
+            None => ((run.pretension + run.law.elastic(e)) * f + run.damping * de).max(0.0),
             Some((_, k)) => {
-                (run.pretension + run.law.elastic(e) + run.damping * de - x[k]).max(0.0)
+                ((run.pretension + run.law.elastic(e)) * f + run.damping * de - x[k]).max(0.0)
             }
+        }
+    }
+
+    /// `length / (length − σ·ρ·q_m)` of a cable its motor winds up at capstan angle `qc` (its
+    /// elastic tension's factor: a rod's `E·A/L` with `L` its free length), 1 otherwise; the
+    /// free length is kept above 1 % of `length`.
+    #[inline]
+    fn length_scale(&self, c: usize, qc: f64) -> f64 {
+        let cable = &self.cables[c];
+        match (cable.free_length, cable.motor) {
+            (Some(l), Some(i)) => {
+                let wound = cable.sense * self.motors[i].rho * qc;
+                l / (l - wound).max(0.01 * l)
+            }
+            _ => 1.0,
+        }
+    }
+
+    /// [`Self::length_scale`] of cable `c` at state `x`, input `u`.
+    #[inline]
+    fn length_scale_at(&self, c: usize, x: &[f64], u: &[f64]) -> f64 {
+        match (self.cables[c].free_length, self.cables[c].motor) {
+            (Some(_), Some(i)) => self.length_scale(c, self.capstan_at(i, x, u).0),
+            _ => 1.0,
         }
     }
 
@@ -955,7 +1069,20 @@ impl Network {
             e -= a * x[2 * j];
             de -= a * x[2 * j + 1];
         }
-        (e, de)
+        let (pe, pde) = self.end_of(c, u);
+        (e + pe, de + pde)
+    }
+
+    /// The stretch (m) its end motor gives cable `c`, and its rate (0 with an anchored end).
+    #[inline]
+    fn end_of(&self, c: usize, u: &[f64]) -> (f64, f64) {
+        match self.cables[c].end {
+            Some((i, s)) => {
+                let m = &self.motors[i];
+                (s * m.rho * u[m.slot], s * m.rho * u[m.slot + 1])
+            }
+            None => (0.0, 0.0),
+        }
     }
 
     /// The speed `v_h` at which cable `c` is hauled through its friction contacts — by its
@@ -978,24 +1105,32 @@ impl Network {
     /// pre-sliding at the routing `T_m = T·exp(Σμφ·ζ)`, `ζ` its state.
     #[inline]
     fn cable_tensions(&self, c: usize, x: &[f64], u: &[f64]) -> (f64, f64) {
+        let (t, tm, _) = self.cable_tensions_and_sign(c, x, u);
+        (t, tm)
+    }
+
+    /// [`Self::cable_tensions`] and the sign its routing friction acts with (0 without one).
+    #[inline]
+    fn cable_tensions_and_sign(&self, c: usize, x: &[f64], u: &[f64]) -> (f64, f64, f64) {
         let (e, de) = self.elongation(c, x, u);
         let cable = &self.cables[c];
-        let t = self.tension_of(c, e, de, x);
-        if cable.capstan == 0.0 {
-            return (t, t);
+        let t = self.tension_of(c, e, de, x, self.length_scale_at(c, x, u));
+        let has_taps = self.taps.iter().any(|(k, _, b)| *k == c && *b > 0.0);
+        if cable.capstan == 0.0 && !has_taps {
+            return (t, t, 0.0);
         }
         let sign = match cable.routing_dahl {
             Some((_, k)) => x[k].clamp(-1.0, 1.0),
             None => smooth_sign(self.haul_speed(c, x, u), cable.smoothing),
         };
-        (t, t * (cable.capstan * sign).exp())
+        (t, t * (cable.capstan * sign).exp(), sign)
     }
 
     /// Joint-side tension of every cable (N) at state `x`, input `u`.
     pub fn tensions(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
         for (c, o) in out.iter_mut().enumerate() {
             let (e, de) = self.elongation(c, x, u);
-            *o = self.tension_of(c, e, de, x);
+            *o = self.tension_of(c, e, de, x, self.length_scale_at(c, x, u));
         }
     }
 
@@ -1215,14 +1350,15 @@ impl Network {
     pub fn rest_at(&self, u0: &[f64]) -> Vec<f64> {
         let (n, m) = (self.n_joints(), self.n_cables());
         let mut x = vec![0.0; self.n_states];
-        if u0.len() < self.n_inputs {
+        if u0.len() < self.n_inputs || n == 0 {
             return x;
         }
         let b = nalgebra::DVector::from_fn(m, |c, _| {
             let cable = &self.cables[c];
+            let end = self.end_of(c, u0).0;
             match cable.motor.map(|i| &self.motors[i]) {
-                Some(mo) if mo.drive == Drive::Position => cable.sense * mo.rho * u0[mo.slot],
-                _ => 0.0,
+                Some(mo) if mo.drive == Drive::Position => cable.sense * mo.rho * u0[mo.slot] + end,
+                _ => end,
             }
         });
         if b.iter().all(|v| *v == 0.0) {
@@ -1267,6 +1403,9 @@ impl NetworkSpec {
             run,
             motor: Some("motor".into()),
             motor_sense: sense,
+            end_motor: None,
+            end_sense: 1.0,
+            free_length: None,
         };
         Ok(Self {
             bodies: vec![BodySpec {
@@ -1397,6 +1536,9 @@ impl NetworkSpec {
                     run: l.cable.run,
                     motor: Some(format!("motor{k}")),
                     motor_sense: side,
+                    end_motor: None,
+                    end_sense: 1.0,
+                    free_length: None,
                 });
             }
         }
@@ -1417,7 +1559,7 @@ impl Model for Network {
         self.n_inputs
     }
     fn n_outputs(&self) -> usize {
-        2 * self.n_joints() + 2 * self.n_motors() + 2 * self.n_cables()
+        2 * self.n_joints() + 2 * self.n_motors() + 2 * self.n_cables() + self.taps.len()
     }
 
     fn derivative(&self, x: &[f64], u: &[f64], dx: &mut [f64]) {
@@ -1441,6 +1583,7 @@ impl Model for Network {
                 if cr.whole {
                     target += cable.run.pretension;
                 }
+                target *= self.length_scale_at(c, x, u);
                 dx[k] = (cr.fraction * target - x[k]) / cr.time_constant;
             }
             if let Some((x_d, k)) = cable.routing_dahl {
@@ -1495,8 +1638,12 @@ impl Model for Network {
             y[n + i] = self.motor_at(i, x, u).0;
             y[2 * n + p + 2 * m + i] = 0.0;
         }
+        let mut signs = [0.0; 16];
         for (c, cable) in self.cables.iter().enumerate() {
-            let (t, tm) = self.cable_tensions(c, x, u);
+            let (t, tm, sign) = self.cable_tensions_and_sign(c, x, u);
+            if c < signs.len() {
+                signs[c] = sign;
+            }
             y[n + p + c] = t;
             y[n + p + m + c] = tm;
             if let Some(i) = cable.motor {
@@ -1511,6 +1658,16 @@ impl Model for Network {
             if mo.drive == Drive::Position {
                 y[2 * n + p + 2 * m + i] += mo.friction.force(u[mo.slot + 1]);
             }
+        }
+        // a tension between contacts: the joint-side tension through the friction beyond it
+        for (k, &(c, _, beyond)) in self.taps.iter().enumerate() {
+            let t = y[n + p + c];
+            let sign = if c < signs.len() {
+                signs[c]
+            } else {
+                self.cable_tensions_and_sign(c, x, u).2
+            };
+            y[2 * n + 2 * p + 2 * m + k] = t * (beyond * sign).exp();
         }
     }
 
@@ -1564,6 +1721,7 @@ impl Model for Network {
         out.extend(self.cable_names.iter().map(|c| format!("T_motor:{c}")));
         out.extend(self.joint_names.iter().map(|j| format!("tau:{j}")));
         out.extend(self.motor_names.iter().map(|m| format!("load_m:{m}")));
+        out.extend(self.taps.iter().map(|(_, name, _)| name.clone()));
         out
     }
 }

@@ -205,6 +205,9 @@ fn finger() -> NetworkSpec {
         run,
         motor: Some(m.into()),
         motor_sense: 1.0,
+        end_motor: None,
+        end_sense: 1.0,
+        free_length: None,
     };
     NetworkSpec {
         bodies: vec![body("proximal"), body("distal")],
@@ -529,4 +532,94 @@ fn routing_presliding_tends_to_the_capstan_and_stays_bounded() {
         .map(|x| x[2].abs().max(x[3].abs()))
         .fold(0.0_f64, f64::max);
     assert!(z_max <= 1.0 + 1e-9 && z_max > 0.99, "{z_max}");
+}
+
+/// A parallel robot's cable drive as a network without joints: a torque-driven winch hauls a
+/// cable over two fixed pulleys to an end a position-driven "motor" moves (the platform's
+/// attachment, metres of path). `free_length` makes the stiffness a rod's `E·A/L` of the free
+/// length the winch leaves; a tension sensor between the pulleys reads the tension through the
+/// friction beyond it.
+fn winch(drum_drive: &str) -> serde_json::Value {
+    serde_json::json!({
+        "name": "winch",
+        "capstan_smoothing": 1e-6,
+        "pulleys": [{"name": "u", "radius": 0.01}, {"name": "d", "radius": 0.01}],
+        "motors": [
+            {"name": "drum", "drive": drum_drive, "inertia": 1e-4, "capstan_radius": 0.02},
+            {"name": "end", "drive": "position", "capstan_radius": 1.0}
+        ],
+        "cables": [{
+            "name": "c", "motor": "drum", "end_motor": "end", "free_length": 0.8,
+            "stiffness": 2.5e4, "pretension": 20.0, "damping": 0.0,
+            "routing": [{"pulley": "u", "wrap": 1.5, "mu": 0.1}, {"pulley": "d", "wrap": 1.0, "mu": 0.05}]
+        }],
+        "sensors": [
+            {"name": "drum_angle", "kind": "encoder", "target": "drum"},
+            {"name": "cell", "kind": "tension", "target": "c", "at": "u"}
+        ]
+    })
+}
+
+#[test]
+fn a_winch_without_joints_stretches_its_free_length_and_taps_between_contacts() {
+    let net = Network::new(&NetworkSpec::from_json(&winch("torque").to_string()).unwrap()).unwrap();
+    assert_eq!(net.n_joints(), 0);
+    assert_eq!(net.n_states(), 2);
+    // inputs: the end's [q, q̇], the drum's torque (no joint loads)
+    assert_eq!(net.n_inputs(), 3);
+    let names = net.output_names();
+    assert_eq!(names.last().unwrap(), "T@u:c");
+    assert_eq!(
+        net.sensor_outputs()[1],
+        ("cell".to_owned(), names.len() - 1)
+    );
+    let (alpha, end) = (2.0, 1e-3); // the drum has wound 4 cm in, the platform pulls 1 mm
+    let x = [alpha, 0.3]; // hauling in at 6 mm/s
+    let u = [end, 0.0, 0.0];
+    let mut y = vec![0.0; net.n_outputs()];
+    net.output(&x, &u, &mut y);
+    let e = 0.02 * alpha + end;
+    let t = (20.0 + 2.5e4 * e) * 0.8 / (0.8 - 0.02 * alpha);
+    let (t_el, t_motor, tap) = (y[2], y[3], y[names.len() - 1]);
+    assert!((t_el - t).abs() < 1e-9 * t, "{t_el} vs {t}");
+    assert!((t_motor - t * (0.1 * 1.5 + 0.05 * 1.0_f64).exp()).abs() < 1e-7 * t);
+    assert!((tap - t * (0.05_f64).exp()).abs() < 1e-7 * t, "{tap}");
+    // paying out (the drum turning back) the friction reverses
+    net.output(&[alpha, -0.3], &u, &mut y);
+    assert!((y[names.len() - 1] - t * (-0.05_f64).exp()).abs() < 1e-7 * t);
+    // the drum's load is its capstan radius times the drum-side tension
+    assert!((y[names.len() - 2 - 1] - 0.02 * y[3]).abs() < 1e-12 * t);
+}
+
+#[test]
+fn a_cables_end_motor_and_taps_are_checked() {
+    let bad = |edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut doc = winch("torque");
+        edit(&mut doc);
+        match NetworkSpec::from_json(&doc.to_string()).and_then(|s| Network::new(&s)) {
+            Err(CableError::Network { element, reason }) => format!("{element}: {reason}"),
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("accepted {doc}"),
+        }
+    };
+    let e = bad(&|d| {
+        d["motors"][1]["drive"] = "torque".into();
+        d["motors"][1]["inertia"] = 1e-4.into();
+    });
+    assert!(
+        e.contains("end_motor") && e.contains("position-driven"),
+        "{e}"
+    );
+    let e = bad(&|d| d["cables"][0]["end_motor"] = "drum".into());
+    assert!(e.contains("already hauls"), "{e}");
+    let e = bad(&|d| d["cables"][0]["end_motor"] = "nowhere".into());
+    assert!(e.contains("nowhere"), "{e}");
+    let e = bad(&|d| d["sensors"][1]["at"] = "v".into());
+    assert!(e.contains("sensor \"cell\"") && e.contains("\"v\""), "{e}");
+    let e = bad(&|d| d["cables"][0]["free_length"] = (-0.5).into());
+    assert!(e.contains("free_length"), "{e}");
+    let e = bad(&|d| d["cables"][0]["end_sense"] = 2.0.into());
+    assert!(e.contains("end_sense"), "{e}");
+    let e = bad(&|d| d["cables"] = serde_json::json!([]));
+    assert!(e.contains("at least one cable"), "{e}");
 }
