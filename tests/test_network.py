@@ -278,7 +278,23 @@ _ODD = st.one_of(
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     section=st.sampled_from(["bodies", "joints", "pulleys", "cables", "motors", "sensors"]),
-    key=st.sampled_from(["name", "inertia", "radius", "stiffness", "routing", "motor", "kind", "wrap", "x"]),
+    key=st.sampled_from(
+        [
+            "name",
+            "inertia",
+            "radius",
+            "stiffness",
+            "routing",
+            "motor",
+            "kind",
+            "wrap",
+            "x",
+            "end_motor",
+            "end_sense",
+            "free_length",
+            "at",
+        ]
+    ),
     value=_ODD,
 )
 def test_any_odd_value_in_a_file_is_a_typed_error_or_a_valid_network(section, key, value):
@@ -422,3 +438,86 @@ def test_a_network_files_sensors_drive_the_square_root_ukf():
     # noise limits: the filter also reads the torque the jaw cables put on the spindle
     kinematic = y[1:, 0] * 4.0 / 2.5 - jaw
     assert rmse < 0.2 * np.sqrt(np.mean(kinematic[late] ** 2)) and rmse < 1e-3 * np.ptp(jaw), rmse
+
+
+# ---- drives without joints: a winch to a moving end (a parallel robot's cable, #39) -------------
+
+
+def _winch_doc() -> dict:
+    return {
+        "name": "winch",
+        "capstan_smoothing": 1e-6,
+        "pulleys": [{"name": "u", "radius": 0.01}, {"name": "d", "radius": 0.01}],
+        "motors": [
+            {"name": "drum", "drive": "torque", "inertia": 1e-4, "capstan_radius": 0.02},
+            {"name": "end", "drive": "position", "capstan_radius": 1.0},
+        ],
+        "cables": [
+            {
+                "name": "c",
+                "motor": "drum",
+                "end_motor": "end",
+                "free_length": 0.8,
+                "stiffness": 2.5e4,
+                "pretension": 20.0,
+                "routing": [
+                    {"pulley": "u", "wrap": 1.5, "mu": 0.1},
+                    {"pulley": "d", "wrap": 1.0, "mu": 0.05},
+                ],
+            }
+        ],
+        "sensors": [
+            {"name": "angle", "kind": "encoder", "target": "drum"},
+            {"name": "cell", "kind": "tension", "target": "c", "at": "u"},
+        ],
+    }
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    alpha=st.floats(-5.0, 15.0),
+    rate=st.floats(-2.0, 2.0).filter(lambda v: abs(v) > 1e-3),
+    end=st.floats(-2e-3, 2e-3),
+)
+def test_a_winch_to_a_moving_end_matches_the_rod_and_capstan_reference(alpha, rate, end):
+    """A network of drives alone: the winch's cable, its free length shortened by what the drum
+    winds (ρ·α), stretched by the drum and the end; its tension a rod's ``E·A·(l − L)/L`` (from
+    the file's stiffness and pretension at the free length), the drum side through both
+    contacts' capstan, the cell between them through the far one only (NumPy reference)."""
+    net = network.from_dict(_winch_doc())
+    assert net.joint_names == [] and net.n_states == 2 and net.n_inputs == 3
+    names = list(net.output_names)
+    y = ck.simulate(net, np.array([[end, 0.0, 0.0], [end, 0.0, 0.0]]), 1e-4, np.array([alpha, rate])).outputs[
+        0
+    ]
+    rho, length, k, t0 = 0.02, 0.8, 2.5e4, 20.0
+    free = max(length - rho * alpha, 0.01 * length)
+    t = max(0.0, (t0 + k * (rho * alpha + end)) * length / free)
+    haul = rho * rate
+    sign = haul / math.hypot(haul, 1e-6)  # the file's capstan smoothing
+    assert y[names.index("T:c")] == pytest.approx(t, rel=1e-9, abs=1e-9)
+    assert y[names.index("T_motor:c")] == pytest.approx(t * math.exp(sign * (0.1 * 1.5 + 0.05)), rel=1e-9)
+    assert y[names.index("T@u:c")] == pytest.approx(t * math.exp(sign * 0.05), rel=1e-9)
+    assert dict(net.sensors)["cell"] == names.index("T@u:c")
+    assert y[names.index("load_m:drum")] == pytest.approx(rho * y[names.index("T_motor:c")], rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "says"),
+    [
+        ("end_motor", "drum", "already hauls"),
+        ("end_motor", "ghost", "ghost"),
+        ("end_sense", 0.5, "end_sense"),
+        ("free_length", 0.0, "free_length"),
+        ("free_length", "long", "free_length"),
+    ],
+)
+def test_a_winch_files_new_keys_are_checked(key, value, says):
+    doc = _winch_doc()
+    doc["cables"][0][key] = value
+    with pytest.raises(CablekitError, match=says):
+        network.from_dict(doc)
+    doc = _winch_doc()
+    doc["sensors"][1]["at"] = "nowhere"
+    with pytest.raises(NetworkError, match="nowhere"):
+        network.from_dict(doc)
