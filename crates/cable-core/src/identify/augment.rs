@@ -394,10 +394,24 @@ pub fn augment_network(nom: &Network, effects: &[(Candidate, &[f64])]) -> Networ
                 let i = usize::from(i);
                 let rho = m.motor_rho(i);
                 match e {
+                    // a position-driven motor's friction is a term of its load, integrated
+                    // nowhere: a friction the nominal lacks is resolved as sharply as its
+                    // cables' capstan friction (same motion, same dry contact; the file's motor
+                    // smoothing regularises a torque-driven motor's dynamics). A nominal's own
+                    // dry friction keeps its law, so that the reference is the nominal.
                     Effect::CoulombFriction => {
+                        let dry = *m.motor_friction_mut(i);
+                        #[allow(clippy::float_cmp)] // none at all in the nominal
+                        let sharp = (!m.motor_is_torque_driven(i)
+                            && dry.coulomb == 0.0
+                            && dry.static_level == 0.0)
+                            .then(|| m.capstan_smoothing() / rho);
                         let f = m.motor_friction_mut(i);
                         f.coulomb += p[0].max(0.0) * rho;
                         f.static_level += p[0].max(0.0) * rho;
+                        if let Some(eps) = sharp {
+                            f.smoothing = f.smoothing.min(eps);
+                        }
                     }
                     Effect::ViscousFriction => {
                         let f = m.motor_friction_mut(i);

@@ -1015,6 +1015,8 @@ mod tests {
             ("capstan_friction@routing.drive", vec![0.15, f64::NAN]), // NaN: the nominal's
             ("nonlinear_stiffness@cable.return/scale", vec![0.4]),
             ("viscous_friction@motor.motor", vec![300.0]),
+            // (the nominal motor has no dry friction: the added one is as sharp as the capstan's)
+            ("coulomb_friction@motor.motor", vec![0.4]),
             // the states a network gets from the diagnosis: pre-sliding (its level 1 mN·m above
             // the nominal Coulomb's, break-away 2 mrad), creep, play behind the motor
             ("dahl_hysteresis@joint.joint", vec![1e-3, 2e-3]),
@@ -1056,6 +1058,35 @@ mod tests {
                 assert_relative_eq!(*got, *want, max_relative = 2e-3);
             }
         }
+    }
+
+    #[test]
+    fn a_position_motors_added_dry_friction_is_as_sharp_as_its_capstan() {
+        let net = network();
+        let mut data = run(0.2);
+        data.measured = vec![0.0; data.len() * 4];
+        let probe =
+            JointProblem::new(net.clone(), network_channels(), vec![data], vec![], 2).unwrap();
+        let c = probe
+            .parse_candidate("coulomb_friction@motor.motor")
+            .unwrap();
+        let mut aug = augment_network(&net, &[(c, &[0.4])]);
+        let rho = net.motor_rho(0);
+        let f = *aug.motor_friction_mut(0);
+        assert_relative_eq!(
+            f.smoothing,
+            net.capstan_smoothing() / rho,
+            max_relative = 1e-12
+        );
+        assert_relative_eq!(f.coulomb, 0.4 * rho, max_relative = 1e-12);
+        // a nominal with its own motor friction keeps its law
+        let mut own = net.clone();
+        own.motor_friction_mut(0).coulomb = 1e-3;
+        let before = own.motor_friction_mut(0).smoothing;
+        let after = augment_network(&own, &[(c, &[0.4])])
+            .motor_friction_mut(0)
+            .smoothing;
+        assert_relative_eq!(after, before);
     }
 
     fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {

@@ -1203,6 +1203,11 @@ impl Network {
         self.cables[c].smoothing
     }
 
+    /// The file's smoothing of the routing friction's sign (m/s of cable).
+    pub fn capstan_smoothing(&self) -> f64 {
+        self.capstan_smoothing
+    }
+
     /// The routing friction of cable `c` (`Σ μ_k·φ_k`).
     pub fn cable_capstan(&self, c: usize) -> f64 {
         self.cables[c].capstan
