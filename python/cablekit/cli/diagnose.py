@@ -79,15 +79,21 @@ def _diagnose(args: argparse.Namespace) -> int:
         return _write_self_test(out, "independent", format_independent(res), res)
     if args.networks:
         from cablekit.diagnose.selftest_independent import format_independent
+        from cablekit.diagnose.selftest_network import CI_CASES as NETWORK_CI
         from cablekit.diagnose.selftest_network import run_network_self_test
 
         print(
             "cablekit: network self-test (two-stage instrument, tendon finger, two-link transmission; runs "
             "from an independent simulator written from the literature; "
-            f"{'quick subset' if args.networks == 'quick' else 'every case'}) ...",
+            f"{ {'quick': 'quick subset', 'ci': 'CI subset'}.get(args.networks, 'every case') }) ...",
             flush=True,
         )
-        res = run_network_self_test(seed=args.seed, quick=args.networks == "quick", progress=not args.quiet)
+        res = run_network_self_test(
+            seed=args.seed,
+            quick=args.networks == "quick",
+            progress=not args.quiet,
+            only=list(NETWORK_CI) if args.networks == "ci" else None,
+        )
         by_plant = ", ".join(
             f"{p}: effect {v['effect']:.0%}, site {v['site']:.0%} of {v['cases']}"
             for p, v in res["scores"]["by_plant"].items()
@@ -291,9 +297,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     )
     d.add_argument(
         "--networks",
-        choices=["all", "quick"],
+        choices=["all", "quick", "ci"],
         help="score the diagnoser on cable-network plants (a two-stage instrument, a tendon finger, a "
-        "two-link transmission) from an independent simulator: every case, or a quick subset",
+        "two-link transmission) from an independent simulator: every case, a quick subset of 8, or "
+        "the CI subset of 4",
     )
     d.add_argument(
         "--benchmark",

@@ -1397,9 +1397,17 @@ def run_plant(
     return net, P, sim, members
 
 
-def _plant_cases(plant: str, seed: int, quick: bool, n_samples: int) -> list[NetCase]:
+def _plant_cases(
+    plant: str, seed: int, quick: bool, n_samples: int, names: frozenset[str] | None = None
+) -> list[NetCase]:
     setup = SETUPS[plant]()
-    chosen = [(n, e) for n, e in setup.effects if not quick or n in setup.quick]
+    chosen = [
+        (n, e)
+        for n, e in setup.effects
+        if (not quick or n in setup.quick) and (names is None or f"{plant}_{n}" in names)
+    ]
+    if not chosen:
+        return []
     net, P, sim, members = run_plant(setup, [e for _, e in chosen], n_samples)
     toml = to_toml(setup.spec)
     t = np.arange(n_samples) * DT
@@ -1440,12 +1448,13 @@ def _plant_cases(plant: str, seed: int, quick: bool, n_samples: int) -> list[Net
     return out
 
 
-def cases(seed: int = 0, quick: bool = False) -> list[NetCase]:
-    """All diagnosis cases (``quick``: a representative subset of 8)."""
+def cases(seed: int = 0, quick: bool = False, names: frozenset[str] | None = None) -> list[NetCase]:
+    """All diagnosis cases (``quick``: a representative subset of 8; ``names``: only these
+    ``<plant>_<case>``, simulated alone — each case's noise is drawn from its own name)."""
     n_samples = round(RUN_SECONDS / DT)
     out = []
     for plant in SETUPS:
-        out.extend(_plant_cases(plant, seed, quick, n_samples))
+        out.extend(_plant_cases(plant, seed, quick, n_samples, names))
     return out
 
 

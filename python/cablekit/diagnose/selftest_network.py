@@ -97,6 +97,17 @@ def _case_runs(runs: list[tuple[str, float, dict[str, np.ndarray]]]) -> list[Run
 NETWORK_STATE_EFFECTS = ("dahl_hysteresis", "creep", "backlash")
 
 
+#: the CI subset (`cablekit diagnose --networks ci`, .ci/run): one case per plant — a joint's
+#: friction on the position-driven two-stage instrument, a motor-side friction on the torque-driven
+#: finger (seen only in its averaged load channel), a cable law on the transmission — and a control
+CI_CASES = (
+    "two_stage_coulomb_friction_joint.spindle",
+    "finger_viscous_friction_motor.m1",
+    "transmission2_nonlinear_stiffness_cable.sh_a",
+    "finger_control_1",
+)
+
+
 def _kind(case: Any) -> str:
     if case.truth_effect is None:
         return "control"
@@ -112,10 +123,8 @@ def run_network_self_test(
 
     t_start = time.perf_counter()
     t_gen = time.perf_counter()
-    cases = sim.cases(seed=seed, quick=quick)
+    cases = sim.cases(seed=seed, quick=quick, names=frozenset(only) if only else None)
     gen_s = time.perf_counter() - t_gen
-    if only:
-        cases = [c for c in cases if c.name in only]
     rows = []
     for i, case in enumerate(cases):
         kind = _kind(case)
