@@ -1136,7 +1136,9 @@ impl Network {
 
     /// Total mechanical energy (J) at `x` (inputs `u` for position-driven motors): kinetic of
     /// the joints and torque-driven motors, elastic of every cable while taut (pretension work
-    /// included), gravity. Conserved by the exact flow without friction, damping or slack.
+    /// included), gravity. Conserved by the exact flow without friction, damping or slack — and
+    /// without a winch-wound free length, whose cable's elastic energy is taken at the stiffness
+    /// of its full free length (its tension's `length/L` factor is left out here).
     pub fn energy(&self, x: &[f64], u: &[f64]) -> f64 {
         let mut e = 0.0;
         for (j, joint) in self.joints.iter().enumerate() {
