@@ -98,11 +98,12 @@ NETWORK_STATE_EFFECTS = ("dahl_hysteresis", "creep", "backlash")
 
 
 #: the CI subset (`cablekit diagnose --networks ci`, .ci/run): one case per plant — a joint's
-#: friction on the position-driven two-stage instrument, a motor-side friction on the torque-driven
-#: finger (seen only in its averaged load channel), a cable law on the transmission — and a control
+#: friction on the position-driven two-stage instrument, a joint's inertia on the torque-driven
+#: finger (replayed from its motor angles), a cable law on the transmission — and a control (the
+#: cheapest of each plant's scored cases; the full table is in docs/diagnosis.md)
 CI_CASES = (
     "two_stage_coulomb_friction_joint.spindle",
-    "finger_viscous_friction_motor.m1",
+    "finger_inertia_error_joint.mcp",
     "transmission2_nonlinear_stiffness_cable.sh_a",
     "finger_control_1",
 )
