@@ -116,6 +116,16 @@ impl<'a> Table<'a> {
         }
     }
 
+    /// `key`'s string, or `None` when the table leaves it out.
+    fn optional_text(&self, key: &str) -> Result<Option<String>> {
+        self.map.get(key).map(|_| self.text(key, None)).transpose()
+    }
+
+    /// `key`'s finite number, or `None` when the table leaves it out.
+    fn optional_num(&self, key: &str) -> Result<Option<f64>> {
+        self.map.get(key).map(|_| self.num(key, None)).transpose()
+    }
+
     fn list(&self, key: &str) -> Result<&'a [Value]> {
         match self.map.get(key) {
             None => Ok(&[]),
@@ -188,11 +198,7 @@ impl NetworkSpec {
         let pulleys = each(top.list("pulleys")?, "pulley", PULLEY, |t, name| {
             Ok(PulleySpec {
                 name,
-                joint: t
-                    .map
-                    .get("joint")
-                    .map(|_| t.text("joint", None))
-                    .transpose()?,
+                joint: t.optional_text("joint")?,
                 radius: t.num("radius", None)?,
             })
         })?;
@@ -237,23 +243,11 @@ impl NetworkSpec {
                     t.num("pretension", Some(0.0))?,
                     &t.element,
                 )?,
-                motor: t
-                    .map
-                    .get("motor")
-                    .map(|_| t.text("motor", None))
-                    .transpose()?,
+                motor: t.optional_text("motor")?,
                 motor_sense: t.num("motor_sense", Some(1.0))?,
-                end_motor: t
-                    .map
-                    .get("end_motor")
-                    .map(|_| t.text("end_motor", None))
-                    .transpose()?,
+                end_motor: t.optional_text("end_motor")?,
                 end_sense: t.num("end_sense", Some(1.0))?,
-                free_length: t
-                    .map
-                    .get("free_length")
-                    .map(|_| t.num("free_length", None))
-                    .transpose()?,
+                free_length: t.optional_num("free_length")?,
             })
         })?;
         let sensors = each(top.list("sensors")?, "sensor", SENSOR, |t, name| {
