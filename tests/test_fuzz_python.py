@@ -102,9 +102,29 @@ def _x() -> np.ndarray:
     return np.sin(np.linspace(0.0, 6.0, 300))
 
 
+def _drive_run(robot: Any) -> tuple[Any, ...]:
+    """A short valid run of the Mini CDPR's drives: 40 samples about its centre."""
+    from cablekit.cdpr import Winch
+
+    t = np.arange(40) * 1e-3
+    poses = np.zeros((40, 6))
+    poses[:, 2] = 0.45 + 1e-3 * np.sin(t * 50)
+    alpha = np.tile(np.linspace(0.0, 0.1, 40)[:, None], (1, 8))
+    return (
+        robot,
+        Winch.seed003(),
+        np.full(8, 0.9),
+        t,
+        alpha,
+        np.full((40, 8), 0.2),
+        np.full((40, 8), 10.0),
+        poses,
+    )
+
+
 def _factories() -> dict[str, Any]:
     """Each public function's valid call, built on first use (some simulate a run)."""
-    from cablekit.cdpr import Winch, compensate, force, planar, sensors, winch
+    from cablekit.cdpr import Winch, compensate, drives, force, planar, sensors, winch
     from cablekit.cdpr import diagnose as cdiag
 
     ws = importlib.import_module("cablekit.cdpr.workspace")
@@ -136,6 +156,23 @@ def _factories() -> dict[str, Any]:
         "cablekit.cdpr.sensors.seed_calibrations": lambda: Call(sensors.seed_calibrations),
         "cablekit.cdpr.winch.step_cases": lambda: Call(winch.step_cases, (seed003(),)),
         "cablekit.cdpr.diagnose.drum_residual": lambda: Call(cdiag.drum_residual, _drum_run()),
+        "cablekit.cdpr.drives.drive_network": lambda: Call(
+            drives.drive_network,
+            (mini, seed003(), np.full(8, 0.9)),
+            {"platform_side": compensate.TWIN_FRICTION},
+        ),
+        "cablekit.cdpr.drives.drive_columns": lambda: Call(drives.drive_columns, _drive_run(mini)),
+        "cablekit.cdpr.drives.drive_spec": lambda: Call(
+            drives.drive_spec, (mini, seed003(), np.full(8, 0.9), {"T1": (1.0, (1.0,))})
+        ),
+        "cablekit.cdpr.drives.smoothing_kernel": lambda: Call(drives.smoothing_kernel, (5,)),
+        "cablekit.cdpr.drives.estimate_rest_length": lambda: Call(
+            drives.estimate_rest_length, tuple(_drive_run(mini)[i] for i in (0, 1, 3, 4, 6, 7))
+        ),
+        "cablekit.cdpr.path_friction_of": lambda: Call(
+            cablekit.cdpr.path_friction_of,
+            ({"cables": [{}, {}], "path_friction": {"coefficient": [0.02, 0.03], "presliding": 2e-3}},),
+        ),
         "cablekit.cdpr.force.excitation": lambda: Call(
             force.excitation,
             (
@@ -211,6 +248,7 @@ NOT_IN_TABLE = {
     "cablekit.cdpr.diagnose.diagnose_runs": "run files, then diagnose",
     "cablekit.cdpr.diagnose.is_robot_file": "a model file: test_cdpr_diagnose.py feeds it any bytes",
     "cablekit.cdpr.diagnose.diagnose_loaded": "runs read from files: test_cdpr_diagnose.py draws its splits",
+    "cablekit.cdpr.drives.drive_runs": "runs read from files: test_cdpr_drives.py and the CLI tests",
     "cablekit.forceps.bench.read_raw": "a bench file: test_fuzz_loaders.py",
     "cablekit.forceps.davinci.bench_folder": "a folder",
     "cablekit.forceps.davinci.read_bench_file": "a bench file: test_fuzz_loaders.py",
@@ -224,6 +262,7 @@ NOT_IN_TABLE = {
         for name in (
             "cdpr.compensate.plot_cable cdpr.compensate.report cdpr.compensate.table_markdown "
             "cdpr.diagnose.markdown cdpr.diagnose.plot cdpr.diagnose.report cdpr.diagnose.run_report "
+            "cdpr.selftest.markdown "
             "cdpr.force.markdown "
             "cdpr.force.plot cdpr.planar.markdown cdpr.planar.plot cdpr.planar.report "
             "cdpr.sensors.calibration_table cdpr.sensors.fig18_table cdpr.sensors.plot_fig18 "
@@ -241,6 +280,7 @@ NOT_IN_TABLE = {
             "cdpr.compensate.compensate cdpr.diagnose.diagnose "
             "cdpr.diagnose.length_residual cdpr.diagnose.rest_from_first_sample "
             "cdpr.diagnose.self_test cdpr.diagnose.twin_run cdpr.force.force_control "
+            "cdpr.selftest.self_test cdpr.selftest.twin_diagnosis "
             "cdpr.force.plant_network cdpr.planar.trajectory_response cdpr.sensors.fig18 "
             "cdpr.winch.step_table forceps.calibrate.calibrate forceps.davinci.estimator_fitters "
             "forceps.davinci.leave_one_out forceps.davinci.new_instrument forceps.davinci.score "

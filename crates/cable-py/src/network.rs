@@ -80,6 +80,12 @@ impl CableNetwork {
         network(&slf).motor_names().to_vec()
     }
 
+    /// Measured signals it reads besides its motors (input columns after the motors').
+    #[getter]
+    fn signal_names(slf: PyRef<'_, Self>) -> Vec<String> {
+        network(&slf).signal_names().to_vec()
+    }
+
     /// The sensors: (channel name, index in `output_names`).
     #[getter]
     fn sensors(slf: PyRef<'_, Self>) -> Vec<(String, usize)> {

@@ -72,6 +72,7 @@ __all__ = [
     "WinchDrive",
     "Workspace",
     "linearise",
+    "path_friction_of",
     "plot_workspace",
     "root_locus",
     "shipped",
@@ -79,7 +80,40 @@ __all__ = [
     "workspace",
 ]
 
-_TOP = {"name", "motion", "gravity", "platform", "cable", "cables", "description"}
+_TOP = {"name", "motion", "gravity", "platform", "cable", "cables", "description", "path_friction"}
+_PATH_FRICTION = {"coefficient", "viscous", "guide_wrap", "presliding"}
+
+
+@checked
+def path_friction_of(doc: dict[str, Any], source: str = "<robot>") -> dict[str, Any] | None:
+    """The robot file's optional ``[path_friction]`` table: the nominal friction of the pulleys
+    between each winch-side load cell and the platform (seed 002 eq. 8, Dahl): ``coefficient``
+    μ, ``viscous`` σ_v (N·s/m) and ``guide_wrap`` θ_g (rad), each one number or one per cable,
+    and the pre-sliding length ``presliding`` (m). ``None`` without one. The diagnosis of a
+    robot's drives (:mod:`cablekit.cdpr.drives`) takes it as the platform side's nominal."""
+    if "path_friction" not in doc:
+        return None
+    where = f"{source}: [path_friction]"
+    table = _keys(doc["path_friction"], _PATH_FRICTION, where)
+    cables = doc.get("cables")
+    m = len(cables) if isinstance(cables, list) else 0
+    out: dict[str, Any] = {}
+    for key in ("coefficient", "viscous", "guide_wrap"):
+        v = table.get(key, 0.0)
+        name = f"{where}.{key}"
+        values = _vector(v, m, name) if isinstance(v, list) else [_number(v, name)] * m
+        if not all(np.isfinite(x) and x >= 0 for x in values):
+            raise DataError(f"{where}.{key} must be finite and >= 0, got {v!r}")
+        if key == "guide_wrap" and any(x > 2 * np.pi for x in values):
+            raise DataError(f"{where}.guide_wrap must lie in [0, 2π] rad, got {v!r}")
+        out[key] = np.array(values)
+    presliding = _number(table.get("presliding", 1e-3), f"{where}.presliding")
+    if not (np.isfinite(presliding) and presliding > 0):
+        raise DataError(f"{where}.presliding must be finite and > 0, got {presliding!r}")
+    out["presliding"] = presliding
+    return out
+
+
 _PLATFORM = {"mass", "com", "inertia"}
 _CABLE = {
     "anchor",
@@ -162,6 +196,7 @@ class Robot(_Robot):
     def from_dict(cls, doc: dict[str, Any], source: str = "<robot>") -> Robot:
         """A robot from the parsed robot file."""
         doc = _keys(doc, _TOP, source)
+        path_friction_of(doc, source)  # (checked here; the drives' diagnosis reads it)
         motion = doc.get("motion")
         if not isinstance(motion, str) or motion not in _GRAVITY:
             raise DataError(f"{source}: motion must be 'planar' or 'spatial', got {motion!r}")

@@ -191,13 +191,28 @@ def _diagnose(args: argparse.Namespace) -> int:
     from cablekit.cdpr.diagnose import is_robot_file
 
     if is_robot_file(model_path):
-        from cablekit.cdpr import Robot
+        from cablekit._files import parse_toml, read_text
+        from cablekit.cdpr import Robot, Winch, path_friction_of
         from cablekit.cdpr.diagnose import diagnose_runs
+        from cablekit.cdpr.formats import load_cdpr_run
         from cablekit.cli.cdpr import write_run_diagnosis
 
         robot = Robot.load(model_path)
+        runs = [(p.name, load_cdpr_run(p, robot)) for p in [*fit_paths, *hold_paths]]
+        if all(r.poses is not None for _, r in runs):
+            from cablekit.cdpr.drives import drive_runs
+
+            print(
+                f"cablekit: {robot.name} is a cable robot: its drives at the measured poses as a cable "
+                "network (seed 003's winch; see docs/cdpr.md)"
+            )
+            friction = path_friction_of(parse_toml(read_text(model_path, "robot file"), str(model_path)))
+            spec, loaded = drive_runs(robot, Winch.seed003(), runs, friction)
+            return _run_diagnosis(
+                spec, loaded[: len(fit_paths)], loaded[len(fit_paths) :], out, args, str(model_path)
+            )
         print(
-            f"cablekit: {robot.name} is a cable robot: the CDPR diagnosis "
+            f"cablekit: {robot.name} is a cable robot without measured poses: the drum-side force check "
             "(seed 003's winch; see docs/cdpr.md)"
         )
         d = diagnose_runs(fit_paths, hold_paths, robot)

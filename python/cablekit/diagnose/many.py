@@ -14,8 +14,9 @@ nominal model file, the fit runs and the held-out runs::
 Paths are relative to the folder. Every group is diagnosed exactly as ``cablekit diagnose`` would
 diagnose it alone; the results stream into one summary table as groups finish. A group's model
 file may be a joint, transmission or cable-network model file (the grey-box engine) or a cable
-robot's file (``motion`` and ``[[cables]]``: the parallel robots' diagnosis, ``cablekit.cdpr``;
-its runs are CDPR run tables) — one campaign can hold all of them.
+robot's file (``motion`` and ``[[cables]]``; its runs are CDPR run tables: with measured poses
+its drives go through the same engine as a cable network, :mod:`cablekit.cdpr.drives`; without,
+the drum-side force check of :mod:`cablekit.cdpr.diagnose`) — one campaign can hold all of them.
 
 **Ray.** With Ray installed (``pip install 'cablekit[scale]'``) the candidate fits of every group
 fan out as Ray tasks — locally by default (``ray.init()`` with this machine's cores) or on a
@@ -23,9 +24,9 @@ cluster (``--address``). Each task receives its group's runs and model from Ray'
 (put once per group), prepares the group's problems once per worker process, and fits one
 candidate; the driver keeps several groups in flight so the cluster stays busy while a group waits
 for its slowest fit. Without Ray the same command runs serially (groups one after another, the
-candidates of a group in this machine's threads). A parallel-robot group is one Ray task (its
-runs, read by the driver, and its robot file's text go through the object store; its candidate
-fits are closed-form and take seconds). Both paths give the same numbers.
+candidates of a group in this machine's threads). A parallel-robot group without poses is one Ray
+task (its runs, read by the driver, and its robot file's text go through the object store; its
+candidate fits are closed-form and take seconds). Both paths give the same numbers.
 """
 
 from __future__ import annotations
@@ -248,6 +249,24 @@ def _cdpr_task(robot_text: str, source: str, runs: list[Any], n_fit: int) -> Cdp
     return diagnose_loaded(runs, n_fit, Robot.from_toml(robot_text, source))
 
 
+def _robot_drives(g: Group) -> tuple[Any, list[Any], list[Any]] | None:
+    """A parallel-robot group whose runs all have poses as the one engine reads it (its drives
+    as a network, :func:`cablekit.cdpr.drives.drive_runs`); ``None`` without poses."""
+    from cablekit._files import parse_toml
+    from cablekit.cdpr import Robot, Winch, path_friction_of
+    from cablekit.cdpr.drives import drive_runs
+    from cablekit.cdpr.formats import load_cdpr_run
+
+    text = read_text(g.model, "robot file")
+    robot = Robot.from_toml(text, str(g.model))
+    runs = [(p.name, load_cdpr_run(p, robot)) for p in (*g.fit, *g.held_out)]
+    if any(r.poses is None for _, r in runs):
+        return None
+    friction = path_friction_of(parse_toml(text, str(g.model)))
+    spec, loaded = drive_runs(robot, Winch.seed003(), runs, friction)
+    return spec, loaded[: len(g.fit)], loaded[len(g.fit) :]
+
+
 def _cdpr_group(g: Group, ray: Any, out: Path, html: bool) -> CdprDiagnosis:
     """Diagnose a parallel-robot group (on Ray when given) and write its ``diagnosis.json`` and
     ``diagnose.md`` (and ``diagnose.png`` with ``html``)."""
@@ -325,16 +344,22 @@ def run_many(
 
     def one(g: Group) -> GroupResult:
         t0 = time.perf_counter()
+        drives = None
         if is_robot_file(g.model):
             try:
-                d = _cdpr_group(g, ray if executor is not None else None, out, html)
+                drives = _robot_drives(g)
+                if drives is None:  # no measured poses: the drum-side force check
+                    d = _cdpr_group(g, ray if executor is not None else None, out, html)
+                    return GroupResult(g, d, None, time.perf_counter() - t0)
             except Exception as exc:
                 return GroupResult(g, None, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
-            return GroupResult(g, d, None, time.perf_counter() - t0)
         try:
-            spec = load_model_spec(g.model)
-            fit = [load_run(p) for p in g.fit]
-            hold = [load_run(p) for p in g.held_out]
+            if drives is not None:  # a parallel robot's drives at its measured poses, as a network
+                spec, fit, hold = drives
+            else:
+                spec = load_model_spec(g.model)
+                fit = [load_run(p) for p in g.fit]
+                hold = [load_run(p) for p in g.held_out]
             res = diagnose(spec, fit, hold, opts)
         except Exception as exc:
             return GroupResult(g, None, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)

@@ -182,9 +182,13 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     # measurement error per channel: white noise plus stationary mains lines, pooled over fit runs
     sigma_list, lines, windows = [], [], []
     derived = spec.extra.get("derived_load", {})
+    # white noise a channel's prediction carries from a measured input (a parallel robot's
+    # tension from its measured pose: cablekit.cdpr.drives), per sample, by column
+    in_noise = spec.extra.get("input_noise", {})
     for c in columns:
         if c in derived:  # τ_m − J·q̈_m: the torque's noise and the encoder's through the difference
-            tau, enc, inertia = derived[c]
+            tau, enc, inertia = derived[c][:3]
+            held = derived[c][3] if len(derived[c]) > 3 else True
             dt = fit_runs[0].dt
             s_tau = _pooled([localise.measurement_sigma(r.column(tau), r.dt)[0] for r in fit_runs])
             s_acc = (
@@ -192,15 +196,16 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
                 * _pooled([localise.measurement_sigma(r.column(enc), r.dt)[0] for r in fit_runs])
                 / dt**2
             )
-            window, s = _load_window(s_tau, s_acc, dt)
+            window, s = _load_window(s_tau, s_acc, dt, in_noise.get(tau), held=held)
             sigma_list.append(s)
             lines.append([])
             windows.append(window)
             continue
         per_run = [localise.measurement_sigma(r.column(c), r.dt) for r in fit_runs]
-        sigma_list.append(_pooled([s for s, _ in per_run]))
+        window, s = _input_window(_pooled([s for s, _ in per_run]), in_noise.get(c), fit_runs[0].dt)
+        sigma_list.append(s)
         lines.append(sorted({f for _, ls in per_run for f, _ in ls}))
-        windows.append(1)
+        windows.append(window)
     sigma = np.array(sigma_list)
     chans = [
         (spec.output(o)[0], 1.0 / s, spec.output(o)[2], w)
@@ -285,7 +290,45 @@ def _pooled(sigmas: list[float]) -> float:
     return math.sqrt(float(np.mean(np.square(sigmas))))
 
 
-def _load_window(sigma_tau: float, sigma_acc: float, dt: float) -> tuple[int, float]:
+def _odd_windows(dt: float) -> range:
+    """The odd averaging windows (samples) up to :data:`LOAD_WINDOW_S`."""
+    k_max = max(1, int(LOAD_WINDOW_S / dt))
+    k_max -= 1 - k_max % 2
+    return range(1, k_max + 1, 2)
+
+
+#: a prediction's noise from a measured input: its white noise per sample and the kernel the
+#: input was filtered with before the replay (``None``: none)
+InputNoise = tuple[float, tuple[float, ...]] | None
+
+
+def _input_part(noise: InputNoise, mean: _F) -> float:
+    """The input's noise in a residual averaged by ``mean``."""
+    if noise is None or noise[0] <= 0.0:
+        return 0.0
+    return noise[0] * float(np.linalg.norm(np.convolve(mean, np.asarray(noise[1], float))))
+
+
+def _input_window(sigma: float, noise: InputNoise, dt: float) -> tuple[int, float]:
+    """The averaging window (odd, samples) of a channel measured with white noise ``sigma``
+    whose prediction carries noise from a measured input (:data:`InputNoise`), and the noise of
+    its averaged residual: the shortest window for which the input's part is no larger than
+    the measurement's per-sample noise, at most :data:`LOAD_WINDOW_S` (1 without input noise)."""
+    best = (1, math.hypot(sigma, _input_part(noise, np.ones(1))))
+    if best[1] == sigma:
+        return best
+    for k in _odd_windows(dt):
+        mean = np.full(k, 1.0 / k)
+        inp = _input_part(noise, mean)
+        best = (k, math.hypot(sigma / math.sqrt(k), inp))
+        if inp <= sigma:
+            break
+    return best
+
+
+def _load_window(
+    sigma_tau: float, sigma_acc: float, dt: float, noise: InputNoise = None, *, held: bool = True
+) -> tuple[int, float]:
     """The averaging window (odd, samples) of a load channel ``τ − J·q̈`` and the noise of its
     averaged residual: the torque's white noise ``sigma_tau`` through :data:`_HELD_TORQUE` and
     ``sigma_acc = J·σ_q/dt²`` of the encoder through the five-point stencil.
@@ -296,16 +339,21 @@ def _load_window(sigma_tau: float, sigma_acc: float, dt: float) -> tuple[int, fl
     the window is the shortest for which the encoder's part is no larger than the torque's, and
     at most :data:`LOAD_WINDOW_S`. The noise is exact for the stated noises (the mean's weights
     through the stencil), so that a correct model still scores 1.
+
+    ``noise`` is the noise the prediction carries from a measured input (see
+    :func:`_input_window`): the window then also grows until its part is no larger than the
+    torque's per-sample noise. ``held=False``: the torque is a sampled measurement, taken as it
+    is (no :data:`_HELD_TORQUE`).
     """
-    k_max = max(1, int(LOAD_WINDOW_S / dt))
-    k_max -= 1 - k_max % 2
-    best = (1, math.hypot(sigma_tau, sigma_acc))
-    for k in range(1, k_max + 1, 2):
+    kernel = _HELD_TORQUE if held else np.ones(1)
+    best = (1, math.hypot(sigma_tau, sigma_acc, _input_part(noise, np.ones(1))))
+    for k in _odd_windows(dt):
         mean = np.full(k, 1.0 / k)
         acc = sigma_acc * float(np.linalg.norm(np.convolve(mean, _ACCEL_STENCIL)))
-        tau = sigma_tau * float(np.linalg.norm(np.convolve(mean, _HELD_TORQUE)))
-        best = (k, math.hypot(tau, acc))
-        if acc <= tau:
+        tau = sigma_tau * float(np.linalg.norm(np.convolve(mean, kernel)))
+        inp = _input_part(noise, mean)
+        best = (k, math.hypot(tau, acc, inp))
+        if acc <= tau and inp <= sigma_tau:
             break
     return best
 
@@ -386,13 +434,17 @@ def _measured_motor_replay(
             )
         return spec, fit_runs, hold_runs, []
     derived = {m: f"{spec.inputs[motors.index(m)]} − J·q̈ ({m})" for m in torque}
+    # a held command as the stencil sees it, or a sampled torque (a measured current) as it is
+    held = spec.extra.get("torque", "held") == "held"
 
     def with_load(run: Run) -> Run:
         cols = dict(run.columns)
         for m in torque:
             inertia = float(tables[m].get("inertia", 0.0))
             tau = run.column(spec.inputs[motors.index(m)])
-            cols[derived[m]] = _held_torque(tau) - inertia * _acceleration(run.column(encoder[m][1]), run.dt)
+            cols[derived[m]] = (_held_torque(tau) if held else tau) - inertia * _acceleration(
+                run.column(encoder[m][1]), run.dt
+            )
         return replace(run, columns=cols)
 
     new_doc = dict(
@@ -402,7 +454,10 @@ def _measured_motor_replay(
     new = replace(
         spec,
         parameters={"definition": new_doc},
-        inputs=[encoder[m][1] if m in torque else c for m, c in zip(motors, spec.inputs, strict=True)],
+        inputs=[
+            encoder[m][1] if m in torque else c
+            for m, c in zip([*motors, *net.signal_names], spec.inputs, strict=True)
+        ],
         outputs=[oc for oc in spec.outputs if oc not in scored]
         + [(f"load_m:{m}", derived[m]) for m in torque],
         extra={k: v for k, v in spec.extra.items() if k != "_network"}
@@ -413,6 +468,7 @@ def _measured_motor_replay(
                     spec.inputs[motors.index(m)],
                     encoder[m][1],
                     float(tables[m].get("inertia", 0.0)),
+                    held,
                 )
                 for m in torque
             },

@@ -269,8 +269,12 @@ class ModelSpec:
             if self.coupled:
                 cols[self.coupled] = None
         elif self.kind == "cable_network":
-            for name, c in zip(self.network().motor_names, self.inputs, strict=True):
-                cols[c] = "N·m" if f"tau_m:{name}" in self.network().input_names else "rad|m"
+            net = self.network()
+            for name, c in zip([*net.motor_names, *net.signal_names], self.inputs, strict=True):
+                if name in net.signal_names:
+                    cols[c] = None  # a measured signal: its unit is the network file's
+                else:
+                    cols[c] = "N·m" if f"tau_m:{name}" in net.input_names else "rad|m"
         else:
             for c in self.inputs:
                 cols[c] = "rad|m" if self.servo() else "N·m"
@@ -314,7 +318,10 @@ class ModelSpec:
         reads them back into the same spec)."""
         servo = self.servo()
         if self.kind == "cable_network":
-            inputs: dict[str, Any] = dict(zip(self.network().motor_names, self.inputs, strict=True))
+            net = self.network()
+            inputs: dict[str, Any] = dict(
+                zip([*net.motor_names, *net.signal_names], self.inputs, strict=True)
+            )
             if self.external:
                 inputs["external"] = dict(self.extra["external_joints"])
         elif self.kind == "antagonistic_joint":
@@ -342,7 +349,8 @@ class ModelSpec:
                 "outputs": dict(self.outputs),
                 "diagnosis": {"warmup": self.warmup, "substeps": self.substeps}
                 | ({"effects": self.effects} if self.effects else {})
-                | ({"replay": self.extra["replay"]} if "replay" in self.extra else {}),
+                | ({"replay": self.extra["replay"]} if "replay" in self.extra else {})
+                | ({"torque": self.extra["torque"]} if "torque" in self.extra else {}),
             }
             | ({"servo": dict(zip(SERVO_GAINS, map(list, servo), strict=True))} if servo else {})
             | ({"units": {c: d for c, (_, _, d) in self.column_units.items()}} if self.column_units else {})
@@ -353,7 +361,11 @@ class ModelSpec:
 #: the tables and keys a model file may hold (anything else is a DataError: a misspelt key
 #: must not be silently ignored)
 TOP_LEVEL = {"model", "parameters", "inputs", "outputs", "diagnosis", "servo", "units", "conditions"}
-DIAGNOSIS_KEYS = {"warmup", "substeps", "effects", "replay"}
+DIAGNOSIS_KEYS = {"warmup", "substeps", "effects", "replay", "torque"}
+#: what a torque-driven motor's torque column is: a command a digital drive holds over each
+#: sample ("held", the default), or a sampled measurement of a continuous torque or current
+#: ("sampled") — the measured-motor replay's load channel weighs it accordingly
+TORQUES = ("held", "sampled")
 #: how a network with torque-driven motors is replayed (prepare._measured_motor_replay)
 REPLAYS = ("auto", "measured_motors", "open_loop")
 SERVO_GAINS = ("kp", "kd", "torque_limit")
@@ -549,13 +561,16 @@ def _network_inputs(
     """Motor columns in the network's motor order, and the external-load columns with their
     joints."""
     motors = list(network.motor_names)
-    missing = [m for m in motors if m not in inputs]
+    signals = list(network.signal_names)
+    missing = [m for m in motors + signals if m not in inputs]
     if missing:
         raise DataError(
             f"{source}: [inputs] needs a column for every motor of the network ({motors}): a "
-            f"position-driven motor's angle (rad) or a torque-driven motor's torque (N·m); missing {missing}"
+            f"position-driven motor's angle (rad) or a torque-driven motor's torque (N·m)"
+            + (f", and for every signal it reads ({signals})" if signals else "")
+            + f"; missing {missing}"
         )
-    cols = [_column(inputs[m], f"[inputs] {m}", source) for m in motors]
+    cols = [_column(inputs[m], f"[inputs] {m}", source) for m in motors + signals]
     ext = inputs.get("external", {})
     if not isinstance(ext, dict):
         raise DataError(f"{source}: [inputs] external must be a table joint = <column>")
@@ -598,7 +613,7 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
         extra["_network"] = network
         in_cols, external, pairs = _network_inputs(inputs, network, source)
         extra["external_joints"] = pairs
-        allowed = {*network.motor_names, "external"}
+        allowed = {*network.motor_names, *network.signal_names, "external"}
     elif kind == "antagonistic_joint":
         if "x_m" not in inputs:
             raise DataError(f"{source}: [inputs] needs x_m = <column of the motor displacement, m>")
@@ -675,6 +690,14 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
         )
     if kind == "cable_network" and replay != "auto":
         extra["replay"] = replay
+    torque = diag.get("torque", "held")
+    if torque not in TORQUES or (torque != "held" and kind != "cable_network"):
+        raise DataError(
+            f"{source}: [diagnosis] torque must be one of {list(TORQUES)} (what a cable_network's torque "
+            f"columns are: held commands or sampled measurements), got {torque!r}"
+        )
+    if kind == "cable_network" and torque != "held":
+        extra["torque"] = torque
     spec = ModelSpec(
         kind=kind,
         parameters=dict(doc["parameters"]),

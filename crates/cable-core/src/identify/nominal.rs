@@ -93,7 +93,7 @@ impl Plant {
             Plant::Joint(_) => 1,
             Plant::Transmission(t) => t.n_links(),
             Plant::Servo(t, _) => 2 * t.n_links(),
-            Plant::Network(n) => n.n_motors(),
+            Plant::Network(n) => n.n_motors() + n.signal_names().len(),
         }
     }
 
@@ -210,8 +210,8 @@ pub(crate) fn servo_into(
 }
 
 /// A network's input rows `(T, n_inputs)` from one column per motor (a position-driven motor's
-/// angle, whose rate is its derivative; a torque-driven motor's torque) and the joints' external
-/// loads `(T, n)` (empty: none).
+/// angle, whose rate is its derivative; a torque-driven motor's torque), then one per signal,
+/// and the joints' external loads `(T, n)` (empty: none).
 pub(crate) fn network_inputs(
     net: &Network,
     cols: &[Vec<f64>],
@@ -227,7 +227,13 @@ pub(crate) fn network_inputs(
     let (mut pos, mut tor) = (0, 2 * n_pos);
     let mut rate = vec![0.0; t];
     for (i, col) in cols.iter().enumerate() {
-        if net.motor_is_torque_driven(i) {
+        if i >= net.n_motors() {
+            // a measured signal, as recorded
+            let s = net.signal_input() + i - net.n_motors();
+            for k in 0..t {
+                u[k * w + s] = col[k];
+            }
+        } else if net.motor_is_torque_driven(i) {
             for k in 0..t {
                 u[k * w + tor] = col[k];
             }

@@ -427,10 +427,16 @@ impl JointProblem {
 
     /// Input columns `0..width` of a run, each delayed by `d`.
     fn delayed_columns(run: &JointRun, width: usize, d: f64) -> Vec<Vec<f64>> {
+        Self::delayed_first(run, width, width, d)
+    }
+
+    /// The first `width` input columns of `run`, the first `delayed` of them (the commands, not
+    /// a network's measured signals) delayed by `d` s.
+    fn delayed_first(run: &JointRun, width: usize, delayed: usize, d: f64) -> Vec<Vec<f64>> {
         let mut cols: Vec<Vec<f64>> = (0..width).map(|c| run.input_column(c)).collect();
         if d > 0.0 {
             let mut tmp = vec![0.0; run.len()];
-            for col in &mut cols {
+            for col in cols.iter_mut().take(delayed) {
                 signal::delay(col, d, run.dt, &mut tmp);
                 col.copy_from_slice(&tmp);
             }
@@ -507,7 +513,7 @@ impl JointProblem {
 
     /// Plant outputs of a network run.
     fn network_outputs(&self, net: &Network, a: &Augmented, run: &JointRun) -> Result<Vec<f64>> {
-        let cols = Self::delayed_columns(run, run.width, a.delay);
+        let cols = Self::delayed_first(run, run.width, net.n_motors(), a.delay);
         let u = network_inputs(net, &cols, &run.external, run.dt);
         let x0 = if run.x0.len() == net.n_states() {
             run.x0.clone()

@@ -637,9 +637,10 @@ impl Candidate {
                 .chain(cables().map(|x| x.with_form(Form::Whole)))
                 .collect(),
             // play between a position-driven motor and its capstan (a torque-driven motor's
-            // play and a joint hub's clearance are not modelled on networks)
+            // play and a joint hub's clearance are not modelled on networks); not at a motor
+            // that only moves cables' far ends (a parallel robot's measured platform)
             Backlash => (0..net.motors.len())
-                .filter(|&i| !net.torque_driven[i])
+                .filter(|&i| !net.torque_driven[i] && net.cable_motor.contains(&Some(i)))
                 .map(|i| c(Site::NetMotor(idx(i))))
                 .collect(),
             // the coupling its routing already describes

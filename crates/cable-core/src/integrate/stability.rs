@@ -132,15 +132,22 @@ pub fn propose_step<M: Model + ?Sized>(
     check::all_finite("u", u, 1)?;
     let n = model.n_states();
     let jac = DMatrix::from_row_slice(n, n, &jacobian_rows(model, x, u)?);
-    // a bounded Schur iteration: a matrix it cannot reduce is an error, never a hang
-    let eig = jac
-        .try_schur(f64::EPSILON, SCHUR_MAX_ITERATIONS)
-        .ok_or_else(|| CableError::NotConverged {
-            what: "eigenvalues of the jacobian".into(),
-            limit: SCHUR_MAX_ITERATIONS,
-            hint: "the linearised model is too badly scaled; check the parameters",
-        })?
-        .complex_eigenvalues();
+    // a bounded Schur iteration: a matrix it cannot reduce is an error, never a hang (a model
+    // without states — a replay driven wholly by its inputs — has no mode to limit the step)
+    let eig: Vec<nalgebra::Complex<f64>> = if n == 0 {
+        Vec::new()
+    } else {
+        jac.try_schur(f64::EPSILON, SCHUR_MAX_ITERATIONS)
+            .ok_or_else(|| CableError::NotConverged {
+                what: "eigenvalues of the jacobian".into(),
+                limit: SCHUR_MAX_ITERATIONS,
+                hint: "the linearised model is too badly scaled; check the parameters",
+            })?
+            .complex_eigenvalues()
+            .iter()
+            .copied()
+            .collect()
+    };
     let mut best = (f64::INFINITY, (0.0, 0.0));
     for l in eig.iter() {
         let radius = rk4_stability_radius(l.re, l.im);
@@ -171,6 +178,25 @@ pub fn propose_step<M: Model + ?Sized>(
 #[allow(clippy::float_cmp)] // exact zeros are the claims under test (slack, no contact)
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_model_without_states_needs_one_step() {
+        // a parallel robot's drive replayed from its drum angle and platform: no state at all
+        let doc = serde_json::json!({
+            "pulleys": [{"name": "p", "radius": 0.01}],
+            "motors": [
+                {"name": "drum", "drive": "position", "capstan_radius": 0.02},
+                {"name": "end", "drive": "position", "capstan_radius": 1.0}
+            ],
+            "cables": [{"name": "c", "motor": "drum", "end_motor": "end", "stiffness": 1e4,
+                        "routing": [{"pulley": "p", "wrap": 1.0}]}]
+        });
+        let spec = crate::dynamics::network::NetworkSpec::from_json(&doc.to_string()).unwrap();
+        let net = crate::dynamics::network::Network::new(&spec).unwrap();
+        assert_eq!(net.n_states(), 0);
+        let advice = propose_step(&net, &[], &[0.0; 4], 1e-3, 0.9).unwrap();
+        assert_eq!(advice.substeps, 1);
+    }
 
     #[test]
     fn advice_refuses_an_overflowing_jacobian_and_a_dt_past_the_cap() {

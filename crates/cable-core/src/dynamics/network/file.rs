@@ -6,10 +6,11 @@
 use serde_json::{Map, Value};
 
 use super::{
-    invalid, BodySpec, CableSpec, ContactSpec, Drive, JointSpec, MotorSpec, NetworkSpec,
-    PulleySpec, SensorSpec, DEFAULT_CAPSTAN_SMOOTHING,
+    invalid, BodySpec, CableSpec, ContactSpec, Drive, ExitWrap, JointSpec, MotorSpec, NetworkSpec,
+    PathSpec, PulleySpec, SensorSpec, DEFAULT_CAPSTAN_SMOOTHING,
 };
 use crate::cable::{CableLaw, CableRun};
+use crate::cdpr::PathLaw;
 use crate::dynamics::Gravity;
 use crate::error::Result;
 use crate::friction::StaticFriction;
@@ -25,6 +26,7 @@ const TOP: &[&str] = &[
     "cables",
     "motors",
     "sensors",
+    "signals",
 ];
 const BODY: &[&str] = &["name", "inertia"];
 const JOINT: &[&str] = &[
@@ -52,6 +54,17 @@ const CABLE: &[&str] = &[
     "end_motor",
     "end_sense",
     "free_length",
+    "path",
+];
+const PATH: &[&str] = &[
+    "coefficient",
+    "viscous",
+    "guide_wrap",
+    "exit_wrap",
+    "law",
+    "smoothing",
+    "presliding",
+    "exponent",
 ];
 const CONTACT: &[&str] = &["pulley", "wrap", "sense", "mu"];
 const MOTOR: &[&str] = &[
@@ -167,6 +180,30 @@ fn friction(t: &Table<'_>, smoothing: f64) -> Result<StaticFriction> {
     )
 }
 
+/// A cable's `path` table (seed 002's pulley friction between its last contact and its end).
+fn path(v: &Value, cable: &str) -> Result<PathSpec> {
+    let t = Table::new(v, format!("{cable}.path"), PATH)?;
+    let exit_wrap = match t.map.get("exit_wrap") {
+        None => ExitWrap::Fixed(0.0),
+        Some(Value::String(s)) => ExitWrap::Signal(s.clone()),
+        Some(_) => ExitWrap::Fixed(t.num("exit_wrap", None)?),
+    };
+    let law = PathLaw::named(
+        Some(&t.text("law", Some("dahl"))?),
+        t.optional_num("smoothing")?,
+        t.optional_num("presliding")?,
+        t.optional_num("exponent")?,
+    )
+    .map_err(|e| invalid(format!("{}.law", t.element), e.to_string()))?;
+    Ok(PathSpec {
+        coefficient: t.num("coefficient", None)?,
+        viscous: t.num("viscous", Some(0.0))?,
+        guide_wrap: t.num("guide_wrap", Some(0.0))?,
+        exit_wrap,
+        law,
+    })
+}
+
 impl NetworkSpec {
     /// The network a model file's document (JSON text of the parsed TOML) describes.
     pub fn from_json(text: &str) -> Result<Self> {
@@ -248,6 +285,7 @@ impl NetworkSpec {
                 end_motor: t.optional_text("end_motor")?,
                 end_sense: t.num("end_sense", Some(1.0))?,
                 free_length: t.optional_num("free_length")?,
+                path: t.map.get("path").map(|v| path(v, &t.element)).transpose()?,
             })
         })?;
         let sensors = each(top.list("sensors")?, "sensor", SENSOR, |t, name| {
@@ -266,6 +304,18 @@ impl NetworkSpec {
             motors,
             sensors,
             capstan_smoothing: top.num("capstan_smoothing", Some(DEFAULT_CAPSTAN_SMOOTHING))?,
+            signals: match top.map.get("signals") {
+                None => Vec::new(),
+                Some(v) => v
+                    .as_array()
+                    .and_then(|a| a.iter().map(|s| s.as_str().map(str::to_owned)).collect())
+                    .ok_or_else(|| {
+                        invalid(
+                            "network file.signals".into(),
+                            "must be a list of signal names (strings)",
+                        )
+                    })?,
+            },
         })
     }
 }

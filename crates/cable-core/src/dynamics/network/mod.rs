@@ -187,6 +187,37 @@ pub struct CableSpec {
     /// `length / (length − σ·ρ·q_m)` (a rod's `E·A/L` with `L` the free length); `None`: a
     /// fixed length (a tendon sliding over its pulleys).
     pub free_length: Option<f64>,
+    /// Friction of the pulleys between its last contact and its far end (a parallel robot's
+    /// guide and exit pulleys between the winch-side sensor and the platform; seed 002 eqs
+    /// 7–8); `None`: none.
+    pub path: Option<PathSpec>,
+}
+
+/// Where a path's exit-pulley wrap comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ExitWrap {
+    /// A fixed wrap (rad), in `[0, 2π]`.
+    Fixed(f64),
+    /// A measured signal of the network (rad; a parallel robot's exit wrap at its measured pose).
+    Signal(String),
+}
+
+/// Friction on the path between a cable's last contact and its far end, seed 002's additive
+/// law (see [`crate::cdpr::path`]): `T_path = T + μ·N·T·s + σ_v·v`, `N = 2·sin(θ_g/2) +
+/// 2·sin(θ_e/2)`, `s` the sign of the cable's speed towards the motor `v` (Coulomb) or a Dahl
+/// state over the hauled length; `T` the elastic piece's tension (its far end).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PathSpec {
+    /// Friction coefficient `μ`, ≥ 0.
+    pub coefficient: f64,
+    /// Viscous coefficient `σ_v` (N·s/m), ≥ 0.
+    pub viscous: f64,
+    /// Wrap of the guide pulleys `θ_g` (rad), in `[0, 2π]`.
+    pub guide_wrap: f64,
+    /// Wrap of the exit pulley `θ_e`.
+    pub exit_wrap: ExitWrap,
+    /// The law (Coulomb with its smoothing, or Dahl with its pre-sliding length and exponent).
+    pub law: crate::cdpr::PathLaw,
 }
 
 /// A motor with its capstan.
@@ -237,6 +268,9 @@ pub struct NetworkSpec {
     pub sensors: Vec<SensorSpec>,
     /// Smoothing of the sign of the cable's speed in the capstan losses (m/s of cable), > 0.
     pub capstan_smoothing: f64,
+    /// Measured signals the network reads besides its motors (inputs after the motors'; e.g. a
+    /// path's exit wrap at a parallel robot's measured pose).
+    pub signals: Vec<String>,
 }
 
 /// Pre-sliding (Dahl) friction of a joint: a friction torque `z` that follows the joint's
@@ -320,6 +354,29 @@ struct Cable {
     end: Option<(usize, f64)>,
     /// Free length at every motor's 0 when its motor winds it up (m).
     free_length: Option<f64>,
+    /// Friction between its last contact and its far end.
+    path: Option<Path>,
+}
+
+/// The exit wrap of a built path: its normal factor `2·sin(θ_e/2)`, or the input index of the
+/// signal that gives `θ_e`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Exit {
+    Fixed(f64),
+    Input(usize),
+}
+
+/// A built path (see [`PathSpec`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Path {
+    coefficient: f64,
+    viscous: f64,
+    /// `2·sin(θ_g/2)`.
+    guide_normal: f64,
+    exit: Exit,
+    law: crate::cdpr::PathLaw,
+    /// The Dahl law's state index.
+    state: Option<usize>,
 }
 
 /// One motor of a built network.
@@ -362,6 +419,9 @@ pub struct Network {
     /// contacts between the tap and the cable's elastic piece)`.
     taps: Vec<Tap>,
     capstan_smoothing: f64,
+    signal_names: Vec<String>,
+    /// Index of the first signal in the input.
+    signal_input: usize,
     n_states: usize,
     n_inputs: usize,
 }
@@ -428,9 +488,14 @@ impl Network {
             ));
         }
         check::positive("capstan_smoothing", spec.capstan_smoothing)?;
+        let signal_names: Vec<&str> = spec.signals.iter().map(String::as_str).collect();
+        unique("signal", &signal_names)?;
         let joints = Self::joints(spec, &body_names)?;
-        let (motors, n_states, n_inputs) = Self::motors(spec)?;
+        let (motors, mut n_states, n_inputs) = Self::motors(spec)?;
         let n = joints.len();
+        // the signals sit between the motors' inputs and the joints' loads
+        let signal_input = n_inputs - n;
+        let n_inputs = n_inputs + signal_names.len();
         let mut arms = vec![0.0; spec.cables.len() * n];
         let mut cables = Vec::with_capacity(spec.cables.len());
         for (c, cs) in spec.cables.iter().enumerate() {
@@ -509,6 +574,17 @@ impl Network {
                     }
                 }
             }
+            let path = match &cs.path {
+                None => None,
+                Some(ps) => Some(Self::path(
+                    ps,
+                    &el,
+                    &signal_names,
+                    signal_input,
+                    &mut n_states,
+                    arms[c * n..(c + 1) * n].iter().any(|a| *a != 0.0),
+                )?),
+            };
             cables.push(Cable {
                 run: cs.run,
                 motor,
@@ -520,6 +596,7 @@ impl Network {
                 routing_dahl: None,
                 end,
                 free_length: cs.free_length,
+                path,
             });
         }
         for (i, name) in motor_names.iter().enumerate() {
@@ -548,8 +625,72 @@ impl Network {
             cable_names: cable_names.iter().map(|s| (*s).to_owned()).collect(),
             motor_names: motor_names.iter().map(|s| (*s).to_owned()).collect(),
             capstan_smoothing: spec.capstan_smoothing,
+            signal_names: signal_names.iter().map(|s| (*s).to_owned()).collect(),
+            signal_input,
             n_states,
             n_inputs,
+        })
+    }
+
+    /// Build and check cable `el`'s path; a Dahl law takes the next state.
+    fn path(
+        ps: &PathSpec,
+        el: &str,
+        signals: &[&str],
+        signal_input: usize,
+        n_states: &mut usize,
+        turns_a_joint: bool,
+    ) -> Result<Path> {
+        use crate::cdpr::PathLaw;
+        let el = format!("{el}.path");
+        if turns_a_joint {
+            return Err(invalid(
+                el,
+                "a path's friction is for a cable whose routing turns no joint (a parallel \
+                 robot's drive: winch, pulleys, platform)",
+            ));
+        }
+        check::non_negative(&format!("{el}.coefficient"), ps.coefficient)?;
+        check::non_negative(&format!("{el}.viscous"), ps.viscous)?;
+        let wrap = |name: &str, w: f64| -> Result<f64> {
+            if w.is_finite() && (0.0..=std::f64::consts::TAU).contains(&w) {
+                Ok(w)
+            } else {
+                Err(invalid(
+                    format!("{el}.{name}"),
+                    format!("must be a wrap angle in [0, 2π] rad, got {w}"),
+                ))
+            }
+        };
+        let guide = wrap("guide_wrap", ps.guide_wrap)?;
+        let exit = match &ps.exit_wrap {
+            ExitWrap::Fixed(w) => Exit::Fixed(2.0 * (0.5 * wrap("exit_wrap", *w)?).sin()),
+            ExitWrap::Signal(name) => {
+                Exit::Input(signal_input + lookup(signals, name, &el, "signal")?)
+            }
+        };
+        let state = match ps.law {
+            PathLaw::Coulomb { smoothing } => {
+                check::positive(&format!("{el}.smoothing"), smoothing)?;
+                None
+            }
+            PathLaw::Dahl {
+                presliding,
+                exponent,
+            } => {
+                check::positive(&format!("{el}.presliding"), presliding)?;
+                check::positive(&format!("{el}.exponent"), exponent)?;
+                *n_states += 1;
+                Some(*n_states - 1)
+            }
+        };
+        Ok(Path {
+            coefficient: ps.coefficient,
+            viscous: ps.viscous,
+            guide_normal: 2.0 * (0.5 * guide).sin(),
+            exit,
+            law: ps.law,
+            state,
         })
     }
 
@@ -1112,18 +1253,61 @@ impl Network {
     /// [`Self::cable_tensions`] and the sign its routing friction acts with (0 without one).
     #[inline]
     fn cable_tensions_and_sign(&self, c: usize, x: &[f64], u: &[f64]) -> (f64, f64, f64) {
+        let (t, _, tm, sign) = self.cable_tensions_full(c, x, u);
+        (t, tm, sign)
+    }
+
+    /// Cable `c`'s tensions: its elastic piece's `T`, beyond its path's friction `T_path` (=
+    /// `T` without a path), at its motor `T_m = T_path·exp(Σμφ·s)`, and the routing's sign `s`.
+    #[inline]
+    fn cable_tensions_full(&self, c: usize, x: &[f64], u: &[f64]) -> (f64, f64, f64, f64) {
         let (e, de) = self.elongation(c, x, u);
         let cable = &self.cables[c];
         let t = self.tension_of(c, e, de, x, self.length_scale_at(c, x, u));
+        let tp = match &cable.path {
+            Some(p) => self.path_tension(c, p, t, x, u),
+            None => t,
+        };
         let has_taps = self.taps.iter().any(|(k, _, b)| *k == c && *b > 0.0);
         if cable.capstan == 0.0 && !has_taps {
-            return (t, t, 0.0);
+            return (t, tp, tp, 0.0);
         }
         let sign = match cable.routing_dahl {
             Some((_, k)) => x[k].clamp(-1.0, 1.0),
             None => smooth_sign(self.haul_speed(c, x, u), cable.smoothing),
         };
-        (t, t * (cable.capstan * sign).exp(), sign)
+        (t, tp, tp * (cable.capstan * sign).exp(), sign)
+    }
+
+    /// The speed (m/s) at which cable `c` slides over its path towards its motor: its far end's
+    /// (`−σ_e·ρ_e·u̇_e`, the end motor paying it out), or its haul speed with an anchored end.
+    #[inline]
+    fn path_speed(&self, c: usize, x: &[f64], u: &[f64]) -> f64 {
+        match self.cables[c].end {
+            Some((i, s)) => {
+                let m = &self.motors[i];
+                -s * m.rho * u[m.slot + 1]
+            }
+            None => self.haul_speed(c, x, u),
+        }
+    }
+
+    /// The tension on the motor's side of cable `c`'s path `p` (seed 002 eqs 7–8, kept ≥ 0):
+    /// `T + μ·N·T·s + σ_v·v` at the elastic piece's tension `T`.
+    #[inline]
+    fn path_tension(&self, c: usize, p: &Path, t: f64, x: &[f64], u: &[f64]) -> f64 {
+        use crate::cdpr::PathLaw;
+        let exit = match p.exit {
+            Exit::Fixed(n) => n,
+            Exit::Input(i) => 2.0 * (0.5 * u[i]).sin().max(0.0),
+        };
+        let v = self.path_speed(c, x, u);
+        let s = match (p.law, p.state) {
+            (PathLaw::Dahl { .. }, Some(k)) => x[k].clamp(-1.0, 1.0),
+            (PathLaw::Coulomb { smoothing }, _) => smooth_sign(v, smoothing),
+            (PathLaw::Dahl { .. }, None) => 0.0,
+        };
+        (t + p.coefficient * (p.guide_normal + exit) * t * s + p.viscous * v).max(0.0)
     }
 
     /// Joint-side tension of every cable (N) at state `x`, input `u`.
@@ -1160,6 +1344,16 @@ impl Network {
     /// Index of the first external joint load input.
     fn load_input(&self) -> usize {
         self.n_inputs - self.n_joints()
+    }
+
+    /// The measured signals it reads (inputs after the motors').
+    pub fn signal_names(&self) -> &[String] {
+        &self.signal_names
+    }
+
+    /// Index of the first signal in the input.
+    pub fn signal_input(&self) -> usize {
+        self.signal_input
     }
 
     /// Whether motor `i` is torque-driven (it has states, inertia and friction in the
@@ -1413,6 +1607,7 @@ impl NetworkSpec {
             end_motor: None,
             end_sense: 1.0,
             free_length: None,
+            path: None,
         };
         Ok(Self {
             bodies: vec![BodySpec {
@@ -1455,6 +1650,7 @@ impl NetworkSpec {
                 friction: StaticFriction::NONE,
             }],
             capstan_smoothing: joint.capstan_smoothing,
+            signals: Vec::new(),
         })
     }
 
@@ -1472,6 +1668,7 @@ impl NetworkSpec {
             motors: Vec::new(),
             sensors: Vec::new(),
             capstan_smoothing: 1e-3,
+            signals: Vec::new(),
         };
         for (i, l) in tx.links().iter().enumerate() {
             let k = i + 1;
@@ -1546,6 +1743,7 @@ impl NetworkSpec {
                     end_motor: None,
                     end_sense: 1.0,
                     free_length: None,
+                    path: None,
                 });
             }
         }
@@ -1597,6 +1795,25 @@ impl Model for Network {
                 let v = self.haul_speed(c, x, u);
                 dx[k] = (v - v.abs() * x[k].clamp(-1.0, 1.0)) / x_d;
             }
+            if let Some(Path {
+                law:
+                    crate::cdpr::PathLaw::Dahl {
+                        presliding,
+                        exponent,
+                    },
+                state: Some(k),
+                ..
+            }) = cable.path
+            {
+                // dz/ds = |1 − z·sgn ṡ|ⁿ·sgn(1 − z·sgn ṡ)/x_c over the hauled length s
+                let v = self.path_speed(c, x, u);
+                let g = 1.0 - x[k].clamp(-1.0, 1.0) * v.signum();
+                dx[k] = if v == 0.0 {
+                    0.0
+                } else {
+                    v * g.abs().powf(exponent) * g.signum() / presliding
+                };
+            }
         }
         for m in &self.motors {
             if m.drive == Drive::Torque {
@@ -1645,11 +1862,11 @@ impl Model for Network {
             y[n + i] = self.motor_at(i, x, u).0;
             y[2 * n + p + 2 * m + i] = 0.0;
         }
-        let mut signs = [0.0; 16];
+        let mut signs = [(0.0, 0.0); 16];
         for (c, cable) in self.cables.iter().enumerate() {
-            let (t, tm, sign) = self.cable_tensions_and_sign(c, x, u);
+            let (t, tp, tm, sign) = self.cable_tensions_full(c, x, u);
             if c < signs.len() {
-                signs[c] = sign;
+                signs[c] = (sign, tp);
             }
             y[n + p + c] = t;
             y[n + p + m + c] = tm;
@@ -1666,15 +1883,16 @@ impl Model for Network {
                 y[2 * n + p + 2 * m + i] += mo.friction.force(u[mo.slot + 1]);
             }
         }
-        // a tension between contacts: the joint-side tension through the friction beyond it
+        // a tension between contacts: the tension beyond the path (the joint-side tension
+        // without one) through the friction beyond it
         for (k, &(c, _, beyond)) in self.taps.iter().enumerate() {
-            let t = y[n + p + c];
-            let sign = if c < signs.len() {
+            let (sign, tp) = if c < signs.len() {
                 signs[c]
             } else {
-                self.cable_tensions_and_sign(c, x, u).2
+                let (_, tp, _, sign) = self.cable_tensions_full(c, x, u);
+                (sign, tp)
             };
-            y[2 * n + 2 * p + 2 * m + k] = t * (beyond * sign).exp();
+            y[2 * n + 2 * p + 2 * m + k] = tp * (beyond * sign).exp();
         }
     }
 
@@ -1700,6 +1918,9 @@ impl Model for Network {
             if let Some((_, k)) = c.routing_dahl {
                 out[k] = format!("z_routing:{name}");
             }
+            if let Some(Path { state: Some(k), .. }) = c.path {
+                out[k] = format!("z_path:{name}");
+            }
         }
         out
     }
@@ -1717,6 +1938,7 @@ impl Model for Network {
                 out.push(format!("tau_m:{name}"));
             }
         }
+        out.extend(self.signal_names.iter().map(|s| format!("signal:{s}")));
         out.extend(self.joint_names.iter().map(|j| format!("tau_ext:{j}")));
         out
     }

@@ -208,6 +208,7 @@ fn finger() -> NetworkSpec {
         end_motor: None,
         end_sense: 1.0,
         free_length: None,
+        path: None,
     };
     NetworkSpec {
         bodies: vec![body("proximal"), body("distal")],
@@ -236,6 +237,7 @@ fn finger() -> NetworkSpec {
         motors: vec![motor("m1"), motor("m2"), motor("m3")],
         sensors: Vec::new(),
         capstan_smoothing: 1e-3,
+        signals: Vec::new(),
     }
 }
 
@@ -622,4 +624,125 @@ fn a_cables_end_motor_and_taps_are_checked() {
     assert!(e.contains("end_sense"), "{e}");
     let e = bad(&|d| d["cables"] = serde_json::json!([]));
     assert!(e.contains("at least one cable"), "{e}");
+}
+
+/// The winch with a parallel robot's path between its last pulley and the platform: seed
+/// 002's additive law with the exit wrap a measured signal, and the drum position-driven.
+fn winch_with_path(law: serde_json::Value) -> Network {
+    let mut doc = winch("position");
+    doc["signals"] = serde_json::json!(["wrap"]);
+    let mut path = serde_json::json!({
+        "coefficient": 0.03, "viscous": 5.0, "guide_wrap": std::f64::consts::PI, "exit_wrap": "wrap"
+    });
+    for (k, v) in law.as_object().unwrap() {
+        path[k] = v.clone();
+    }
+    doc["cables"][0]["path"] = path;
+    Network::new(&NetworkSpec::from_json(&doc.to_string()).unwrap()).unwrap()
+}
+
+#[test]
+fn a_path_adds_seed_002s_pulley_friction_between_the_end_and_the_routing() {
+    let net = winch_with_path(serde_json::json!({"law": "coulomb", "smoothing": 1e-3}));
+    // inputs: the drum's and the end's [q, q̇], then the signal
+    assert_eq!(net.n_inputs(), 5);
+    assert_eq!(net.input_names()[4], "signal:wrap");
+    assert_eq!(net.n_states(), 0);
+    let names = net.output_names();
+    let (alpha, end, wrap) = (2.0, 1e-3, 1.2);
+    // the platform draws the cable in (its end's rate negative): v = +0.05 m/s towards the winch
+    let u = [alpha, 0.0, end, -0.05, wrap];
+    let mut y = vec![0.0; net.n_outputs()];
+    net.output(&[], &u, &mut y);
+    let e = 0.02 * alpha + end;
+    let t = (20.0 + 2.5e4 * e) * 0.8 / (0.8 - 0.02 * alpha);
+    let normal = 2.0 + 2.0 * (0.5 * wrap).sin();
+    let s = crate::friction::smooth_sign(0.05, 1e-3);
+    let t_path = t + 0.03 * normal * t * s + 5.0 * 0.05;
+    let tap = y[names.len() - 1];
+    assert!(
+        (y[2] - t).abs() < 1e-9 * t,
+        "the elastic piece keeps its tension"
+    );
+    assert!((tap - t_path).abs() < 1e-9 * t, "{tap} vs {t_path}");
+    // the routing's capstan acts on the path's motor side (drum at rest: its sign is 0)
+    assert!((y[3] - t_path).abs() < 1e-9 * t);
+    // the exit wrap moves the friction with the pose
+    let u2 = [alpha, 0.0, end, -0.05, 0.0];
+    net.output(&[], &u2, &mut y);
+    assert!((y[names.len() - 1] - (t + 0.03 * 2.0 * t * s + 0.25)).abs() < 1e-9 * t);
+}
+
+#[test]
+fn a_dahl_path_slides_to_its_level_over_its_presliding_length() {
+    let x_c = 2e-3;
+    let net = winch_with_path(serde_json::json!({"law": "dahl", "presliding": x_c}));
+    assert_eq!(net.n_states(), 1);
+    assert_eq!(net.state_names()[0], "z_path:c");
+    // the platform draws the cable in at 10 mm/s from rest: z = 1 − exp(−s/x_c), s = v·t
+    let (dt, steps, v, wrap) = (1e-3, 400, 0.01, 1.0);
+    let mut u = Vec::new();
+    for k in 0..steps {
+        let end = 1e-3 - v * dt * k as f64;
+        u.extend_from_slice(&[0.5, 0.0, end, -v, wrap]);
+    }
+    let opts = SimOptions::new(dt, 4, InputHold::Foh).unwrap();
+    let traj = simulate(&net, &u, &[0.0], &opts).unwrap();
+    let p = net.n_outputs();
+    for k in [50, 200, 399] {
+        let z = 1.0 - (-(v * dt * k as f64) / x_c).exp();
+        assert!(
+            (traj.states[k] - z).abs() < 1e-6,
+            "z({k}) {} vs {z}",
+            traj.states[k]
+        );
+        let y = &traj.outputs[k * p..(k + 1) * p];
+        let normal = 2.0 + 2.0 * (0.5 * wrap).sin();
+        let want = y[2] + 0.03 * normal * y[2] * z + 5.0 * v;
+        assert!(
+            (y[p - 1] - want).abs() < 1e-4 * want,
+            "{} vs {want}",
+            y[p - 1]
+        );
+    }
+}
+
+#[test]
+fn a_bad_path_or_signal_is_a_typed_error_naming_it() {
+    let err = |edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut doc = winch("position");
+        doc["signals"] = serde_json::json!(["wrap"]);
+        doc["cables"][0]["path"] = serde_json::json!({"coefficient": 0.03, "exit_wrap": "wrap"});
+        edit(&mut doc);
+        match NetworkSpec::from_json(&doc.to_string()).and_then(|s| Network::new(&s)) {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("accepted"),
+        }
+    };
+    let e = err(&|d| d["cables"][0]["path"]["exit_wrap"] = "pose".into());
+    assert!(e.contains("path") && e.contains("pose"), "{e}");
+    let e = err(&|d| d["cables"][0]["path"]["exit_wrap"] = 7.0.into());
+    assert!(e.contains("exit_wrap"), "{e}");
+    let e = err(&|d| d["cables"][0]["path"]["coefficient"] = (-0.1).into());
+    assert!(e.contains("coefficient"), "{e}");
+    let e = err(&|d| d["cables"][0]["path"]["law"] = "lugre".into());
+    assert!(e.contains("law"), "{e}");
+    let e = err(&|d| d["cables"][0]["path"]["friction"] = 1.0.into());
+    assert!(e.contains("unknown") && e.contains("friction"), "{e}");
+    let e = err(&|d| d["signals"] = serde_json::json!(["wrap", "wrap"]));
+    assert!(e.contains("signal") && e.contains("twice"), "{e}");
+    let e = err(&|d| d["signals"] = serde_json::json!("wrap"));
+    assert!(e.contains("signals"), "{e}");
+    // a path on a tendon that turns a joint is refused
+    let mut spec = finger();
+    spec.cables[0].path = Some(PathSpec {
+        coefficient: 0.01,
+        viscous: 0.0,
+        guide_wrap: 0.0,
+        exit_wrap: ExitWrap::Fixed(1.0),
+        law: crate::cdpr::PathLaw::Coulomb { smoothing: 1e-3 },
+    });
+    let (el, reason) = network_error(&spec);
+    assert!(el.contains("t1") && el.contains("path"), "{el}");
+    assert!(reason.contains("turns no joint"), "{reason}");
 }
