@@ -612,7 +612,8 @@ def test_a_motors_friction_that_only_its_load_shows_is_seen_through_the_averaged
     for name, col, s, w in zip(prep.channel_names, prep.columns, prep.sigma, prep.windows, strict=True):
         out, _, sensor = prep.spec.output(name)
         if w > 1:
-            tau, enc, inertia = prep.spec.extra["derived_load"][col]
+            tau, enc, inertia, held = prep.spec.extra["derived_load"][col]
+            assert held  # (the finger logs its torque commands: held)
             run = prep.fit_runs[0]
             s = math.hypot(
                 np.linalg.norm(_HELD_TORQUE) * measurement_sigma(run.column(tau), DT)[0],
