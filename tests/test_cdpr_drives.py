@@ -128,11 +128,7 @@ def test_an_input_windows_noise_is_the_averaged_residuals(sigma, ratio, half, dt
         assert k == 1
     # a derived load channel takes the same input noise into its own window
     k2, s2 = _load_window(sigma, 0.0, dt, noise, held=False)
-    assert k2 >= 1 and s2 <= math_hypot(sigma, ratio * sigma * np.linalg.norm(kernel)) * 1.0001
-
-
-def math_hypot(a: float, b: float) -> float:
-    return float(np.hypot(a, b))
+    assert k2 >= 1 and s2 <= float(np.hypot(sigma, ratio * sigma * np.linalg.norm(kernel))) * 1.0001
 
 
 def test_bad_drive_runs_and_networks_are_typed_errors():
