@@ -307,8 +307,12 @@ impl Presliding {
 }
 
 /// Creep of a cable's tension: a relaxation `w` that the tension loses,
-/// `T = T₀ + F(e) + b·ė − w`, `ẇ = (κ·F(e) − w)/τ` (`κ·(T₀ + F(e))` for the whole tension) — a
-/// standard linear solid whose instantaneous law is the cable's. Inserted by the diagnosis.
+/// `T = T₀ + F(e) + b·ė − w`, `ẇ = (κ·(F(e) − F_r) − w)/τ` (`κ·(T₀ + F(e))` for the whole
+/// tension) — a standard linear solid whose instantaneous law is the cable's, relaxing from the
+/// reference `F_r`: the law at the run's first input, where the cable has been held (its creep
+/// settled there) and the nominal's lengths were calibrated — a run that stays there keeps its
+/// tension. The whole form's reference is 0 (the pretension freshly applied). `F_r` is a state of
+/// zero rate after `w`'s, set by [`Network::rest_at`]. Inserted by the diagnosis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TensionCreep {
     /// Relaxed fraction `κ` in `[0, 1)`.
@@ -345,7 +349,7 @@ struct Cable {
     driver_arms: Vec<f64>,
     /// Smoothing of the sign of its haul speed in its routing friction (m/s).
     smoothing: f64,
-    /// Creep of its tension and the index of its state.
+    /// Creep of its tension and the index of its state `w` (its reference `F_r` the next).
     creep: Option<(TensionCreep, usize)>,
     /// Pre-sliding of its routing friction: the break-away sliding `x_d` (m of cable) and the
     /// index of its state `ζ` (module docs); `None`: the sign law.
@@ -374,9 +378,20 @@ struct Path {
     /// `2·sin(θ_g/2)`.
     guide_normal: f64,
     exit: Exit,
-    law: crate::cdpr::PathLaw,
-    /// The Dahl law's state index.
-    state: Option<usize>,
+    law: PathFrictionLaw,
+}
+
+/// A built path's law: Coulomb, or Dahl with the index of its state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum PathFrictionLaw {
+    Coulomb {
+        smoothing: f64,
+    },
+    Dahl {
+        presliding: f64,
+        exponent: f64,
+        state: usize,
+    },
 }
 
 /// One motor of a built network.
@@ -669,10 +684,10 @@ impl Network {
                 Exit::Input(signal_input + lookup(signals, name, &el, "signal")?)
             }
         };
-        let state = match ps.law {
+        let law = match ps.law {
             PathLaw::Coulomb { smoothing } => {
                 check::positive(&format!("{el}.smoothing"), smoothing)?;
-                None
+                PathFrictionLaw::Coulomb { smoothing }
             }
             PathLaw::Dahl {
                 presliding,
@@ -681,7 +696,11 @@ impl Network {
                 check::positive(&format!("{el}.presliding"), presliding)?;
                 check::positive(&format!("{el}.exponent"), exponent)?;
                 *n_states += 1;
-                Some(*n_states - 1)
+                PathFrictionLaw::Dahl {
+                    presliding,
+                    exponent,
+                    state: *n_states - 1,
+                }
             }
         };
         Ok(Path {
@@ -689,8 +708,7 @@ impl Network {
             viscous: ps.viscous,
             guide_normal: 2.0 * (0.5 * guide).sin(),
             exit,
-            law: ps.law,
-            state,
+            law,
         })
     }
 
@@ -1296,16 +1314,14 @@ impl Network {
     /// `T + μ·N·T·s + σ_v·v` at the elastic piece's tension `T`.
     #[inline]
     fn path_tension(&self, c: usize, p: &Path, t: f64, x: &[f64], u: &[f64]) -> f64 {
-        use crate::cdpr::PathLaw;
         let exit = match p.exit {
             Exit::Fixed(n) => n,
             Exit::Input(i) => 2.0 * (0.5 * u[i]).sin().max(0.0),
         };
         let v = self.path_speed(c, x, u);
-        let s = match (p.law, p.state) {
-            (PathLaw::Dahl { .. }, Some(k)) => x[k].clamp(-1.0, 1.0),
-            (PathLaw::Coulomb { smoothing }, _) => smooth_sign(v, smoothing),
-            (PathLaw::Dahl { .. }, None) => 0.0,
+        let s = match p.law {
+            PathFrictionLaw::Dahl { state, .. } => x[state].clamp(-1.0, 1.0),
+            PathFrictionLaw::Coulomb { smoothing } => smooth_sign(v, smoothing),
         };
         (t + p.coefficient * (p.guide_normal + exit) * t * s + p.viscous * v).max(0.0)
     }
@@ -1522,7 +1538,13 @@ impl Network {
 
     /// Give cable `c` a creep of its tension (replacing any it had), with a state.
     pub(crate) fn set_creep(&mut self, c: usize, cr: TensionCreep) {
-        let slot = self.state_slot(self.cables[c].creep.map(|(_, k)| k));
+        let slot = self.cables[c].creep.map_or_else(
+            || {
+                self.n_states += 2;
+                self.n_states - 2
+            },
+            |(_, k)| k,
+        );
         self.cables[c].creep = Some((cr, slot));
     }
 
@@ -1547,8 +1569,26 @@ impl Network {
     /// The state at rest for the first input `u0` (`[q_m, q̇_m]` of each position motor, the
     /// torques, the loads): the joints at the angles that leave every cable at its pretension —
     /// `J·q = e₀`, `e₀` the position motors' hauls `σ·ρ·q_m` (0 for the other cables), in the
-    /// least-squares sense — every speed zero and every torque-driven motor at 0.
+    /// least-squares sense — every speed zero and every torque-driven motor at 0. A cable's creep
+    /// takes its reference there (`F_r = F(e₀)`, see [`TensionCreep`]; 0 for the whole form).
     pub fn rest_at(&self, u0: &[f64]) -> Vec<f64> {
+        let mut x = self.joints_at_rest(u0);
+        if u0.len() >= self.n_inputs {
+            for (c, cable) in self.cables.iter().enumerate() {
+                if let Some((cr, k)) = cable.creep {
+                    if !cr.whole {
+                        let (e, _) = self.elongation(c, &x, u0);
+                        let r = cable.run.law.elastic(e) * self.length_scale_at(c, &x, u0);
+                        x[k + 1] = if r.is_finite() { r } else { 0.0 };
+                    }
+                }
+            }
+        }
+        x
+    }
+
+    /// [`Self::rest_at`]'s joints (every other state 0).
+    fn joints_at_rest(&self, u0: &[f64]) -> Vec<f64> {
         let (n, m) = (self.n_joints(), self.n_cables());
         let mut x = vec![0.0; self.n_states];
         if u0.len() < self.n_inputs || n == 0 {
@@ -1789,7 +1829,8 @@ impl Model for Network {
                     target += cable.run.pretension;
                 }
                 target *= self.length_scale_at(c, x, u);
-                dx[k] = (cr.fraction * target - x[k]) / cr.time_constant;
+                dx[k] = (cr.fraction * (target - x[k + 1]) - x[k]) / cr.time_constant;
+                dx[k + 1] = 0.0;
             }
             if let Some((x_d, k)) = cable.routing_dahl {
                 let v = self.haul_speed(c, x, u);
@@ -1797,11 +1838,11 @@ impl Model for Network {
             }
             if let Some(Path {
                 law:
-                    crate::cdpr::PathLaw::Dahl {
+                    PathFrictionLaw::Dahl {
                         presliding,
                         exponent,
+                        state: k,
                     },
-                state: Some(k),
                 ..
             }) = cable.path
             {
@@ -1914,11 +1955,16 @@ impl Model for Network {
         for (c, name) in self.cables.iter().zip(&self.cable_names) {
             if let Some((_, k)) = c.creep {
                 out[k] = format!("creep:{name}");
+                out[k + 1] = format!("creep_ref:{name}");
             }
             if let Some((_, k)) = c.routing_dahl {
                 out[k] = format!("z_routing:{name}");
             }
-            if let Some(Path { state: Some(k), .. }) = c.path {
+            if let Some(Path {
+                law: PathFrictionLaw::Dahl { state: k, .. },
+                ..
+            }) = c.path
+            {
                 out[k] = format!("z_path:{name}");
             }
         }

@@ -420,7 +420,7 @@ fn creep_relaxes_the_tension_at_constant_stretch() {
         let out = simulate(
             &net,
             &u,
-            &[0.0; 3],
+            &[0.0; 4],
             &SimOptions::new(dt, 4, InputHold::Zoh).unwrap(),
         )
         .unwrap();
@@ -591,6 +591,60 @@ fn a_winch_without_joints_stretches_its_free_length_and_taps_between_contacts() 
     assert!((y[names.len() - 1] - t * (-0.05_f64).exp()).abs() < 1e-7 * t);
     // the drum's load is its capstan radius times the drum-side tension
     assert!((y[names.len() - 2 - 1] - 0.02 * y[3]).abs() < 1e-12 * t);
+}
+
+/// A creeping cable's reference is its law at the run's first input: held there, the tension
+/// stays; stretched further by `Δe` it relaxes by `κ·ΔF`; the whole form relaxes from the start.
+#[test]
+fn creep_relaxes_from_the_first_stretch() {
+    let base =
+        Network::new(&NetworkSpec::from_json(&winch("position").to_string()).unwrap()).unwrap();
+    let (alpha, end) = (2.0, 1e-3);
+    // inputs: the drum's [q, q̇], the end's [q, q̇] (no joint loads)
+    let u0 = [alpha, 0.0, end, 0.0];
+    let tension = |net: &Network, x: &[f64], u: &[f64]| {
+        let mut y = vec![0.0; net.n_outputs()];
+        net.output(x, u, &mut y);
+        y[2]
+    };
+    let plain = tension(&base, &base.rest_at(&u0), &u0);
+    let (kappa, scale) = (0.3, 0.8 / (0.8 - 0.02 * alpha));
+    let (len, de) = (1000, 2e-4);
+    let held = [alpha, 0.0, end + de, 0.0];
+    for whole in [false, true] {
+        let mut net = base.clone();
+        net.set_creep(
+            0,
+            TensionCreep {
+                fraction: kappa,
+                time_constant: 0.1,
+                whole,
+            },
+        );
+        assert_eq!(net.n_states(), base.n_states() + 2);
+        let x0 = net.rest_at(&u0);
+        assert!((tension(&net, &x0, &u0) - plain).abs() < 1e-12 * plain);
+        // one sample at the start, then the end stretched by Δe and held for 10 τ
+        let u: Vec<f64> = u0.into_iter().chain((1..len).flat_map(|_| held)).collect();
+        let out = simulate(
+            &net,
+            &u,
+            &x0,
+            &SimOptions::new(1e-3, 4, InputHold::Zoh).unwrap(),
+        )
+        .unwrap();
+        let t_end = out.outputs[(len - 1) * net.n_outputs() + 2];
+        let stretched = tension(&base, &base.rest_at(&u0), &held);
+        let expect = if whole {
+            stretched * (1.0 - kappa)
+        } else {
+            stretched - kappa * 2.5e4 * de * scale
+        };
+        assert!(
+            (t_end - expect).abs() < 1e-3 * plain,
+            "{whole}: {t_end} vs {expect}"
+        );
+    }
 }
 
 #[test]
