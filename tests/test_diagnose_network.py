@@ -570,19 +570,25 @@ def test_torque_driven_motors_are_replayed_from_their_measured_angles():
     del asked["outputs"]["q_m:m3"]
     with pytest.raises(DataError, match="m3"):
         prepare(model_spec_from_dict(asked), fit, hold)
-    for bad in ("closed_loop", 3, None):
-        with pytest.raises(DataError, match="replay"):
-            model_spec_from_dict(_finger_doc(replay=bad))
-    with pytest.raises(DataError, match="replay"):
-        model_spec_from_dict(
-            {
-                "model": "antagonistic_joint",
-                "parameters": {},
-                "inputs": {"x_m": "x"},
-                "outputs": {"tension_motor_drive": "t"},
-                "diagnosis": {"replay": "open_loop"},
-            }
-        )
+    for key, good, bad_values in (
+        ("replay", "open_loop", ("closed_loop", 3, None, ["auto"])),
+        ("torque", "sampled", ("measured", 1.0, None, ["held"])),
+    ):
+        assert model_spec_from_dict(_finger_doc(**{key: good})).extra[key] == good
+        for bad in bad_values:
+            with pytest.raises(DataError, match=f"{key} must be one of"):
+                model_spec_from_dict(_finger_doc(**{key: bad}))
+        # a network's choice, refused for a built-in plant
+        with pytest.raises(DataError, match=key):
+            model_spec_from_dict(
+                {
+                    "model": "antagonistic_joint",
+                    "parameters": {},
+                    "inputs": {"x_m": "x"},
+                    "outputs": {"tension_motor_drive": "t"},
+                    "diagnosis": {key: good},
+                }
+            )
 
 
 def test_a_motors_friction_that_only_its_load_shows_is_seen_through_the_averaged_load():

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from cablekit._cablekit import JointProblem, JointRun, effect_catalogue
 from cablekit.diagnose import localise
-from cablekit.diagnose.data import Run, check_units
+from cablekit.diagnose.data import Run, check_units, scored_start
 from cablekit.diagnose.spec import (
     NOT_IN_NETWORK,
     NOT_IN_TRANSMISSION,
@@ -132,7 +132,7 @@ def joint_run(spec: ModelSpec, run: Run, columns: list[str], model: Any = None) 
         coupled=np.ascontiguousarray(run.column(spec.coupled)) if spec.coupled else None,
         external=external,
         x0=x0,
-        start=round(spec.warmup / run.dt),
+        start=scored_start(spec.warmup, run),
     )
 
 
@@ -170,9 +170,15 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
     spec, fit_runs, hold_runs, replay_notes = _measured_motor_replay(spec, fit_runs, hold_runs)
     for run in fit_runs + hold_runs:
         check_units(run, spec.units())
-        if spec.warmup >= 0.5 * run.duration:
+        if not (math.isfinite(run.context) and 0.0 <= run.context < run.duration):
             raise DataError(
-                f"run {run.name!r} ({run.duration:g} s) is too short for a warm-up of {spec.warmup:g} s"
+                f"run {run.name!r}: its history (context) must be in [0, {run.duration:g}) s, "
+                f"got {run.context!r}"
+            )
+        if spec.warmup >= 0.5 * (run.duration - run.context):
+            raise DataError(
+                f"run {run.name!r} ({run.duration - run.context:g} s after its history) is too short for "
+                f"a warm-up of {spec.warmup:g} s"
             )
     dts = {round(r.dt, 12) for r in fit_runs + hold_runs}
     if max(dts) > 1.01 * min(dts):
@@ -314,8 +320,9 @@ def _input_window(sigma: float, noise: InputNoise, dt: float) -> tuple[int, floa
     whose prediction carries noise from a measured input (:data:`InputNoise`), and the noise of
     its averaged residual: the shortest window for which the input's part is no larger than
     the measurement's per-sample noise, at most :data:`LOAD_WINDOW_S` (1 without input noise)."""
-    best = (1, math.hypot(sigma, _input_part(noise, np.ones(1))))
-    if best[1] == sigma:
+    inp = _input_part(noise, np.ones(1))
+    best = (1, math.hypot(sigma, inp))
+    if inp == 0.0:
         return best
     for k in _odd_windows(dt):
         mean = np.full(k, 1.0 / k)

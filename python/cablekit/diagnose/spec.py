@@ -63,7 +63,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -252,13 +252,7 @@ class ModelSpec:
                 raise DataError(f"run {run.name!r}: column {col!r} overflows when converted from {declared}")
             how = f"from {declared}" if isinstance(declared, str) else f"×{scale:g} + {offset:g}"
             done.append(f"{col} {how}")
-        return Run(
-            run.name,
-            run.t,
-            cols,
-            [*run.notes, "converted to SI units: " + ", ".join(done)],
-            dict(run.attributes),
-        )
+        return replace(run, columns=cols, notes=[*run.notes, "converted to SI units: " + ", ".join(done)])
 
     def columns(self) -> dict[str, str | None]:
         """Every run column the model reads → the SI unit it must be in (``None``: any, or an
@@ -682,22 +676,17 @@ def model_spec_from_dict(doc: dict[str, Any], source: str = "<model>") -> ModelS
                 f"{source}: [diagnosis] effects {bad} unknown; choose from {sorted(known)} "
                 "(an effect, or effect@site, effect@site/form: see docs/diagnosis.md)"
             )
-    replay = diag.get("replay", "auto")
-    if replay not in REPLAYS or (replay != "auto" and kind != "cable_network"):
-        raise DataError(
-            f"{source}: [diagnosis] replay must be one of {list(REPLAYS)} (a cable_network's torque-driven "
-            f"motors), got {replay!r}"
-        )
-    if kind == "cable_network" and replay != "auto":
-        extra["replay"] = replay
-    torque = diag.get("torque", "held")
-    if torque not in TORQUES or (torque != "held" and kind != "cable_network"):
-        raise DataError(
-            f"{source}: [diagnosis] torque must be one of {list(TORQUES)} (what a cable_network's torque "
-            f"columns are: held commands or sampled measurements), got {torque!r}"
-        )
-    if kind == "cable_network" and torque != "held":
-        extra["torque"] = torque
+    for key, choices, default, what in (
+        ("replay", REPLAYS, "auto", "how a cable_network's torque-driven motors are replayed"),
+        ("torque", TORQUES, "held", "a cable_network's torque columns: held commands or sampled readings"),
+    ):
+        value = diag.get(key, default)
+        if value not in choices or (value != default and kind != "cable_network"):
+            raise DataError(
+                f"{source}: [diagnosis] {key} must be one of {list(choices)} ({what}), got {value!r}"
+            )
+        if kind == "cable_network" and value != default:
+            extra[key] = value
     spec = ModelSpec(
         kind=kind,
         parameters=dict(doc["parameters"]),
