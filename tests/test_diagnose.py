@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 import cablekit as ck
 from cablekit._cablekit import JointProblem, JointRun, effect_catalogue
 from cablekit.diagnose import Options, diagnose, load_model_spec, load_run, model_spec_from_dict
-from cablekit.diagnose.data import Run, check_units, from_arrays
+from cablekit.diagnose.data import Run, check_units, from_arrays, scored_start
 from cablekit.diagnose.report import to_json, validate
 from cablekit.diagnose.selftest import make_case
 from tests.reference import signal as sig
@@ -1303,3 +1303,67 @@ def test_an_unchanged_channel_is_not_significantly_worse():
     grown = [before[0] * [1.0, 1.5]]
     ch = {c["channel"]: c for c in channel_changes(prep, before, grown, 1e-3, opts, rng)}  # type: ignore[arg-type]
     assert ch["b"]["significantly_worse"] and ch["b"]["worsened"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(12, 400),
+    cut=st.floats(0.0, 1.0),
+    context=st.one_of(
+        st.floats(0.0, 1e3),
+        st.sampled_from([math.nan, math.inf, -math.inf, -1e-3, 1e300]),
+        st.text(max_size=3),
+        st.none(),
+    ),
+)
+def test_a_segment_carries_its_history_and_scores_after_it(n, cut, context):
+    """``Run.segment(..., context=c)`` starts ``c`` s earlier (as much as the run has), says so
+    in ``context``, and its scored part (:func:`scored_start`) is the plain segment's samples."""
+    dt = 0.01
+    t = dt * np.arange(n)
+    run = Run("r", t, {"x": np.sin(t), "y": t**2})
+    start = round(cut * (n - 10)) * dt
+    plain = run.segment(start - 0.5 * dt, n * dt)
+    ok = isinstance(context, float) and math.isfinite(context) and context >= 0.0
+    if not ok:
+        with pytest.raises((ck.DataError, TypeError)):
+            run.segment(start - 0.5 * dt, n * dt, context=context)
+        return
+    seg = run.segment(start - 0.5 * dt, n * dt, context=context)
+    k = scored_start(0.0, seg)
+    assert seg.t[0] == 0.0 and len(seg) - k == len(plain)
+    assert seg.context == pytest.approx(min(start, dt * math.floor(context / dt + 1e-9)), abs=1e-9)
+    for c in ("x", "y"):
+        assert np.array_equal(seg.columns[c][k:], plain.columns[c])
+    # the warm-up counts after the history
+    assert scored_start(0.05, seg) == k + 5
+
+
+def test_a_held_out_continuation_is_replayed_from_its_history():
+    """A held-out run that continues the fit run (``context``) is predicted as the whole run's
+    tail (the same simulation from the same start), and scored only after its history."""
+    from cablekit.diagnose.prepare import prepare
+
+    case = make_case(("viscous_friction",), seed=3)
+    whole = case.fit[0]
+    mid = 0.5 * whole.duration
+    tail = whole.segment(mid, whole.duration + 1.0, context=mid + 1.0)
+    restart = whole.segment(mid, whole.duration + 1.0)
+    assert tail.context == pytest.approx(whole.t[whole.t >= mid][0], abs=1e-12)
+    full = prepare(case.spec, case.fit, [whole])
+    cont = prepare(case.spec, case.fit, [tail])
+    fresh = prepare(case.spec, case.fit, [restart])
+    k = scored_start(case.spec.warmup, tail)
+    assert k == len(whole) - len(restart) + round(case.spec.warmup / whole.dt)
+    q = len(cont.channel_names)
+    assert cont.hold0.residuals(np.zeros(0)).size == (len(tail) - k) * q
+    p_full = np.asarray(full.hold0.predict(np.zeros(0), 0))
+    p_cont = np.asarray(cont.hold0.predict(np.zeros(0), 0))
+    np.testing.assert_allclose(p_cont, p_full, rtol=0, atol=1e-9 * np.abs(p_full).max())
+    # a restart from rest differs from the continuation where the state has memory
+    p_fresh = np.asarray(fresh.hold0.predict(np.zeros(0), 0))
+    assert not np.allclose(p_fresh, p_cont[-len(restart) :])
+    bad = whole.segment(mid, whole.duration + 1.0, context=1.0)
+    bad.context = whole.duration + 1.0
+    with pytest.raises(ck.DataError, match="history"):
+        prepare(case.spec, case.fit, [bad])

@@ -2,7 +2,8 @@
 twin (:func:`cablekit.cdpr.diagnose.twin_run`: seed 002's robot with seed 003's winches and the
 twin's platform-side Dahl pulleys, one effect withheld at a drawn cable, the internal forces
 excited so that the tensions vary, a tracker's noise on the poses) diagnosed as a network of
-drives (:mod:`cablekit.cdpr.drives`): fitted on the run's first 15 s, scored on its last 15 s.
+drives (:mod:`cablekit.cdpr.drives`): fitted on the run's first 15 s, scored on its last 15 s
+(replayed from the run's start: its first half is the second's history, :attr:`Run.context`).
 
 A withheld effect is named right when the diagnosis's first effect is one of the engine's
 effects for it, at its site (the withheld cable ``j``):
@@ -104,13 +105,13 @@ def twin_diagnosis(
     spec = drives.drive_spec(
         lg.robot, run.winch, lg.rest_length, cols.input_noise, TWIN_FRICTION, cable_damping=TWIN_CABLE_DAMPING
     )
-    half = round(duration / (cols.t[1] - cols.t[0])) // 2
-    fit = Run("first half", cols.t[:half], {k: v[:half] for k, v in cols.columns.items()})
-    hold = Run(
-        "second half",
-        cols.t[half : 2 * half] - cols.t[half],
-        {k: v[half : 2 * half] for k, v in cols.columns.items()},
-    )
+    dt = cols.t[1] - cols.t[0]
+    half = round(duration / dt) // 2
+    whole = Run("run", cols.t[: 2 * half], {k: v[: 2 * half] for k, v in cols.columns.items()})
+    fit = whole.segment(0.0, (half - 0.5) * dt, "first half")
+    # the second half continues the first: replayed from the run's start (a creeping cable's
+    # relaxation, a pulley's pre-sliding enter it as they were), scored after it
+    hold = whole.segment((half - 0.5) * dt, 2 * half * dt, "second half", context=float(cols.t[half]))
     return diagnose(spec, [fit], [hold], Options(progress=progress))
 
 

@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 
 from cablekit.errors import DataError
 
-__all__ = ["Run", "check_units", "common_interval", "load_run", "uniform_time"]
+__all__ = ["Run", "check_units", "common_interval", "load_run", "scored_start", "uniform_time"]
 
 
 @dataclass
@@ -58,6 +58,11 @@ class Run:
     #: bench run: ``pitch_deg``, ``roll_deg``, ``yaw_index``); compared with the nominal's
     #: :attr:`~cablekit.diagnose.spec.ModelSpec.conditions`
     attributes: dict[str, float] = field(default_factory=dict)
+    #: seconds of history at the run's start: replayed (the initial state is taken at its first
+    #: sample) but neither fitted nor scored — the fit run's end before a held-out run that
+    #: continues it, so that a state with memory (creep, a pulley's pre-sliding, a sensor's lag)
+    #: enters the scored part as it was, not from rest (:meth:`segment`'s ``context``)
+    context: float = 0.0
 
     @property
     def dt(self) -> float:
@@ -86,20 +91,34 @@ class Run:
         values = _interpolate(self.t - self.t[0], np.column_stack([self.columns[n] for n in names]), grid)
         note = f"resampled from {self.dt:g} s to {dt:g} s by linear interpolation, the other runs' interval"
         cols = {n: np.ascontiguousarray(values[:, j]) for j, n in enumerate(names)}
-        return Run(self.name, grid, cols, [*self.notes, note], dict(self.attributes))
+        return Run(self.name, grid, cols, [*self.notes, note], dict(self.attributes), self.context)
 
-    def segment(self, start: float, stop: float, name: str | None = None) -> Run:
-        """The samples with ``start <= t < stop`` (s), as a new run."""
+    def segment(self, start: float, stop: float, name: str | None = None, *, context: float = 0.0) -> Run:
+        """The samples with ``start <= t < stop`` (s), as a new run; with ``context`` (s) the
+        samples from ``start − context`` come first as its history (:attr:`context`; as much as the
+        run has)."""
+        if not (math.isfinite(context) and context >= 0.0):
+            raise DataError(f"a segment's context must be a finite number of seconds >= 0, got {context!r}")
         keep = (self.t >= start) & (self.t < stop)
         if keep.sum() < 10:
             raise DataError(f"segment [{start}, {stop}) of run {self.name!r} has fewer than 10 samples")
+        first = float(self.t[keep][0])
+        take = (self.t >= first - context - 1e-9 * self.dt) & (self.t < stop)
+        t = self.t[take]
         return Run(
             name or f"{self.name}[{start:g}:{stop:g}]",
-            self.t[keep] - self.t[keep][0],
-            {k: v[keep] for k, v in self.columns.items()},
+            t - t[0],
+            {k: v[take] for k, v in self.columns.items()},
             list(self.notes),
             dict(self.attributes),
+            first - float(t[0]),
         )
+
+
+def scored_start(warmup: float, run: Run) -> int:
+    """The first sample of ``run`` that is fitted or scored: after its history
+    (:attr:`Run.context`) and the model's ``warmup`` (s)."""
+    return round((warmup + run.context) / run.dt)
 
 
 def _read_table(path: Path) -> tuple[list[str], NDArray[np.float64]]:

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from cablekit.diagnose.data import scored_start
 from cablekit.diagnose.fit import CandidateFit
 from cablekit.diagnose.localise import smooth_velocity
 from cablekit.diagnose.prepare import Prepared
@@ -148,7 +149,7 @@ def _features(prep: Prepared, hold: bool, model: CandidateFit | None = None) -> 
         if o in ("theta", "q_l1") or o.startswith("q:")
     ]
     for i, run in enumerate(runs):
-        start = round(prep.spec.warmup / run.dt)
+        start = scored_start(prep.spec.warmup, run)
         pred = np.asarray(problem.predict(theta, i))
         t = run.t - run.t[0]
         inputs = [run.column(c) for c in prep.spec.inputs][:4]

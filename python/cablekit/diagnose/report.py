@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from cablekit.diagnose.data import scored_start
 from cablekit.diagnose.result import SCHEMA, Diagnosis
 
 __all__ = ["to_json", "validate", "write_html", "write_json"]
@@ -147,7 +148,7 @@ def _figures(result: Diagnosis) -> dict[str, str]:
     prep, current = inner["prep"], inner["current"]
     figs: dict[str, str] = {}
     run = prep.hold_runs[0]
-    start = round(prep.spec.warmup / run.dt)
+    start = scored_start(prep.spec.warmup, run)
     t = run.t[start:]
     meas = np.column_stack([run.column(c) for c in prep.columns])[start:]
     nominal = prep.hold0.predict(np.zeros(0), 0)[start:]

@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from cablekit._cablekit import JointProblem
 from cablekit.diagnose import localise
-from cablekit.diagnose.data import Run
+from cablekit.diagnose.data import Run, scored_start
 from cablekit.diagnose.fit import CandidateFit
 from cablekit.diagnose.prepare import NOISE_LEVEL, Prepared, joint_run
 from cablekit.diagnose.spec import OUTPUTS
@@ -42,7 +42,7 @@ def localise_all(prep: Prepared, base: CandidateFit) -> dict[str, Any]:
         energies = []
         contact = _nominal_contact(prep, runs)
         for i, (run, r) in enumerate(zip(runs, resid, strict=False)):
-            start = round(prep.spec.warmup / run.dt)
+            start = scored_start(prep.spec.warmup, run)
             x = run.column(prep.spec.primary()[0])[start:]
             t = run.t[start:]
             sensors = [c for c, n in enumerate(prep.channel_names) if prep.spec.output(n)[2]]
@@ -62,7 +62,7 @@ def localise_all(prep: Prepared, base: CandidateFit) -> dict[str, Any]:
         if label == "held_out":
             out["_hold_masks"] = masks
     r0 = base.fit_resid[0]
-    start0 = round(prep.spec.warmup / prep.fit_runs[0].dt)
+    start0 = scored_start(prep.spec.warmup, prep.fit_runs[0])
     x0 = prep.fit_runs[0].column(prep.spec.primary()[0])[start0:]
     u0 = prep.fit_runs[0].column(prep.spec.inputs[0])[start0:]
     v0 = np.gradient(x0, prep.fit_runs[0].dt)
