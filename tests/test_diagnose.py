@@ -1357,6 +1357,14 @@ def test_a_held_out_continuation_is_replayed_from_its_history():
     assert k == len(whole) - len(restart) + round(case.spec.warmup / whole.dt)
     q = len(cont.channel_names)
     assert cont.hold0.residuals(np.zeros(0)).size == (len(tail) - k) * q
+    # with a second held-out run the residuals split per run after each one's history
+    from cablekit.diagnose.fit import _split
+
+    both = prepare(case.spec, case.fit, [tail, restart])
+    r = np.asarray(both.hold0.residuals(np.zeros(0)))
+    w = round(case.spec.warmup / whole.dt)
+    assert [x.shape for x in _split(both, both.hold_runs, r)] == [(len(tail) - k, q), (len(restart) - w, q)]
+    assert r.size == (len(tail) - k + len(restart) - w) * q
     p_full = np.asarray(full.hold0.predict(np.zeros(0), 0))
     p_cont = np.asarray(cont.hold0.predict(np.zeros(0), 0))
     np.testing.assert_allclose(p_cont, p_full, rtol=0, atol=1e-9 * np.abs(p_full).max())

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cablekit._cablekit import ParamSpec
-from cablekit.diagnose.data import Run
+from cablekit.diagnose.data import Run, scored_start
 from cablekit.diagnose.prepare import MAX_SUBSTEPS, Options, Prepared
 from cablekit.diagnose.progress import Progress
 from cablekit.errors import CablekitError, ParameterError, SimulationDivergedError
@@ -59,7 +59,7 @@ def _split(prep: Prepared, runs: list[Run], r: _F) -> list[_F]:
     """Flat weighted residual → per run ``(T − start, q)``."""
     out, off = [], 0
     for run in runs:
-        n = (len(run) - round(prep.spec.warmup / run.dt)) * prep.q
+        n = (len(run) - scored_start(prep.spec.warmup, run)) * prep.q
         out.append(r[off : off + n].reshape(-1, prep.q))
         off += n
     return out
@@ -200,7 +200,7 @@ def _sandwich(prep: Prepared, jac: _F, r: _F, seconds: float = 1.0) -> _F:
         meat = np.zeros_like(bread)
         off = 0
         for run in prep.fit_runs:
-            rows = (len(run) - round(prep.spec.warmup / run.dt)) * prep.q
+            rows = (len(run) - scored_start(prep.spec.warmup, run)) * prep.q
             seg = max(prep.q, round(seconds / run.dt) * prep.q)
             for a in range(off, off + rows, seg):
                 b = min(a + seg, off + rows)
