@@ -604,3 +604,33 @@ def test_a_failed_reveal_leaves_the_selection_as_before(monkeypatch):
     res = diagnose(case.spec, case.fit, case.hold, Options(progress=False, bootstrap=300))
     assert calls, "the reveal was not attempted"
     assert res.selected.effects and res.selected.effects[0].startswith("coulomb_friction")
+
+
+def test_a_creep_faster_than_ten_samples_is_vetoed_as_a_stiffness():
+    """A significant creep whose τ is within 10 samples is vetoed (a softer cable about its
+    reference), a slower one or one that is not significant is left, and other effects are never
+    touched."""
+    from types import SimpleNamespace as NS
+
+    from cablekit.diagnose.engine import FAST_CREEP_SAMPLES, fast_creep_vetoes
+
+    dt = 0.004
+
+    def fit(k, tau):
+        return NS(specs=[NS(effect=k, name="kappa"), NS(effect=k, name="tau")], params=np.array([0.3, tau]))
+
+    cases = {
+        "creep@cable.c1": (FAST_CREEP_SAMPLES * dt, True, True),  # on the edge: vetoed
+        "creep@cable.c2": (5 * dt, True, True),
+        "creep@cable.c3": (2.0, True, False),  # a real creep
+        "creep@cable.c4/whole": (5 * dt, False, False),  # not significant: nothing to veto
+        "nonlinear_stiffness@cable.c5": (5 * dt, True, False),  # not a creep (its "tau" is ignored)
+    }
+    info = {k: {"effect": k.split("@")[0]} for k in cases}
+    fits = {k: fit(k, tau) for k, (tau, _, _) in cases.items()}
+    scores = {k: {"significant": sig, "closed_fraction": 0.9} for k, (_, sig, _) in cases.items()}
+    out = fast_creep_vetoes(list(cases), info, fits, scores, dt)
+    assert [v["id"] for v in out] == [k for k, (_, _, veto) in cases.items() if veto]
+    assert all("stiffness" in v["reason"] for v in out)
+    for k, (_, sig, veto) in cases.items():
+        assert scores[k]["significant"] == (sig and not veto)
