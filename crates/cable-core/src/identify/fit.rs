@@ -2,6 +2,8 @@
 //! starting values, a grid search for sample-and-hold, update-instant detection, and RK4 step
 //! advice for an augmented model.
 
+use std::sync::{Arc, Mutex};
+
 use crate::dynamics::Model;
 use crate::error::{check, Result};
 use crate::integrate::propose_step;
@@ -16,6 +18,67 @@ use super::lm::{least_squares, LmOptions, LmReport};
 use super::problem::{Augmented, JointProblem, Replay};
 use super::signal;
 use super::site::{Candidate, Site};
+
+/// The plant's outputs at the last point, keyed by the parameters that change the plant
+/// ([`JointProblem::plant_parameters`]): an evaluation that differs from it only in sensor-stage
+/// parameters (a Jacobian column of a gain, a sweep of a lag) runs the sensor stage alone. Exact:
+/// the outputs are reused only for an identical key.
+pub(super) struct PlantCache<'p> {
+    problem: &'p JointProblem,
+    plant: Vec<usize>,
+    /// `(fd_step, scale)` of a local search: a point that differs from the cached one in one
+    /// plant parameter by at most a finite-difference step is a Jacobian column and leaves the
+    /// cache to the columns after it; any other point replaces it.
+    fd: Option<(f64, Vec<f64>)>,
+    last: Mutex<Option<Replayed>>,
+}
+
+/// A replay's plant parameters and its plant outputs (one per run).
+type Replayed = (Vec<f64>, Arc<Vec<Vec<f64>>>);
+
+impl<'p> PlantCache<'p> {
+    pub(super) fn new(problem: &'p JointProblem, fd: Option<(f64, Vec<f64>)>) -> Self {
+        Self {
+            problem,
+            plant: problem.plant_parameters(),
+            fd,
+            last: Mutex::new(None),
+        }
+    }
+
+    pub(super) fn residuals(&self, theta: &[f64], r: &mut [f64]) -> Result<()> {
+        let p = self.problem;
+        let a = p.augment(theta)?;
+        let key: Vec<f64> = self.plant.iter().map(|&j| theta[j]).collect();
+        // (the lock is held only to copy or replace the entry: a poisoned one holds a whole entry)
+        let cached = self.last.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        if let Some((k, plants)) = &cached {
+            #[allow(clippy::float_cmp)] // the very same parameters, not nearly the same
+            if *k == key {
+                return p.residuals_of(&a, plants, r);
+            }
+        }
+        let plants: Vec<Vec<f64>> = (0..p.runs().len())
+            .map(|i| p.plant_outputs(&a, i))
+            .collect::<Result<_>>()?;
+        let column = match (&cached, &self.fd) {
+            (Some((k, _)), Some((step, scale))) => {
+                #[allow(clippy::float_cmp)] // which parameters moved at all
+                let moved: Vec<usize> = (0..key.len()).filter(|&i| key[i] != k[i]).collect();
+                moved.len() == 1 && {
+                    let (i, j) = (moved[0], self.plant[moved[0]]);
+                    (key[i] - k[i]).abs() <= 2.0 * step * k[i].abs().max(scale[j])
+                }
+            }
+            _ => false,
+        };
+        p.residuals_of(&a, &plants, r)?;
+        if !column {
+            *self.last.lock().unwrap_or_else(|e| e.into_inner()) = Some((key, Arc::new(plants)));
+        }
+        Ok(())
+    }
+}
 
 impl JointProblem {
     /// Fit the active candidates' parameters from `theta0`, or, by default, from the two best of
@@ -71,18 +134,11 @@ impl JointProblem {
             }
         }
         let scale: Vec<f64> = self.specs.iter().map(|s| s.scale).collect();
-        // with sensor-site candidates only, the plant is the nominal's whatever the parameters:
-        // simulate it once
-        let plants = if self.sensor_only() {
-            Some(self.nominal_plants()?)
-        } else {
-            None
-        };
+        // a Jacobian column of a sensor-stage parameter replays the plant of the point it
+        // differentiates at (with sensor-site candidates only, the nominal's throughout)
+        let cache = PlantCache::new(self, Some((opts.fd_step, scale.clone())));
         least_squares(
-            |th, r| match &plants {
-                Some(p) => self.residuals_on(th, p, r),
-                None => self.residuals(th, r),
-            },
+            |th, r| cache.residuals(th, r),
             &x0,
             &lower,
             &upper,
@@ -105,18 +161,12 @@ impl JointProblem {
         let cheap = self.head(GLOBAL_STAGE_S).ok().flatten();
         let p = cheap.as_ref().unwrap_or(self);
         let mut r = vec![0.0; p.n_residuals()];
-        // sensor-site candidates replay the nominal plant whatever their parameters
-        let plants = if p.sensor_only() {
-            p.nominal_plants().ok()
-        } else {
-            None
-        };
+        // a sweep of a sensor-stage parameter replays the plant once
+        let cache = PlantCache::new(p, None);
         let mut cost = |x: &[f64]| -> Option<f64> {
-            let ok = match &plants {
-                Some(pl) => p.residuals_on(x, pl, &mut r),
-                None => p.residuals(x, &mut r),
-            };
-            ok.ok()
+            cache
+                .residuals(x, &mut r)
+                .ok()
                 .map(|_| r.iter().map(|v| v * v).sum::<f64>())
                 .filter(|c| c.is_finite())
         };
@@ -244,14 +294,6 @@ impl JointProblem {
             .iter()
             .copied()
             .find(|c| c.effect == Effect::SensorSampling)
-    }
-
-    /// Plant outputs of the nominal model (every plant candidate at its reference), per run.
-    pub fn nominal_plants(&self) -> Result<Vec<Vec<f64>>> {
-        let a = self.augment(&self.reference())?;
-        (0..self.runs.len())
-            .map(|i| self.plant_outputs(&a, i))
-            .collect()
     }
 
     /// Grid search of the sample-and-hold period and phase with the other parameters at

@@ -331,11 +331,19 @@ impl JointProblem {
         self.specs.iter().map(|s| s.reference).collect()
     }
 
-    /// Whether every active candidate acts after the plant (the plant is the nominal's).
-    pub fn sensor_only(&self) -> bool {
-        self.candidates
-            .iter()
-            .all(|c| matches!(c.site, Site::Sensor(_) | Site::ForceSensors))
+    /// Indices of the parameters that change the plant's outputs: every active candidate's but
+    /// those of the sensor stage (whose parameters act on the plant's outputs after it).
+    pub fn plant_parameters(&self) -> Vec<usize> {
+        let mut k = 0;
+        let mut idx = Vec::new();
+        for c in &self.candidates {
+            let n = c.params(&self.scales).len();
+            if !c.site.after_plant() {
+                idx.extend(k..k + n);
+            }
+            k += n;
+        }
+        idx
     }
 
     /// `(candidate, its parameters)` for `theta`.
@@ -574,11 +582,21 @@ impl JointProblem {
     /// Weighted residuals of sensor-stage parameters `theta` on precomputed plant outputs
     /// (one per run): the plant is not simulated again.
     pub fn residuals_on(&self, theta: &[f64], plants: &[Vec<f64>], r: &mut [f64]) -> Result<()> {
-        check::len("residuals", r, self.n_residuals())?;
         let a = self.augment(theta)?;
+        self.residuals_of(&a, plants, r)
+    }
+
+    /// Weighted residuals of the augmented model `a` on its plant outputs (one per run).
+    pub(super) fn residuals_of(
+        &self,
+        a: &Augmented,
+        plants: &[Vec<f64>],
+        r: &mut [f64],
+    ) -> Result<()> {
+        check::len("residuals", r, self.n_residuals())?;
         let mut off = 0;
         for (i, plant) in plants.iter().enumerate() {
-            let pred = self.sensor_stage(&a, i, plant);
+            let pred = self.sensor_stage(a, i, plant);
             off += self.write_residuals(i, &pred, &mut r[off..]);
         }
         Ok(())
@@ -755,6 +773,51 @@ mod tests {
             fit.cost < 1e-10 * fit.initial_cost.max(1e-30) + 1e-20,
             "{effect:?} {fit:?}"
         );
+    }
+
+    /// The plant cache of the fits reuses a replay only for the very same plant parameters:
+    /// along a local search's evaluations (a point, its Jacobian columns of both kinds, a trial
+    /// step, a sensor sweep) its residuals are the problem's to the bit.
+    #[test]
+    #[allow(clippy::float_cmp)] // the same numbers, not nearly
+    fn the_plant_cache_gives_the_problems_residuals_exactly() {
+        use super::super::fit::PlantCache;
+        let gain = Candidate::new(Effect::SensorGainBias, Site::Sensor(1));
+        let effects = vec![cand(Effect::CoulombFriction), gain];
+        let p = JointProblem::new(nominal(), channels(), vec![run(0.4)], effects, 2).unwrap();
+        assert_eq!(p.plant_parameters(), vec![0, 1]);
+        let scale: Vec<f64> = p.specs().iter().map(|s| s.scale).collect();
+        let step = LmOptions::default().fd_step;
+        let cache = PlantCache::new(&p, Some((step, scale.clone())));
+        let x = [3e-3, 0.2, 0.05, -0.1];
+        let h = |j: usize, x: &[f64]| step * x[j].abs().max(scale[j]);
+        let mut points = vec![x.to_vec()];
+        for j in 0..4 {
+            let mut c = x.to_vec();
+            c[j] += h(j, &x);
+            points.push(c);
+        }
+        let trial = [3.5e-3, 0.25, 0.04, -0.1];
+        points.push(trial.to_vec());
+        for j in [2, 3, 0] {
+            let mut c = trial.to_vec();
+            c[j] -= h(j, &trial);
+            points.push(c);
+        }
+        points.push(vec![3.5e-3, 0.25, 0.5, 0.3]); // a sweep of the gain
+        let (mut want, mut got) = (vec![0.0; p.n_residuals()], vec![0.0; p.n_residuals()]);
+        for x in &points {
+            p.residuals(x, &mut want).unwrap();
+            cache.residuals(x, &mut got).unwrap();
+            assert_eq!(got, want, "{x:?}");
+        }
+        // a global stage's cache (no steps): every new plant replaces the entry
+        let sweep = PlantCache::new(&p, None);
+        for x in points.iter().rev() {
+            p.residuals(x, &mut want).unwrap();
+            sweep.residuals(x, &mut got).unwrap();
+            assert_eq!(got, want, "{x:?}");
+        }
     }
 
     #[test]

@@ -166,6 +166,12 @@ impl SiteIndex for SiteContext {
 }
 
 impl Site {
+    /// Whether effects here act on the plant's outputs after it (a measured channel's path):
+    /// the plant's replay does not depend on their parameters.
+    pub fn after_plant(self) -> bool {
+        matches!(self, Site::Sensor(_) | Site::ForceSensors)
+    }
+
     /// The site's name in the documented vocabulary; `names` names channels and elements.
     pub fn name(self, names: &dyn SiteNames) -> String {
         let el = |k, i: u16| names.element(k, usize::from(i));
