@@ -1,6 +1,7 @@
 """Campaigns (``cablekit diagnose --many``): the manifest loader's errors, and the Ray path (a
 local Ray with 2 workers) giving exactly the serial path's results, for joint, cable-network and
-parallel-robot groups in one campaign."""
+parallel-robot groups (without poses: the drum-side check; with poses: the one engine) in one
+campaign."""
 
 from __future__ import annotations
 
@@ -62,6 +63,22 @@ def _campaign(root: Path) -> Path:
         'held_out = ["robot/hold.csv"]',
         "",
     ]
+    # the same robot with measured poses (3 s runs): its drives at the poses go through the one
+    # engine as a network's, the robot file (with the platform side's pulley friction) the model
+    from tests.test_cdpr_diagnose import robot_file
+
+    (root / "posed").mkdir()
+    for name, seed in (("fit", 3), ("hold", 4)):
+        _write(root / "posed" / f"{name}.csv", twin_run("pulley_friction", 5, seed=seed), rows=3_000)
+    robot_file(root / "posed" / "mini.toml")
+    lines += [
+        "[[group]]",
+        'name = "posed"',
+        'model = "posed/mini.toml"',
+        'fit = ["posed/fit.csv"]',
+        'held_out = ["posed/hold.csv"]',
+        "",
+    ]
     (root / "manifest.toml").write_text("\n".join(lines))
     return root
 
@@ -71,9 +88,12 @@ def campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _campaign(tmp_path_factory.mktemp("campaign"))
 
 
+GROUPS = ("lag", "control", "network", "robot", "posed")
+
+
 def _docs(out: Path) -> dict[str, dict]:
     docs = {}
-    for name in ("lag", "control", "network", "robot"):
+    for name in GROUPS:
         doc = json.loads((out / name / "diagnosis.json").read_text())
         if "meta" in doc:  # (the grey-box engine's; a parallel robot's has no options)
             doc["meta"].pop("options")  # holds the executor-independent knobs only; compared below
@@ -105,10 +125,10 @@ def test_ray_campaign_equals_the_serial_campaign(campaign, tmp_path):
         distributed = run_many(campaign, tmp_path / "ray", engine="ray", progress=False, html=False)
     finally:
         ray.shutdown()
-    assert [r.error for r in serial + distributed] == [None] * 8
+    assert [r.error for r in serial + distributed] == [None] * 2 * len(GROUPS)
     summary = json.loads((tmp_path / "ray" / "summary.json").read_text())
     groups = [g["group"] for g in summary["groups"]]
-    assert summary["engine"] == "ray" and groups == ["lag", "control", "network", "robot"]
+    assert summary["engine"] == "ray" and groups == list(GROUPS)
     assert json.loads((tmp_path / "serial" / "summary.json").read_text())["engine"] == "serial"
     # the same results, whichever process fitted them: names, verdicts and flags exactly, numbers
     # to 1e-9 (the parameter intervals' linear algebra runs single-threaded in Ray's workers and
@@ -131,6 +151,12 @@ def test_ray_campaign_equals_the_serial_campaign(campaign, tmp_path):
     row = summary["groups"][3]
     assert row["verdict"] == "found" and row["selected"][0] == "pulley_friction@cable.6"
     assert "pulley_friction at cable 6" in (tmp_path / "serial" / "robot" / "diagnose.md").read_text()
+    # the posed robot's group went through the one engine: its first effect is that pulley's
+    # hysteresis at cable 6's routing, found in Ray's workers as in this process (compared above)
+    posed = by["posed"]
+    assert posed is not None and hasattr(posed, "selected"), type(posed)
+    assert posed.effects[0].site == "routing.c6", posed.effects[0].id
+    assert summary["groups"][4]["selected"][0].endswith("@routing.c6")
 
 
 def test_a_failing_group_is_reported_and_the_others_go_on(campaign, tmp_path):
@@ -142,9 +168,17 @@ def test_a_failing_group_is_reported_and_the_others_go_on(campaign, tmp_path):
             (broken / p.relative_to(campaign)).write_bytes(p.read_bytes())
     (broken / "lag" / "hold.csv").write_text("t,theta\n0,1\n")  # lacks the model's columns
     (broken / "robot" / "hold.csv").write_text("t,alpha_1\n0,1\n")  # lacks the robot's columns
+    # the posed robot's held-out run loses its third winch's current (its poses kept)
+    rows = (broken / "posed" / "hold.csv").read_text().splitlines()[:3]
+    drop = rows[0].split(",").index("current_3")
+    (broken / "posed" / "hold.csv").write_text(
+        "\n".join(",".join(c for i, c in enumerate(r.split(",")) if i != drop) for r in rows) + "\n"
+    )
     res = run_many(broken, tmp_path / "out", engine="serial", progress=False, html=False)
     assert res[0].error is not None and "DataError" in res[0].error
     assert res[3].error is not None and "DataError" in res[3].error and "hold.csv" in res[3].error
+    posed = res[4].error
+    assert posed is not None and "DataError" in posed and "current_3" in posed, posed
     assert res[1].error is None and res[1].diagnosis is not None
     assert "error" in (tmp_path / "out" / "summary.txt").read_text()
 
