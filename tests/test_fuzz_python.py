@@ -43,6 +43,13 @@ def _planar() -> Any:
 
 
 @functools.cache
+def _mini_file() -> str:
+    from importlib import resources
+
+    return str(resources.files("cablekit.cdpr") / "robots" / "seed002_mini.toml")
+
+
+@functools.cache
 def _plant() -> Any:
     from cablekit.cdpr.planar import planar_plant
 
@@ -124,7 +131,7 @@ def _drive_run(robot: Any) -> tuple[Any, ...]:
 
 def _factories() -> dict[str, Any]:
     """Each public function's valid call, built on first use (some simulate a run)."""
-    from cablekit.cdpr import Winch, compensate, drives, force, planar, sensors, winch
+    from cablekit.cdpr import Winch, compensate, drives, force, mjcf, planar, sensors, winch
     from cablekit.cdpr import diagnose as cdiag
 
     ws = importlib.import_module("cablekit.cdpr.workspace")
@@ -208,6 +215,13 @@ def _factories() -> dict[str, Any]:
         "cablekit.cdpr.winch.table5": lambda: Call(winch.table5, (seed003(),)),
         "cablekit.cdpr.winch.with_modulus": lambda: Call(winch.with_modulus, (seed003(), 1e9)),
         "cablekit.cdpr.workspace.workspace": lambda: Call(ws.workspace, (_planar(),), {"counts": 4}),
+        "cablekit.cdpr.mjcf.to_mjcf": lambda: Call(mjcf.to_mjcf, (_mini_file(),)),
+        "cablekit.cdpr.mjcf.swivel_angles": lambda: Call(
+            mjcf.swivel_angles, (_mini_file(), np.array([[0.05, -0.02, 0.4, 0.1, 0.0, -0.1]]))
+        ),
+        "cablekit.cdpr.mjcf.mujoco_state": lambda: Call(
+            mjcf.mujoco_state, (_mini_file(), np.array([0.05, -0.02, 0.4, 0.1, 0.0, -0.1]))
+        ),
         "cablekit.forceps.free_motion_tensions": lambda: Call(
             cablekit.forceps.free_motion_tensions, (_mlp_4_4(), 0.1 * np.ones((20, 4)))
         ),
@@ -242,6 +256,7 @@ def _factories() -> dict[str, Any]:
 NOT_IN_TABLE = {
     # file readers: fuzzed byte by byte in test_fuzz_loaders.py (or read a folder of them)
     "cablekit.cdpr.caspr.caspr_document": "two XML files; tests/test_caspr.py feeds it broken files",
+    "cablekit.cdpr.mjcf.export_mjcf": "writes a file (to_mjcf's text is in the table): tests/test_mjcf.py",
     "cablekit.cdpr.formats.load_cdpr_run": "a run file: test_fuzz_loaders.py",
     "cablekit.cdpr.formats.read_trajectory": "a run file: test_fuzz_loaders.py",
     "cablekit.cdpr.diagnose.diagnose_file": "a run file, then diagnose",

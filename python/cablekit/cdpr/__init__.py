@@ -175,6 +175,61 @@ def _ea(c: dict[str, Any], where: str) -> float:
     )
 
 
+def _robot_arguments(doc: dict[str, Any], source: str = "<robot>") -> dict[str, Any]:
+    """The keyword arguments of :class:`Robot` from a parsed robot file, checked (a typed
+    :class:`DataError` naming the key for anything wrong): name, motion, anchors, attachments,
+    f_min, f_max, ea, mass, com, inertia (3 × 3), gravity and pulleys (``(cable, radius, unit
+    axis)``). The MJCF export reads the same arguments."""
+    doc = _keys(doc, _TOP, source)
+    path_friction_of(doc, source)  # (checked here; the drives' diagnosis reads it)
+    motion = doc.get("motion")
+    if not isinstance(motion, str) or motion not in _GRAVITY:
+        raise DataError(f"{source}: motion must be 'planar' or 'spatial', got {motion!r}")
+    name = doc.get("name", Path(source).stem)
+    if not isinstance(name, str):
+        raise DataError(f"{source}: name must be a string, got {name!r}")
+    platform = _keys(doc.get("platform", {}), _PLATFORM, f"{source}: [platform]")
+    defaults = _keys(doc.get("cable", {}), _CABLE - {"anchor", "attachment"}, f"{source}: [cable]")
+    cables = doc.get("cables")
+    if not isinstance(cables, list) or not cables:
+        raise DataError(f"{source}: [[cables]] must list the cables, got {cables!r}")
+    columns: dict[str, list[Any]] = {k: [] for k in ("anchors", "attachments", "f_min", "f_max", "ea")}
+    pulleys = []
+    for i, raw in enumerate(cables):
+        where = f"{source}: cables[{i}]"
+        c = {**defaults, **_keys(raw, _CABLE, where)}
+        for key in ("anchor", "attachment", "f_min", "f_max"):
+            if key not in c:
+                raise DataError(f"{where}.{key} is missing (give it per cable or in [cable])")
+        columns["anchors"].append(_vector(c["anchor"], 3, f"{where}.anchor"))
+        columns["attachments"].append(_vector(c["attachment"], 3, f"{where}.attachment"))
+        columns["f_min"].append(_number(c["f_min"], f"{where}.f_min"))
+        columns["f_max"].append(_number(c["f_max"], f"{where}.f_max"))
+        columns["ea"].append(_ea(c, where))
+        if "pulley" in c:
+            pl = _keys(c["pulley"], _PULLEY, f"{where}.pulley")
+            if set(pl) != _PULLEY:
+                raise DataError(f"{where}.pulley needs radius and axis, got {sorted(pl)}")
+            axis = np.array(_vector(pl["axis"], 3, f"{where}.pulley.axis"))
+            norm = float(np.linalg.norm(axis))
+            if not np.isfinite(norm) or norm == 0.0:
+                raise DataError(f"{where}.pulley.axis must be a non-zero direction, got {pl['axis']!r}")
+            pulleys.append((i, _number(pl["radius"], f"{where}.pulley.radius"), tuple(axis / norm)))
+    arrays = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in columns.items()}
+    return dict(
+        name=name,
+        motion=motion,
+        mass=_number(platform.get("mass", 0.0), f"{source}: platform.mass"),
+        com=np.asarray(_vector(platform.get("com", [0.0, 0.0, 0.0]), 3, f"{source}: platform.com")),
+        inertia=np.ascontiguousarray(
+            _inertia(platform.get("inertia", [0.0, 0.0, 0.0]), f"{source}: platform.inertia")
+        ),
+        gravity=np.asarray(_vector(doc.get("gravity", _GRAVITY[motion]), 3, f"{source}: gravity")),
+        pulleys=pulleys,
+        **arrays,
+    )
+
+
 class Robot(_Robot):
     """A cable-driven parallel robot. Build one from a robot file (:meth:`load`) or a shipped
     robot (:func:`shipped`); the keyword constructor takes the arrays the file describes."""
@@ -195,54 +250,7 @@ class Robot(_Robot):
     @checked
     def from_dict(cls, doc: dict[str, Any], source: str = "<robot>") -> Robot:
         """A robot from the parsed robot file."""
-        doc = _keys(doc, _TOP, source)
-        path_friction_of(doc, source)  # (checked here; the drives' diagnosis reads it)
-        motion = doc.get("motion")
-        if not isinstance(motion, str) or motion not in _GRAVITY:
-            raise DataError(f"{source}: motion must be 'planar' or 'spatial', got {motion!r}")
-        name = doc.get("name", Path(source).stem)
-        if not isinstance(name, str):
-            raise DataError(f"{source}: name must be a string, got {name!r}")
-        platform = _keys(doc.get("platform", {}), _PLATFORM, f"{source}: [platform]")
-        defaults = _keys(doc.get("cable", {}), _CABLE - {"anchor", "attachment"}, f"{source}: [cable]")
-        cables = doc.get("cables")
-        if not isinstance(cables, list) or not cables:
-            raise DataError(f"{source}: [[cables]] must list the cables, got {cables!r}")
-        columns: dict[str, list[Any]] = {k: [] for k in ("anchors", "attachments", "f_min", "f_max", "ea")}
-        pulleys = []
-        for i, raw in enumerate(cables):
-            where = f"{source}: cables[{i}]"
-            c = {**defaults, **_keys(raw, _CABLE, where)}
-            for key in ("anchor", "attachment", "f_min", "f_max"):
-                if key not in c:
-                    raise DataError(f"{where}.{key} is missing (give it per cable or in [cable])")
-            columns["anchors"].append(_vector(c["anchor"], 3, f"{where}.anchor"))
-            columns["attachments"].append(_vector(c["attachment"], 3, f"{where}.attachment"))
-            columns["f_min"].append(_number(c["f_min"], f"{where}.f_min"))
-            columns["f_max"].append(_number(c["f_max"], f"{where}.f_max"))
-            columns["ea"].append(_ea(c, where))
-            if "pulley" in c:
-                pl = _keys(c["pulley"], _PULLEY, f"{where}.pulley")
-                if set(pl) != _PULLEY:
-                    raise DataError(f"{where}.pulley needs radius and axis, got {sorted(pl)}")
-                axis = np.array(_vector(pl["axis"], 3, f"{where}.pulley.axis"))
-                norm = float(np.linalg.norm(axis))
-                if not np.isfinite(norm) or norm == 0.0:
-                    raise DataError(f"{where}.pulley.axis must be a non-zero direction, got {pl['axis']!r}")
-                pulleys.append((i, _number(pl["radius"], f"{where}.pulley.radius"), tuple(axis / norm)))
-        arrays = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in columns.items()}
-        return cls(
-            name=name,
-            motion=motion,
-            mass=_number(platform.get("mass", 0.0), f"{source}: platform.mass"),
-            com=np.asarray(_vector(platform.get("com", [0.0, 0.0, 0.0]), 3, f"{source}: platform.com")),
-            inertia=np.ascontiguousarray(
-                _inertia(platform.get("inertia", [0.0, 0.0, 0.0]), f"{source}: platform.inertia")
-            ),
-            gravity=np.asarray(_vector(doc.get("gravity", _GRAVITY[motion]), 3, f"{source}: gravity")),
-            pulleys=pulleys,
-            **arrays,
-        )
+        return cls(**_robot_arguments(doc, source))
 
     @classmethod
     @checked

@@ -32,6 +32,24 @@ def robot_from(spec: str) -> Robot:
     raise DataError(f"{spec!r} is neither a robot file nor a shipped robot ({', '.join(names)})")
 
 
+def _export_mjcf(args: argparse.Namespace) -> int:
+    from importlib import resources
+
+    from cablekit.cdpr.mjcf import export_mjcf
+
+    path = Path(args.robot)
+    if not (path.suffix == ".toml" or path.exists()):
+        robot_from(args.robot)  # a shipped robot's name, or the error naming the choices
+        path = Path(str(resources.files("cablekit.cdpr") / "robots" / f"{args.robot}.toml"))
+    out = export_mjcf(path, args.out or f"{path.stem}.xml")
+    print(
+        f"wrote {out}: the platform on a {'planar' if robot_from(str(path)).motion == 'planar' else 'free'} "
+        "joint, a spatial tendon per cable (over its swivelling pulley where it has one) and a tendon motor "
+        "whose control is the cable's tension (N); cablekit.cdpr.mjcf.mujoco_state(robot, pose) gives qpos"
+    )
+    return 0
+
+
 def _floats(text: str | None, n: int, name: str) -> np.ndarray | None:
     if text is None:
         return None
@@ -331,7 +349,8 @@ def _compensate(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """``cablekit cdpr workspace``, ``distribute``, ``winch``, ``planar``, ``diagnose`` and ``compensate``."""
+    """``cablekit cdpr workspace``, ``distribute``, ``winch``, ``planar``, ``diagnose``, ``compensate``
+    and ``export-mjcf``."""
     p = sub.add_parser("cdpr", help="cable-driven parallel robots: workspace, tensions along a trajectory")
     cs = p.add_subparsers(dest="cdpr_command", required=True)
     w = cs.add_parser(
@@ -443,3 +462,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     cp.add_argument("--seed", type=int, default=0, help="noise, test points and training seed")
 
     cp.set_defaults(func=_compensate)
+    mj = cs.add_parser(
+        "export-mjcf",
+        help="the robot as MuJoCo MJCF: platform body, anchor and attachment sites, a spatial tendon per "
+        "cable (wrapping its swivelling pulley), a tendon motor per cable (control = tension, N)",
+    )
+    mj.add_argument("robot", help="robot TOML file, or a shipped robot: " + ", ".join(shipped_names()))
+    mj.add_argument("--out", help="MJCF file to write (default: the robot file's name with .xml)")
+    mj.set_defaults(func=_export_mjcf)
