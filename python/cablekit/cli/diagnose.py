@@ -220,8 +220,8 @@ def _diagnose(args: argparse.Namespace) -> int:
         write_run_diagnosis(robot, d, fit_names, hold_names, out, args.quiet, plots=not args.no_html)
         return 0
     spec = load_model_spec(model_path)
-    fit = [load_run(p) for p in fit_paths]
-    hold = [load_run(p) for p in hold_paths]
+    fit = [load_run(p, columns=list(spec.columns())) for p in fit_paths]
+    hold = [load_run(p, columns=list(spec.columns())) for p in hold_paths]
     return _run_diagnosis(spec, fit, hold, out, args, str(model_path))
 
 

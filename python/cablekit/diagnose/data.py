@@ -234,13 +234,26 @@ def _separator(header: str) -> str | None:
     return next((c for c in (",", "\t", ";") if c in header), None)
 
 
-def load_run(path: str | Path, name: str | None = None) -> Run:
+def load_run(path: str | Path, name: str | None = None, *, columns: list[str] | None = None) -> Run:
     """Load a CSV (optionally ``.csv.gz``) or Parquet run with a ``t`` column; see the module.
+    A ROS 2 bag (a rosbag2 folder, or its ``.mcap``/``.db3``) is read for ``columns`` — the
+    model's columns, each a bag field ``"/topic:field"`` (:mod:`cablekit.bags`) — and then
+    handled as a table.
 
     Every defect of the file is a :class:`DataError` naming it: a missing path or a folder, a
     file that is not UTF-8 text (a UTF-8 byte-order mark is skipped), a corrupt gzip or Parquet
     file, a malformed CSV (an unterminated quote, a field over the CSV module's size limit)."""
+    from cablekit.bags import is_bag, read_bag
+
     path = Path(path)
+    if is_bag(path):
+        if not columns:
+            raise DataError(f"{path}: a ROS 2 bag is read for the model's columns; none were given")
+        header, data, notes = read_bag(path, list(columns))
+        bag = path if path.is_dir() else path.parent
+        run = from_arrays(name or bag.name, header, data, source=str(path))
+        run.notes[:0] = notes
+        return run
     header, data = read_table(path)
     return from_arrays(name or path.stem, header, data, source=str(path))
 

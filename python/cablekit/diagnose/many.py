@@ -358,8 +358,8 @@ def run_many(
                 spec, fit, hold = drives
             else:
                 spec = load_model_spec(g.model)
-                fit = [load_run(p) for p in g.fit]
-                hold = [load_run(p) for p in g.held_out]
+                fit = [load_run(p, columns=list(spec.columns())) for p in g.fit]
+                hold = [load_run(p, columns=list(spec.columns())) for p in g.held_out]
             res = diagnose(spec, fit, hold, opts)
         except Exception as exc:
             return GroupResult(g, None, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)

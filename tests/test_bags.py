@@ -1,0 +1,224 @@
+"""ROS 2 logs in (issue #40 §1): a run recorded as a rosbag2 bag (MCAP and SQLite3), written with
+``rosbags`` in standard message types (Float64, JointState, WrenchStamped) and a custom type with
+its definition, gives the CSV run's diagnosis; bad bags are DataErrors naming the topic."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+import cablekit as ck
+from cablekit.bags import is_bag, parse_field, read_bag
+from cablekit.diagnose.data import load_run, write_csv
+from cablekit.diagnose.selftest import make_case
+from cablekit.diagnose.spec import write_model_toml
+
+#: the model's columns → where the bag carries them
+FIELDS = {
+    "x_m": "/motor/command:data",  # Float64: no header, receive times
+    "x_c": "/joint_states:position[1]",  # JointState: header stamps
+    "theta": "/joint_states:position[0]",
+    "T_drive": "/tension/drive:wrench.force.x",  # WrenchStamped
+    "T_return": "/tension/cells:return_side",  # a custom type, its definition in the bag
+}
+TENSION = "cablekit_msgs/msg/Tension"
+TENSION_DEF = "float64 drive_side\nfloat64 return_side\n"
+
+
+def _typestore():
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    ts.register(get_types_from_msg(TENSION_DEF, TENSION))
+    return ts
+
+
+def write_bag(run, folder: Path, plugin=StoragePlugin.MCAP, *, t0_ns=1_700_000_000_000_000_000, **faults):
+    """``run`` as a bag: each column on its topic (FIELDS), stamped at ``t0 + t``; ``faults``:
+    ``stamp_back`` (a JointState stamp goes back), ``no_definition`` (the custom type written
+    without its definition)."""
+    ts = _typestore()
+    T = ts.types
+    bare = bool(faults.get("no_definition"))
+    with Writer(folder, version=9, storage_plugin=plugin) as w:
+        conns = {
+            "/motor/command": w.add_connection("/motor/command", "std_msgs/msg/Float64", typestore=ts),
+            "/joint_states": w.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=ts),
+            "/tension/drive": w.add_connection(
+                "/tension/drive", "geometry_msgs/msg/WrenchStamped", typestore=ts
+            ),
+            "/tension/cells": w.add_connection(
+                "/tension/cells",
+                TENSION,
+                **({"msgdef": "", "rihs01": "RIHS01_" + "0" * 64} if bare else {"typestore": ts}),
+            ),
+        }
+        c = run.columns
+        for k, t in enumerate(run.t):
+            ns = t0_ns + round(t * 1e9)
+            stamp_ns = ns - 1_500_000 if faults.get("stamp_back") and k == 7 else ns
+            hdr = T["std_msgs/msg/Header"](
+                stamp=T["builtin_interfaces/msg/Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9),
+                frame_id="j",
+            )
+            vec = T["geometry_msgs/msg/Vector3"]
+            msgs = {
+                "/motor/command": T["std_msgs/msg/Float64"](data=c["x_m"][k]),
+                "/joint_states": T["sensor_msgs/msg/JointState"](
+                    header=hdr,
+                    name=["theta", "x_c"],
+                    position=np.array([c["theta"][k], c["x_c"][k]]),
+                    velocity=np.zeros(0),
+                    effort=np.zeros(0),
+                ),
+                "/tension/drive": T["geometry_msgs/msg/WrenchStamped"](
+                    header=hdr,
+                    wrench=T["geometry_msgs/msg/Wrench"](
+                        force=vec(x=c["T_drive"][k], y=0.0, z=0.0), torque=vec(x=0.0, y=0.0, z=0.0)
+                    ),
+                ),
+                "/tension/cells": T[TENSION](drive_side=c["T_drive"][k], return_side=c["T_return"][k]),
+            }
+            # the recorder receives a stamped message 20 µs after its stamp (the reader takes the
+            # stamp), an unstamped one as it is sent (its receive time is its only time)
+            for topic, msg in msgs.items():
+                late = 20_000 if hasattr(msg, "header") else 0
+                w.write(conns[topic], ns + late, ts.serialize_cdr(msg, msg.__msgtype__))
+    return folder
+
+
+@pytest.fixture(scope="module")
+def case():
+    return make_case(("sensor_lag",), seed=5, duration=5.0)
+
+
+def _model(case, path: Path, fields: dict[str, str]) -> Path:
+    write_model_toml(case.spec, path)
+    text = path.read_text()
+    for col, field in fields.items():
+        text = text.replace(f'"{col}"', f'"{field}"')
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("plugin", [StoragePlugin.MCAP, StoragePlugin.SQLITE3])
+def test_a_bag_reads_as_the_csv_run(case, tmp_path, plugin):
+    bag = write_bag(case.fit[0], tmp_path / "fit", plugin)
+    assert is_bag(bag) and is_bag(next(bag.glob("*.mcap" if plugin == StoragePlugin.MCAP else "*.db3")))
+    run = load_run(bag, columns=list(FIELDS.values()))
+    np.testing.assert_allclose(run.t, case.fit[0].t, rtol=0, atol=1e-12)
+    for col, field in FIELDS.items():
+        np.testing.assert_array_equal(run.column(field), case.fit[0].column(col))
+    assert "topic /motor/command: receive times (no header)" in run.notes
+    assert "topic /joint_states: header stamps" in run.notes
+
+
+def test_the_diagnosis_of_bags_equals_the_csv_diagnosis(case, tmp_path):
+    """``cablekit diagnose FIT --holdout HOLD --model M``: CSV files and a model naming columns,
+    or bags (MCAP fitted, SQLite3 held out) and the same model naming bag fields — the same
+    diagnosis, numbers to 1e-9."""
+    from cablekit.cli import main
+
+    write_csv(case.fit[0], tmp_path / "fit.csv")
+    write_csv(case.hold[0], tmp_path / "hold.csv")
+    _model(case, tmp_path / "csv.toml", {})
+    # (the bags carry the CSV files' numbers: a CSV cell keeps fewer digits than a float64)
+    write_bag(load_run(tmp_path / "fit.csv"), tmp_path / "fit_bag", StoragePlugin.MCAP)
+    write_bag(load_run(tmp_path / "hold.csv"), tmp_path / "hold_bag", StoragePlugin.SQLITE3)
+    _model(case, tmp_path / "bag.toml", FIELDS)
+    docs = {}
+    for kind, fit, hold in (("csv", "fit.csv", "hold.csv"), ("bag", "fit_bag", "hold_bag")):
+        args = [
+            str(tmp_path / fit),
+            "--holdout",
+            str(tmp_path / hold),
+            "--model",
+            str(tmp_path / f"{kind}.toml"),
+        ]
+        out = tmp_path / f"out_{kind}"
+        assert main(["diagnose", *args, "--out", str(out), "--quiet", "--no-html", "--intervals", "0"]) == 0
+        docs[kind] = json.loads((out / "diagnosis.json").read_text())
+    a, b = docs["csv"], docs["bag"]
+    assert a["verdict"] == b["verdict"] and a["selected"]["effects"] == b["selected"]["effects"]
+    assert a["effects"][0]["id"].startswith("sensor_lag")
+    assert [e["id"] for e in a["effects"]] == [e["id"] for e in b["effects"]]
+    ha, hb = a["selected"]["held_out"], b["selected"]["held_out"]
+    for key in ("gap_before", "gap_after", "closed_fraction"):
+        assert hb[key] == pytest.approx(ha[key], rel=1e-9), key
+
+
+def test_bad_bags_are_data_errors_naming_the_topic(case, tmp_path):
+    run = case.fit[0]
+    bag = write_bag(run, tmp_path / "ok")
+    fields = list(FIELDS.values())
+    with pytest.raises(ck.DataError, match="no topic '/tension/other'"):
+        read_bag(bag, [*fields, "/tension/other:data"])
+    with pytest.raises(ck.DataError, match=r"/joint_states:effort\[0\].*out of range"):
+        read_bag(bag, ["/joint_states:effort[0]"])
+    with pytest.raises(ck.DataError, match=r"no field 'force_x'.*fields: \['header', 'wrench'\]"):
+        read_bag(bag, ["/tension/drive:force_x"])
+    with pytest.raises(ck.DataError, match="not a number"):
+        read_bag(bag, ["/joint_states:name[0]"])
+    with pytest.raises(ck.DataError, match="not a bag field"):
+        read_bag(bag, ["joint_states.position"])
+    with pytest.raises(ck.DataError, match="model's columns"):
+        load_run(bag)
+    # stamps that go back
+    back = write_bag(run, tmp_path / "back", stamp_back=True)
+    with pytest.raises(ck.DataError, match=r"/joint_states.*header stamps go backwards at message 8"):
+        read_bag(back, fields)
+    # a custom type whose definition the bag does not carry
+    bare = write_bag(run, tmp_path / "bare", StoragePlugin.SQLITE3, no_definition=True)
+    with pytest.raises(
+        ck.DataError, match=r"'/tension/cells' has type 'cablekit_msgs/msg/Tension', whose defin"
+    ):
+        read_bag(bare, ["/tension/cells:return_side"])
+    with pytest.raises(ck.DataError, match=r"'/tension/cells' has type"):  # read or not
+        read_bag(bare, ["/motor/command:data"])
+    # a truncated MCAP file
+    cut = write_bag(run, tmp_path / "cut")
+    mcap = next(cut.glob("*.mcap"))
+    mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
+    with pytest.raises(ck.DataError, match="cut"):
+        read_bag(cut, fields)
+    # not a bag
+    (tmp_path / "empty").mkdir()
+    assert not is_bag(tmp_path / "empty")
+    with pytest.raises(ck.DataError, match="not a rosbag2"):
+        read_bag(tmp_path / "empty", fields)
+
+
+@settings(max_examples=200, deadline=None)
+@given(name=st.text(max_size=30))
+def test_any_field_name_parses_or_is_a_data_error(name):
+    """Any string: a ``(topic, path)`` whose parts rebuild it, or a DataError saying the form."""
+    try:
+        topic, path = parse_field(name)
+    except ck.DataError as e:
+        assert "/topic:field" in str(e)
+        return
+    rebuilt = (
+        topic
+        + ":"
+        + "".join((f"[{p}]" if isinstance(p, int) else ("." if i else "") + p) for i, p in enumerate(path))
+    )
+    assert rebuilt == name and topic.startswith("/")
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    path=st.one_of(st.none(), st.integers(), st.floats(allow_nan=True), st.just("/no/such/bag"), st.binary()),
+    fields=st.one_of(st.none(), st.text(max_size=5), st.lists(st.text(max_size=8), max_size=3), st.just([])),
+)
+def test_read_bag_answers_any_arguments_with_a_typed_error(path, fields):
+    with pytest.raises(ck.CablekitError):
+        read_bag(path, fields)
+    try:
+        assert is_bag(path) is False
+    except ck.CablekitError:
+        assert not isinstance(path, str)
