@@ -315,7 +315,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         choices=["all", "quick", "ci"],
         help="score the diagnoser on cable-network plants (a two-stage instrument, a tendon finger, a "
         "two-link transmission) from an independent simulator: every case, a quick subset of 8, or "
-        "the CI subset of 4",
+        "the CI subset of 3",
     )
     d.add_argument(
         "--benchmark",

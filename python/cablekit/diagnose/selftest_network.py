@@ -97,12 +97,11 @@ def _case_runs(runs: list[tuple[str, float, dict[str, np.ndarray]]]) -> list[Run
 NETWORK_STATE_EFFECTS = ("dahl_hysteresis", "creep", "backlash")
 
 
-#: the CI subset (`cablekit diagnose --networks ci`, .ci/run): one case per plant — a joint's
-#: friction on the position-driven two-stage instrument, a joint's inertia on the torque-driven
-#: finger (replayed from its motor angles), a cable law on the transmission — and a control (the
-#: cheapest of each plant's scored cases; the full table is in docs/diagnosis.md)
+#: the CI subset (`cablekit diagnose --networks ci`, .ci/run): a joint's inertia on the
+#: torque-driven finger (replayed from its motor angles), a cable law on the transmission and a
+#: control (the two-stage instrument's play and pre-sliding cases run in pytest,
+#: tests/test_diagnose_network.py; the full table is in docs/diagnosis.md)
 CI_CASES = (
-    "two_stage_coulomb_friction_joint.spindle",
     "finger_inertia_error_joint.mcp",
     "transmission2_nonlinear_stiffness_cable.sh_a",
     "finger_control_1",
