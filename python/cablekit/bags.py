@@ -139,9 +139,6 @@ def read_bag(path: str | Path, fields: list[str]) -> tuple[list[str], NDArray[np
         with AnyReader([folder], default_typestore=store) as reader:
             present = {c.topic: c for c in reader.connections}
             for topic in topics:
-                if topic not in present:
-                    raise DataError(f"{path}: no topic {topic!r} in the bag (topics: {sorted(present)})")
-            for topic in topics:
                 conn = present[topic]
                 mine = [(f, fp) for f, (t, fp) in wanted.items() if t == topic]
                 stamps: list[int] = []
@@ -177,7 +174,7 @@ def read_bag(path: str | Path, fields: list[str]) -> tuple[list[str], NDArray[np
                 series[topic] = (st, values)
     except DataError:
         raise
-    except Exception as exc:  # a truncated or corrupt file, a bad metadata.yaml
+    except Exception as exc:  # a corrupt file the first pass did not read far enough to see
         raise DataError(f"{path}: the bag cannot be read: {type(exc).__name__}: {exc}") from None
     base = max(topics, key=lambda t: (len(series[t][0]), -topics.index(t)))
     t0 = max(int(series[t][0][0]) for t in topics)
