@@ -12,8 +12,10 @@ platform starts 2 cm and 0.05 rad off its target and settles on it.
 
 from __future__ import annotations
 
+import tomllib
 from dataclasses import dataclass
 from importlib import resources
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -49,6 +51,7 @@ def _pose(d: mujoco.MjData, start: int) -> tuple[np.ndarray, np.ndarray]:
 def run(seconds: float = 2.0, name: str = "seed002_mini") -> Settled:
     """Simulate ``seconds`` of the PD-held platform (see the module docs)."""
     path = str(resources.files("cablekit.cdpr") / "robots" / f"{name}.toml")
+    doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))  # read once, not every step
     robot = shipped(name)
     m = mujoco.MjModel.from_xml_string(to_mjcf(path))
     d = mujoco.MjData(m)
@@ -66,7 +69,7 @@ def run(seconds: float = 2.0, name: str = "seed002_mini") -> Settled:
     f = np.zeros(robot.n_cables)
     for k in range(steps):
         pose, vel = _pose(d, n_sw)
-        d.qpos[:n_sw] = swivel_angles(path, pose[None, :])[0][swivel_cables]
+        d.qpos[:n_sw] = swivel_angles(doc, pose[None, :], source=path)[0][swivel_cables]
         wrench = kp * (target - pose) - kd * vel
         # tensions hold an external wrench w when Aᵀf + w = 0: the cables exert −w
         controller.step(pose, wrench=-wrench, out=f)

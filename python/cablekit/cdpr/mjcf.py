@@ -182,8 +182,12 @@ def swivel_angles(
     cablekit's inverse kinematics does. A platform point on a swivel axis is a
     :class:`DataError` (the pulley plane is undefined there)."""
     a, _ = _arguments(robot_file, source)
+    return _swivels(a, signal(poses, "poses", ndim=2))
+
+
+def _swivels(a: dict[str, Any], q: np.ndarray) -> np.ndarray:
+    """:func:`swivel_angles` of the checked robot arguments ``a`` at poses ``q`` ``(N, n)``."""
     n = 3 if a["motion"] == "planar" else 6
-    q = signal(poses, "poses", ndim=2)
     if q.shape[1] != n:
         raise DataError(f"poses must have {n} columns for a {a['motion']} robot, got {q.shape[1]}")
     attachments = np.array(a["attachments"], dtype=float)
@@ -218,7 +222,7 @@ def mujoco_state(
     q = signal(pose, "pose", ndim=1)
     if q.shape[0] != (3 if a["motion"] == "planar" else 6):
         raise DataError(f"pose must have {3 if a['motion'] == 'planar' else 6} coordinates, got {q.shape[0]}")
-    angles = swivel_angles(robot_file, q[None, :], source=source)[0]
+    angles = _swivels(a, q[None, :])[0]
     lead = [angles[int(i)] for i, _, _ in sorted(a["pulleys"])]
     if a["motion"] == "planar":
         return np.array([*lead, q[0], q[1], q[2]])
