@@ -57,27 +57,28 @@ def _reference(axis: np.ndarray) -> np.ndarray:
     return e0 / np.linalg.norm(e0)
 
 
-def _rotation(motion: str, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _rotations(motion: str, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions ``(N, 3)`` and rotations ``(N, 3, 3)`` of poses ``q`` ``(N, n)``."""
     if motion == "planar":
-        c, s = np.cos(pose[2]), np.sin(pose[2])
-        return np.array([pose[0], pose[1], 0.0]), np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    roll, pitch, yaw = pose[3:6]
-    sr, cr, sp, cp, sy, cy = (
-        np.sin(roll),
-        np.cos(roll),
-        np.sin(pitch),
-        np.cos(pitch),
-        np.sin(yaw),
-        np.cos(yaw),
-    )
-    r = np.array(
+        c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
+        zero, one = np.zeros_like(c), np.ones_like(c)
+        x = np.column_stack([q[:, 0], q[:, 1], zero])
+        r = np.stack(
+            [np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1), np.stack([zero, zero, one], -1)], 1
+        )
+        return x, r
+    sr, cr = np.sin(q[:, 3]), np.cos(q[:, 3])
+    sp, cp = np.sin(q[:, 4]), np.cos(q[:, 4])
+    sy, cy = np.sin(q[:, 5]), np.cos(q[:, 5])
+    r = np.stack(
         [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
+            np.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr], -1),
+            np.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr], -1),
+            np.stack([-sp, cp * sr, cp * cr], -1),
+        ],
+        1,
     )
-    return np.asarray(pose[:3], dtype=float), r
+    return np.ascontiguousarray(q[:, :3]), r
 
 
 @checked
@@ -186,28 +187,31 @@ def swivel_angles(
 
 
 def _swivels(a: dict[str, Any], q: np.ndarray) -> np.ndarray:
-    """:func:`swivel_angles` of the checked robot arguments ``a`` at poses ``q`` ``(N, n)``."""
-    n = 3 if a["motion"] == "planar" else 6
+    """:func:`swivel_angles` of the checked robot arguments ``a`` at poses ``q`` ``(N, n)``
+    (vectorised over the poses)."""
+    planar = a["motion"] == "planar"
+    n = 3 if planar else 6
     if q.shape[1] != n:
         raise DataError(f"poses must have {n} columns for a {a['motion']} robot, got {q.shape[1]}")
     attachments = np.array(a["attachments"], dtype=float)
     anchors = np.array(a["anchors"], dtype=float)
-    if a["motion"] == "planar":
+    if planar:
         attachments[:, 2] = 0.0
         anchors[:, 2] = 0.0
+    x, r = _rotations(a["motion"], q)
     out = np.zeros((len(q), len(anchors)))
-    for k, pose in enumerate(q):
-        x, r = _rotation(a["motion"], pose)
-        for i, _radius, ax in a["pulleys"]:
-            axis = np.array(ax, dtype=float)
-            v = x + r @ attachments[i] - anchors[i]
-            perp = v - (v @ axis) * axis
-            dist = float(np.linalg.norm(perp))
-            if not dist > 1e-12 * (1.0 + float(np.linalg.norm(v))):
-                raise DataError(f"pose {k}: cable {i + 1}'s platform point is on its pulley's swivel axis")
-            e = perp / dist
-            e0 = _reference(axis)
-            out[k, i] = np.arctan2(np.cross(e0, e) @ axis, e0 @ e)
+    for i, _radius, ax in a["pulleys"]:
+        axis = np.array(ax, dtype=float)
+        v = x + r @ attachments[i] - anchors[i]
+        perp = v - np.outer(v @ axis, axis)
+        dist = np.linalg.norm(perp, axis=1)
+        on_axis = ~(dist > 1e-12 * (1.0 + np.linalg.norm(v, axis=1)))
+        if on_axis.any():
+            k = int(np.flatnonzero(on_axis)[0])
+            raise DataError(f"pose {k}: cable {i + 1}'s platform point is on its pulley's swivel axis")
+        e = perp / dist[:, None]
+        e0 = _reference(axis)
+        out[:, i] = np.arctan2(np.cross(e0, e) @ axis, e @ e0)
     return out
 
 
@@ -226,8 +230,8 @@ def mujoco_state(
     lead = [angles[int(i)] for i, _, _ in sorted(a["pulleys"])]
     if a["motion"] == "planar":
         return np.array([*lead, q[0], q[1], q[2]])
-    _, r = _rotation("spatial", q)
-    return np.array([*lead, *q[:3], *_quaternion(r)])
+    _, r = _rotations("spatial", q[None, :])
+    return np.array([*lead, *q[:3], *_quaternion(r[0])])
 
 
 def _quaternion(r: np.ndarray) -> np.ndarray:
