@@ -37,13 +37,13 @@ def _export_mjcf(args: argparse.Namespace) -> int:
 
     from cablekit.cdpr.mjcf import export_mjcf
 
+    robot = robot_from(args.robot)  # a robot file, or a shipped robot's name (else the error)
     path = Path(args.robot)
     if not (path.suffix == ".toml" or path.exists()):
-        robot_from(args.robot)  # a shipped robot's name, or the error naming the choices
         path = Path(str(resources.files("cablekit.cdpr") / "robots" / f"{args.robot}.toml"))
     out = export_mjcf(path, args.out or f"{path.stem}.xml")
     print(
-        f"wrote {out}: the platform on a {'planar' if robot_from(str(path)).motion == 'planar' else 'free'} "
+        f"wrote {out}: the platform on a {'planar' if robot.motion == 'planar' else 'free'} "
         "joint, a spatial tendon per cable (over its swivelling pulley where it has one) and a tendon motor "
         "whose control is the cable's tension (N); cablekit.cdpr.mjcf.mujoco_state(robot, pose) gives qpos"
     )
