@@ -404,9 +404,9 @@ def fast_creep_vetoes(
 ) -> list[dict[str, str]]:
     """Veto each significant creep that relaxes within :data:`FAST_CREEP_SAMPLES` samples (its
     score set not significant; the vetoes returned). With the cable's reference at the run's
-    start such a creep is a softer cable about that reference — the stiffness's candidate, which
-    the creep's extra offset fits better where rest lengths were calibrated with the nominal
-    stiffness (the Mini CDPR twin's softer cables were named creep at τ's lower bound)."""
+    start such a creep is a softer cable about that reference — the stiffness scale's candidate,
+    which pivots about the same reference: a relaxation the samples cannot resolve is no creep
+    (the Mini CDPR twin's softer cables were named creep at τ's lower bound)."""
     out = []
     for k in ranked:
         if info[k]["effect"] != "creep" or not scores[k]["significant"]:

@@ -371,12 +371,13 @@ pub fn augment_network(nom: &Network, effects: &[(Candidate, &[f64])]) -> Networ
                     whole: c.form == Form::Whole,
                 },
             ),
+            // about the cable's reference stretch (its tension where it was held stays)
+            (Site::NetCable(k), Effect::NonlinearStiffness) if c.form == Form::Scale => {
+                m.set_stiffness_scale(usize::from(k), 1.0 + p[0]);
+            }
             (Site::NetCable(k), e) => {
                 let run = m.cable_run_mut(usize::from(k));
                 match (e, c.form) {
-                    (Effect::NonlinearStiffness, Form::Scale) => {
-                        run.law = run.law.scaled(1.0 + p[0]);
-                    }
                     (Effect::NonlinearStiffness, _) => run.law = exponential(run, p[0]),
                     (Effect::CableDamping, _) => run.damping = (run.damping + p[0]).max(0.0),
                     (Effect::Slack, _) => run.pretension = (run.pretension - p[0]).max(0.0),

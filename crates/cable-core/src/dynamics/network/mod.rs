@@ -351,6 +351,9 @@ struct Cable {
     smoothing: f64,
     /// Creep of its tension and the index of its state `w` (its reference `F_r` the next).
     creep: Option<(TensionCreep, usize)>,
+    /// Its law's stiffness scaled by `s` about its reference stretch, and the index of the
+    /// reference's state `F_r` (see [`Network::set_stiffness_scale`]).
+    stiffness: Option<(f64, usize)>,
     /// Pre-sliding of its routing friction: the break-away sliding `x_d` (m of cable) and the
     /// index of its state `ζ` (module docs); `None`: the sign law.
     routing_dahl: Option<(f64, usize)>,
@@ -608,6 +611,7 @@ impl Network {
                 driver_arms,
                 smoothing: spec.capstan_smoothing,
                 creep: None,
+                stiffness: None,
                 routing_dahl: None,
                 end,
                 free_length: cs.free_length,
@@ -1112,11 +1116,11 @@ impl Network {
             for &(c, s, p) in cables {
                 let run = &self.cables[c].run;
                 let e = s * rho * qc - p;
-                let t = (run.pretension + run.law.elastic(e)) * self.length_scale(c, qc)
+                let t = (run.pretension + self.elastic_of(c, e, x)) * self.length_scale(c, qc)
                     - self.creep_of(c, x);
                 if t > 0.0 {
                     g += s * t;
-                    dg += rho * run.law.slope(e);
+                    dg += rho * self.slope_of(c, e);
                 }
             }
             (g, dg)
@@ -1152,10 +1156,11 @@ impl Network {
         for &(c, s, p) in cables {
             let run = &self.cables[c].run;
             let e = s * rho * q - p;
-            if (run.pretension + run.law.elastic(e)) * self.length_scale(c, q) - self.creep_of(c, x)
+            if (run.pretension + self.elastic_of(c, e, x)) * self.length_scale(c, q)
+                - self.creep_of(c, x)
                 > 0.0
             {
-                let kc = run.law.slope(e);
+                let kc = self.slope_of(c, e);
                 let row = &self.arms[c * n..(c + 1) * n];
                 let dp: f64 = row.iter().enumerate().map(|(j, a)| a * x[2 * j + 1]).sum();
                 num += s * kc * dp;
@@ -1171,19 +1176,36 @@ impl Network {
         self.cables[c].creep.map_or(0.0, |(_, k)| x[k])
     }
 
+    /// The elastic part of cable `c`'s law at elongation `e`, state `x`: `F(e)`, or
+    /// `F_r + s·(F(e) − F_r)` with a stiffness scaled about its reference.
+    #[inline]
+    fn elastic_of(&self, c: usize, e: f64, x: &[f64]) -> f64 {
+        let f = self.cables[c].run.law.elastic(e);
+        match self.cables[c].stiffness {
+            None => f,
+            Some((s, k)) => x[k] + s * (f - x[k]),
+        }
+    }
+
+    /// The slope of [`Self::elastic_of`] in `e`.
+    #[inline]
+    fn slope_of(&self, c: usize, e: f64) -> f64 {
+        let k = self.cables[c].run.law.slope(e);
+        self.cables[c].stiffness.map_or(k, |(s, _)| s * k)
+    }
+
     /// Joint-side tension of cable `c` at elongation `e`, rate `de`: its law (scaled by
     /// [`Self::length_scale`] `f`) less its creep.
     #[inline]
     fn tension_of(&self, c: usize, e: f64, de: f64, x: &[f64], f: f64) -> f64 {
-        let run = &self.cables[c].run;
+        let cable = &self.cables[c];
+        let run = &cable.run;
         #[allow(clippy::float_cmp)] // exactly 1 for a cable of fixed length
-        match self.cables[c].creep {
-            None if f == 1.0 => run.tension(e, de),
-            None => ((run.pretension + run.law.elastic(e)) * f + run.damping * de).max(0.0),
-            Some((_, k)) => {
-                ((run.pretension + run.law.elastic(e)) * f + run.damping * de - x[k]).max(0.0)
-            }
+        if f == 1.0 && cable.creep.is_none() && cable.stiffness.is_none() {
+            return run.tension(e, de);
         }
+        ((run.pretension + self.elastic_of(c, e, x)) * f + run.damping * de - self.creep_of(c, x))
+            .max(0.0)
     }
 
     /// `length / (length − σ·ρ·q_m)` of a cable its motor winds up at capstan angle `qc` (its
@@ -1352,7 +1374,11 @@ impl Network {
         }
         for (c, cable) in self.cables.iter().enumerate() {
             let (s, _) = self.elongation(c, x, u);
-            e += cable.run.pretension * s + cable.run.law.energy(s);
+            e += cable.run.pretension * s
+                + match cable.stiffness {
+                    None => cable.run.law.energy(s),
+                    Some((k, i)) => x[i] * s + k * (cable.run.law.energy(s) - x[i] * s),
+                };
         }
         e
     }
@@ -1536,6 +1562,17 @@ impl Network {
         })
     }
 
+    /// Scale cable `c`'s stiffness by `s` (> 0; floored at 1e-3) about its reference stretch,
+    /// replacing any scale it had, with a state: `F_r + s·(F(e) − F_r)`, `F_r` its law at the
+    /// run's first input ([`Self::rest_at`], as creep's reference) — a cable whose length was
+    /// calibrated where it was held keeps that tension there, and only its slope changes (a
+    /// scale about zero stretch would move the tension it was set to). Where the rest leaves the
+    /// cable at its pretension (`F_r = 0`), the plain scaled law.
+    pub(crate) fn set_stiffness_scale(&mut self, c: usize, s: f64) {
+        let slot = self.state_slot(self.cables[c].stiffness.map(|(_, k)| k));
+        self.cables[c].stiffness = Some((s.max(1e-3), slot));
+    }
+
     /// Give cable `c` a creep of its tension (replacing any it had), with a state.
     pub(crate) fn set_creep(&mut self, c: usize, cr: TensionCreep) {
         let slot = self.cables[c].creep.map_or_else(
@@ -1574,11 +1611,19 @@ impl Network {
     pub fn rest_at(&self, u0: &[f64]) -> Vec<f64> {
         let mut x = self.joints_at_rest(u0);
         if u0.len() >= self.n_inputs {
+            // the stiffness' references first: the creep's is the law there, scaled or not
+            for (c, cable) in self.cables.iter().enumerate() {
+                if let Some((_, k)) = cable.stiffness {
+                    let (e, _) = self.elongation(c, &x, u0);
+                    let r = cable.run.law.elastic(e);
+                    x[k] = if r.is_finite() { r } else { 0.0 };
+                }
+            }
             for (c, cable) in self.cables.iter().enumerate() {
                 if let Some((cr, k)) = cable.creep {
                     if !cr.whole {
                         let (e, _) = self.elongation(c, &x, u0);
-                        let r = cable.run.law.elastic(e) * self.length_scale_at(c, &x, u0);
+                        let r = self.elastic_of(c, e, &x) * self.length_scale_at(c, &x, u0);
                         x[k + 1] = if r.is_finite() { r } else { 0.0 };
                     }
                 }
@@ -1824,13 +1869,16 @@ impl Model for Network {
         for (c, cable) in self.cables.iter().enumerate() {
             if let Some((cr, k)) = cable.creep {
                 let (e, _) = self.elongation(c, x, u);
-                let mut target = cable.run.law.elastic(e);
+                let mut target = self.elastic_of(c, e, x);
                 if cr.whole {
                     target += cable.run.pretension;
                 }
                 target *= self.length_scale_at(c, x, u);
                 dx[k] = (cr.fraction * (target - x[k + 1]) - x[k]) / cr.time_constant;
                 dx[k + 1] = 0.0;
+            }
+            if let Some((_, k)) = cable.stiffness {
+                dx[k] = 0.0;
             }
             if let Some((x_d, k)) = cable.routing_dahl {
                 let v = self.haul_speed(c, x, u);
@@ -1956,6 +2004,9 @@ impl Model for Network {
             if let Some((_, k)) = c.creep {
                 out[k] = format!("creep:{name}");
                 out[k + 1] = format!("creep_ref:{name}");
+            }
+            if let Some((_, k)) = c.stiffness {
+                out[k] = format!("stiffness_ref:{name}");
             }
             if let Some((_, k)) = c.routing_dahl {
                 out[k] = format!("z_routing:{name}");

@@ -647,6 +647,53 @@ fn creep_relaxes_from_the_first_stretch() {
     }
 }
 
+/// A stiffness scaled about the reference keeps the tension at the run's first input and scales
+/// only the change from there; where the rest leaves the cable at its pretension it is the plain
+/// scaled law.
+#[test]
+fn a_stiffness_scale_pivots_about_the_first_stretch() {
+    let base =
+        Network::new(&NetworkSpec::from_json(&winch("position").to_string()).unwrap()).unwrap();
+    let tension = |net: &Network, x: &[f64], u: &[f64]| {
+        let mut y = vec![0.0; net.n_outputs()];
+        net.output(x, u, &mut y);
+        y[2]
+    };
+    let s = 0.4;
+    let mut net = base.clone();
+    net.set_stiffness_scale(0, s);
+    assert_eq!(net.n_states(), base.n_states() + 1);
+    assert_eq!(
+        net.state_names().last().map(String::as_str),
+        Some("stiffness_ref:c")
+    );
+    let (alpha, end) = (2.0, 1e-3);
+    let u0 = [alpha, 0.0, end, 0.0];
+    let (x0, xb) = (net.rest_at(&u0), base.rest_at(&u0));
+    assert!(x0[x0.len() - 1] > 0.0, "the end's stretch is the reference");
+    let plain = tension(&base, &xb, &u0);
+    assert!((tension(&net, &x0, &u0) - plain).abs() < 1e-12 * plain);
+    for de in [2e-4, -1e-4] {
+        let held = [alpha, 0.0, end + de, 0.0];
+        let change = tension(&base, &xb, &held) - plain;
+        let got = tension(&net, &x0, &held) - plain;
+        assert!(
+            (got - s * change).abs() < 1e-9 * plain,
+            "{got} vs {}",
+            s * change
+        );
+    }
+    // at a first input that leaves the cable at its pretension: the law scaled about zero
+    let u1 = [0.0, 0.0, 0.0, 0.0];
+    let x1 = net.rest_at(&u1);
+    assert!(x1[x1.len() - 1].abs() < f64::MIN_POSITIVE);
+    let mut scaled = base.clone();
+    scaled.cable_run_mut(0).law = base.cable_run(0).law.scaled(s);
+    let held = [0.0, 0.0, 3e-4, 0.0];
+    let want = tension(&scaled, &scaled.rest_at(&u1), &held);
+    assert!((tension(&net, &x1, &held) - want).abs() < 1e-12 * want);
+}
+
 #[test]
 fn a_cables_end_motor_and_taps_are_checked() {
     let bad = |edit: &dyn Fn(&mut serde_json::Value)| {
