@@ -84,6 +84,11 @@ def _dual_from_functions(x0: Any, theta0: Any, r: Any, dt: Any = 0.01) -> Any:
     return f.run(np.zeros((3, 0)), np.ones((3, 1)))
 
 
+def _own(o: Any) -> Any:
+    """A fresh copy of an array argument (same dtype, shape and layout); anything else as is."""
+    return o.copy(order="K") if isinstance(o, np.ndarray) else o
+
+
 def _srukf() -> ck.SrUkf:
     return ck.SrUkf(R1, np.zeros(4), np.eye(4), 1e-6 * np.eye(4), np.eye(2), dt=1e-3, states=[0, 2])
 
@@ -150,6 +155,7 @@ def _calls() -> dict[str, Call]:
         "Mlp.predict_into": Call(lambda x, o: _mlp().predict_into(x, o), (_arr(3, 2), np.zeros((3, 1)))),
         "Mlp.from_bytes": Call(ck.Mlp.from_bytes, (_mlp().to_bytes(),)),
         "SrUkf.step": Call(lambda u, y: _srukf().step(u, y), (_arr(2), _arr(2))),
+        "SrUkf.x_into": Call(lambda o: _srukf().x_into(o), (np.zeros(4),)),
         "SrUkf.run": Call(lambda u, y: _srukf().run(u, y), (_arr(10, 2), _arr(10, 2))),
         "SrUkf.reset": Call(lambda x, p: _srukf().reset(x, p), (_arr(4), np.eye(4))),
         "SrUkf.linear": Call(
@@ -317,6 +323,15 @@ def _calls() -> dict[str, Call]:
         out[f"Model.output[{name}]"] = Call(model.output, (x, u))
         out[f"Model.jacobian[{name}]"] = Call(model.jacobian, (x, u))
         out[f"Model.rk4_step[{name}]"] = Call(model.rk4_step, (x, u, 1e-4), dict(substeps=2))
+        # the controller loop's allocation-free forms (issue #40 §2); each draw writes into its
+        # own copy of `out` (a shared one would carry one draw's result into the next)
+        out[f"Model.rk4_step.out[{name}]"] = Call(
+            lambda x, u, dt, o, m=model: m.rk4_step(x, u, dt, substeps=2, out=_own(o)),
+            (x, u, 1e-4, np.zeros(model.n_states)),
+        )
+        out[f"Model.output.out[{name}]"] = Call(
+            lambda x, u, o, m=model: m.output(x, u, out=_own(o)), (x, u, np.zeros(model.n_outputs))
+        )
     return out
 
 

@@ -313,6 +313,32 @@ pub mod check {
         Ok(out)
     }
 
+    /// [`evaluate`] into `out` through `scratch` (resized to `out`'s length; no allocation once
+    /// it has the capacity): `out` changes only when every argument and the result pass.
+    pub fn evaluate_into(
+        args: &[(&str, &[f64], usize)],
+        result: &str,
+        out: &mut [f64],
+        scratch: &mut Vec<f64>,
+        eval: impl FnOnce(&mut [f64]),
+    ) -> Result<()> {
+        for (name, data, n) in args {
+            len(name, data, *n)?;
+            all_finite(name, data, 1)?;
+        }
+        scratch.clear();
+        scratch.resize(out.len(), 0.0);
+        eval(scratch);
+        result_finite(
+            result,
+            scratch,
+            1,
+            "the state, the input or a parameter is too extreme for the model",
+        )?;
+        out.copy_from_slice(scratch);
+        Ok(())
+    }
+
     /// An interval `[lo, hi]` with finite ends, `lo <= hi`; `name` names it.
     pub fn interval(name: &str, lo: f64, hi: f64) -> Result<(f64, f64)> {
         finite(&format!("{name}.lower"), lo)?;

@@ -9,13 +9,45 @@ use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::{spec_dict, spec_values, to_matrix, to_vector, vector};
+use std::sync::{Mutex, MutexGuard};
+
+use cable_core::integrate::Rk4;
+
+use crate::convert::{
+    out_vector, spec_dict, spec_values, to_matrix, to_vector, vector, vector_into,
+};
 use crate::errors::guarded;
 
 /// Base class of every cablekit model: sizes, names, and single evaluations of `f`, `h` and RK4.
 #[pyclass(subclass, frozen, module = "cablekit._cablekit")]
 pub struct Model {
     pub inner: AnyModel,
+    /// Buffers of the calls with `out=` (a controller's loop): taken while a call runs, so a
+    /// second thread's call meanwhile takes fresh ones.
+    work: Mutex<Work>,
+}
+
+/// [`Model`]'s buffers for its allocation-free calls.
+#[derive(Debug)]
+struct Work {
+    rk4: Rk4,
+    x: Vec<f64>,
+    u: Vec<f64>,
+    u_next: Vec<f64>,
+    scratch: Vec<f64>,
+}
+
+impl Work {
+    fn new(model: &AnyModel) -> Self {
+        let (n, m) = (model.n_states(), model.n_inputs());
+        Self {
+            rk4: Rk4::for_model(model),
+            x: vec![0.0; n],
+            u: vec![0.0; m],
+            u_next: vec![0.0; m],
+            scratch: Vec::with_capacity(n.max(model.n_outputs())),
+        }
+    }
 }
 
 #[pymethods]
@@ -72,15 +104,37 @@ impl Model {
         Ok(to_vector(py, out))
     }
 
-    /// `h(x, u)`: the outputs.
+    /// `h(x, u)`: the outputs. With `out` `(p,)` (a writable float64 array) they are written
+    /// into it and `out` is returned: no allocation (a controller's loop); on an error `out` is
+    /// left as it was.
+    #[pyo3(signature = (x, u, out = None))]
     fn output<'py>(
         &self,
         py: Python<'py>,
         x: &Bound<'py, PyAny>,
         u: &Bound<'py, PyAny>,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (x, u) = self.point(x, u)?;
         let (n, m, p) = (self.n_states(), self.n_inputs(), self.n_outputs());
+        if let Some(obj) = out.filter(|o| !o.is_none()) {
+            let mut work = self.work();
+            let w = &mut *work;
+            vector_into(x, "x", &mut w.x)?;
+            vector_into(u, "u", &mut w.u)?;
+            let mut rw = out_vector(obj, "out", p)?;
+            let dst = rw.as_slice_mut()?;
+            guarded(|| {
+                check::evaluate_into(
+                    &[("x", &w.x, n), ("u", &w.u, m)],
+                    "output",
+                    dst,
+                    &mut w.scratch,
+                    |o| self.inner.output(&w.x, &w.u, o),
+                )
+            })?;
+            return Ok(obj.clone().cast_into::<PyArray1<f64>>()?);
+        }
+        let (x, u) = self.point(x, u)?;
         let out = guarded(|| {
             check::evaluate(&[("x", &x, n), ("u", &u, m)], "output", p, |out| {
                 self.inner.output(&x, &u, out)
@@ -90,8 +144,11 @@ impl Model {
     }
 
     /// One sample interval `dt` of RK4 in `substeps` steps from `x` (inputs held at `u`, or
-    /// linear towards `u_next`).
-    #[pyo3(signature = (x, u, dt, substeps = 1, u_next = None))]
+    /// linear towards `u_next`). With `out` `(n,)` (a writable float64 array, which may be `x`
+    /// itself) the state is written into it and `out` is returned: no allocation (the model
+    /// keeps its RK4 workspace; a controller's loop); on an error `out` is left as it was.
+    #[pyo3(signature = (x, u, dt, substeps = 1, u_next = None, out = None))]
+    #[allow(clippy::too_many_arguments)]
     fn rk4_step<'py>(
         &self,
         py: Python<'py>,
@@ -100,7 +157,28 @@ impl Model {
         dt: f64,
         substeps: usize,
         u_next: Option<&Bound<'py, PyAny>>,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        if let Some(obj) = out.filter(|o| !o.is_none()) {
+            let mut work = self.work();
+            let w = &mut *work;
+            vector_into(x, "x", &mut w.x)?;
+            vector_into(u, "u", &mut w.u)?;
+            match u_next.filter(|o| !o.is_none()) {
+                Some(v) => vector_into(v, "u_next", &mut w.u_next)?,
+                None => w.u_next.copy_from_slice(&w.u),
+            }
+            let mut rw = out_vector(obj, "out", self.n_states())?;
+            let dst = rw.as_slice_mut()?;
+            py.detach(|| {
+                guarded(|| {
+                    cable_core::with_model!(&self.inner, m => cable_core::integrate::rk4_interval_into(
+                        m, &w.x, &w.u, &w.u_next, dt, substeps, dst, &mut w.rk4,
+                    ))
+                })
+            })?;
+            return Ok(obj.clone().cast_into::<PyArray1<f64>>()?);
+        }
         let (x, u) = self.point(x, u)?;
         let u_b = match u_next {
             Some(obj) => vector(obj, "u_next", self.n_inputs())?,
@@ -153,6 +231,17 @@ impl Model {
 }
 
 impl Model {
+    /// The buffers of the `out=` calls, or fresh ones while another thread's call holds them.
+    fn work(&self) -> WorkGuard<'_> {
+        match self.work.try_lock() {
+            Ok(g) => WorkGuard::Shared(g),
+            Err(std::sync::TryLockError::Poisoned(p)) => WorkGuard::Shared(p.into_inner()),
+            Err(std::sync::TryLockError::WouldBlock) => {
+                WorkGuard::Own(Box::new(Work::new(&self.inner)))
+            }
+        }
+    }
+
     /// Validated `(x, u)` evaluation point.
     fn point(&self, x: &Bound<'_, PyAny>, u: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<f64>)> {
         let x = vector(x, "x", self.n_states())?;
@@ -166,7 +255,33 @@ pub(crate) fn wrap<S: pyo3::PyClass<BaseType = Model>>(
     inner: AnyModel,
     sub: S,
 ) -> PyClassInitializer<S> {
-    PyClassInitializer::from(Model { inner }).add_subclass(sub)
+    let work = Mutex::new(Work::new(&inner));
+    PyClassInitializer::from(Model { inner, work }).add_subclass(sub)
+}
+
+/// [`Model::work`]'s buffers: the model's own, or fresh ones.
+enum WorkGuard<'a> {
+    Shared(MutexGuard<'a, Work>),
+    Own(Box<Work>),
+}
+
+impl std::ops::Deref for WorkGuard<'_> {
+    type Target = Work;
+    fn deref(&self) -> &Work {
+        match self {
+            WorkGuard::Shared(g) => g,
+            WorkGuard::Own(w) => w,
+        }
+    }
+}
+
+impl std::ops::DerefMut for WorkGuard<'_> {
+    fn deref_mut(&mut self) -> &mut Work {
+        match self {
+            WorkGuard::Shared(g) => g,
+            WorkGuard::Own(w) => w,
+        }
+    }
 }
 
 /// Cable-driven transmission with 1–3 coupled links (seed 001 eqs 2.3–2.8).

@@ -7,7 +7,7 @@ use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 use crate::callback::{raised, Failure, PyObserve, PyParamModel, PyProcess};
-use crate::convert::{matrix, opt_tuples, rows, square, to_matrix, to_vector, vector};
+use crate::convert::{matrix, opt_tuples, out_vector, rows, square, to_matrix, to_vector, vector};
 use crate::dynamics::Model;
 use crate::errors::{arg_error, guarded, lock, Class};
 use crate::results::{DualRun, FilterHealth, FilterRun};
@@ -308,6 +308,14 @@ impl SrUkf {
     #[getter]
     fn x<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
         Ok(to_vector(py, self.filter()?.x().to_vec()))
+    }
+    /// Write the current mean into `out` `(n,)` (a writable float64 array) and return it: no
+    /// allocation, for a controller's loop (`x` returns a new array).
+    fn x_into<'py>(&self, out: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        let f = self.filter()?;
+        let mut rw = out_vector(out, "out", f.n_states())?;
+        rw.as_slice_mut()?.copy_from_slice(f.x());
+        Ok(out.clone())
     }
     /// Current lower-triangular square root of the covariance.
     #[getter(S)]

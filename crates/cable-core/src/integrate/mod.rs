@@ -65,6 +65,8 @@ pub struct Rk4 {
     u_mid: Vec<f64>,
     u_end: Vec<f64>,
     u_start: Vec<f64>,
+    /// The state of [`rk4_interval_into`] while it integrates.
+    tmp_out: Vec<f64>,
 }
 
 impl Rk4 {
@@ -79,6 +81,7 @@ impl Rk4 {
             u_mid: vec![0.0; m],
             u_end: vec![0.0; m],
             u_start: vec![0.0; m],
+            tmp_out: Vec::with_capacity(n),
         }
     }
 
@@ -382,7 +385,8 @@ pub(crate) fn record<M: Model + ?Sized>(
 /// One checked sample interval of RK4 from `x`: inputs going linearly from `u_a` to `u_b`,
 /// `substeps` steps (1 ..= [`MAX_SUBSTEPS`]). Lengths and finiteness are checked, and a
 /// non-finite new state is [`CableError::Diverged`] at step 1. For callers outside the hot loops
-/// (the bindings); a controller loop uses [`Rk4::advance`] on its own workspace.
+/// (the bindings); a controller loop uses [`rk4_interval_into`] or [`Rk4::advance`] on its own
+/// workspace.
 pub fn rk4_interval<M: Model + ?Sized>(
     model: &M,
     x: &[f64],
@@ -391,6 +395,35 @@ pub fn rk4_interval<M: Model + ?Sized>(
     dt: f64,
     substeps: usize,
 ) -> Result<Vec<f64>> {
+    let mut out = vec![0.0; x.len()];
+    rk4_interval_into(
+        model,
+        x,
+        u_a,
+        u_b,
+        dt,
+        substeps,
+        &mut out,
+        &mut Rk4::for_model(model),
+    )?;
+    Ok(out)
+}
+
+/// [`rk4_interval`] into `out` (length `n`) with the caller's workspace `work` (sized for the
+/// model by [`Rk4::for_model`]; a workspace of another size is resized): no allocation, for a
+/// controller's loop. `x` and `out` may hold the same values (the step integrates a copy in the
+/// workspace). On an error `out` is left as it was.
+#[allow(clippy::too_many_arguments)]
+pub fn rk4_interval_into<M: Model + ?Sized>(
+    model: &M,
+    x: &[f64],
+    u_a: &[f64],
+    u_b: &[f64],
+    dt: f64,
+    substeps: usize,
+    out: &mut [f64],
+    work: &mut Rk4,
+) -> Result<()> {
     SimOptions::new(dt, substeps, InputHold::Foh)?;
     for (name, data, n) in [
         ("x", x, model.n_states()),
@@ -400,10 +433,22 @@ pub fn rk4_interval<M: Model + ?Sized>(
         check::len(name, data, n)?;
         check::all_finite(name, data, 1)?;
     }
-    let mut x = x.to_vec();
-    Rk4::for_model(model).advance(model, &mut x, u_a, u_b, dt, substeps);
-    if x.iter().all(|v| v.is_finite()) {
-        Ok(x)
+    check::len("out", out, model.n_states())?;
+    if work.k1.len() != model.n_states() || work.u_mid.len() != model.n_inputs() {
+        *work = Rk4::for_model(model);
+    }
+    // integrate in the workspace's scratch so that a diverged step leaves `out` untouched
+    let mut y = std::mem::take(&mut work.tmp_out);
+    y.clear();
+    y.extend_from_slice(x);
+    work.advance(model, &mut y, u_a, u_b, dt, substeps);
+    let ok = y.iter().all(|v| v.is_finite());
+    if ok {
+        out.copy_from_slice(&y);
+    }
+    work.tmp_out = y;
+    if ok {
+        Ok(())
     } else {
         Err(CableError::Diverged {
             step: 1,
