@@ -5,6 +5,7 @@ its definition, gives the CSV run's diagnosis; bad bags are DataErrors naming th
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -222,3 +223,208 @@ def test_read_bag_answers_any_arguments_with_a_typed_error(path, fields):
         assert is_bag(path) is False
     except ck.CablekitError:
         assert not isinstance(path, str)
+
+
+# -- a parallel robot's runs (``cablekit cdpr diagnose --run BAG``, the robot file's [topics])
+
+#: the Mini CDPR's run columns in a bag: the winches' JointState (angles, currents), the load
+#: cells as one Float64MultiArray (no header), the tracker's position and orientation
+CDPR_TOPICS = {
+    "alpha": "/winches:position",
+    "current": "/winches:effort",
+    "sensor": "/load_cells:data",
+    "x": "/tracker/position:point.x",
+    "y": "/tracker/position:point.y",
+    "z": "/tracker/position:point.z",
+    "roll": "/tracker/rpy:vector.x",
+    "pitch": "/tracker/rpy:vector.y",
+    "yaw": "/tracker/rpy:vector.z",
+}
+
+
+def write_cdpr_bag(run, folder: Path, rows: int, plugin=StoragePlugin.MCAP) -> Path:
+    """A CDPR run (``RunFile``) as a bag on CDPR_TOPICS' topics, stamped at ``t0 + t``."""
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    types = {
+        "/winches": "sensor_msgs/msg/JointState",
+        "/load_cells": "std_msgs/msg/Float64MultiArray",
+        "/tracker/position": "geometry_msgs/msg/PointStamped",
+        "/tracker/rpy": "geometry_msgs/msg/Vector3Stamped",
+    }
+    t0 = 1_700_000_000_000_000_000
+    layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+    with Writer(folder, version=9, storage_plugin=plugin) as w:
+        conns = {k: w.add_connection(k, v, typestore=ts) for k, v in types.items()}
+        for k in range(rows):
+            ns = t0 + round(run.t[k] * 1e9)
+            hdr = T["std_msgs/msg/Header"](
+                stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9), frame_id="w"
+            )
+            p = run.poses[k]
+            msgs = {
+                "/winches": T["sensor_msgs/msg/JointState"](
+                    header=hdr,
+                    name=[f"drum{j + 1}" for j in range(8)],
+                    position=run.alpha[k].copy(),
+                    velocity=np.zeros(0),
+                    effort=run.current[k].copy(),
+                ),
+                "/load_cells": T["std_msgs/msg/Float64MultiArray"](layout=layout, data=run.sensor[k].copy()),
+                "/tracker/position": T["geometry_msgs/msg/PointStamped"](
+                    header=hdr, point=T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2])
+                ),
+                "/tracker/rpy": T["geometry_msgs/msg/Vector3Stamped"](
+                    header=hdr, vector=T["geometry_msgs/msg/Vector3"](x=p[3], y=p[4], z=p[5])
+                ),
+            }
+            for topic, msg in msgs.items():
+                w.write(
+                    conns[topic],
+                    ns + (20_000 if hasattr(msg, "header") else 0),
+                    ts.serialize_cdr(msg, msg.__msgtype__),
+                )
+    return folder
+
+
+@pytest.fixture(scope="module")
+def cdpr_csv(tmp_path_factory):
+    """A Mini CDPR twin run with its poses as a CSV run file (4 s) and the robot file that
+    names the bag's topics."""
+    import csv
+    import tomllib
+
+    from cablekit.cdpr.diagnose import twin_run
+
+    run = twin_run("sensor_gain", 1, seed=2)
+    rows = 4000
+    d = tmp_path_factory.mktemp("cdpr")
+    header = ["t", *(f"{k}_{j + 1}" for k in ("alpha", "current", "sensor") for j in range(8))]
+    header += ["x", "y", "z", "roll", "pitch", "yaw"]
+    table = np.hstack([run.t[:, None], run.alpha, run.current, run.sensor, run.lengths.poses])[:rows]
+    with (d / "run.csv").open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(table.tolist())
+    from importlib import resources
+
+    text = (resources.files("cablekit.cdpr") / "robots" / "seed002_mini.toml").read_text(encoding="utf-8")
+    text += "\n[topics]\n" + "".join(f'{k} = "{v}"\n' for k, v in CDPR_TOPICS.items())
+    tomllib.loads(text)
+    (d / "mini.toml").write_text(text, encoding="utf-8")
+    return d
+
+
+def test_a_cdpr_bag_reads_as_its_csv_run_through_the_robot_files_topics(cdpr_csv, tmp_path):
+    from cablekit._files import load_toml
+    from cablekit.cdpr import Robot, topics_of
+    from cablekit.cdpr.formats import load_cdpr_run
+
+    robot = Robot.load(cdpr_csv / "mini.toml")
+    csv_run = load_cdpr_run(cdpr_csv / "run.csv", robot)
+    bag = write_cdpr_bag(csv_run, tmp_path / "bag", len(csv_run.t))
+    topics = topics_of(load_toml(cdpr_csv / "mini.toml", "robot file"))
+    bag_run = load_cdpr_run(bag, robot, topics=topics)
+    np.testing.assert_allclose(bag_run.t, csv_run.t, rtol=0, atol=1e-12)
+    for k in ("alpha", "current", "sensor", "poses"):
+        np.testing.assert_array_equal(getattr(bag_run, k), getattr(csv_run, k), err_msg=k)
+    assert "topic /load_cells: receive times (no header)" in bag_run.notes
+    assert "topic /winches: header stamps" in bag_run.notes
+    # a single column overrides its group's entry; a list names each cable's field
+    swapped = {
+        **topics,
+        "sensor_3": "/load_cells:data[0]",
+        "current": [f"/winches:effort[{j}]" for j in range(8)],
+    }
+    other = load_cdpr_run(bag, robot, topics=swapped)
+    np.testing.assert_array_equal(other.sensor[:, 2], csv_run.sensor[:, 0])
+    np.testing.assert_array_equal(other.current, csv_run.current)
+
+
+def test_the_cdpr_diagnosis_of_a_bag_equals_the_csv_files(cdpr_csv, tmp_path):
+    """``cablekit cdpr diagnose --run BAG --robot mini.toml`` (the robot file's [topics]) and
+    the same run as CSV: the same report but for the file names (the retired force check, the
+    drives through the one engine with poses are covered by the CSV tests)."""
+    from cablekit.cdpr import Robot
+    from cablekit.cdpr.formats import load_cdpr_run
+    from cablekit.cli import main
+
+    robot = Robot.load(cdpr_csv / "mini.toml")
+    csv_run = load_cdpr_run(cdpr_csv / "run.csv", robot)
+    nopose = {k: v for k, v in CDPR_TOPICS.items() if k in ("alpha", "current", "sensor")}
+    text = (cdpr_csv / "mini.toml").read_text(encoding="utf-8").split("\n[topics]\n")[0]
+    (tmp_path / "mini.toml").write_text(
+        text + "\n[topics]\n" + "".join(f'{k} = "{v}"\n' for k, v in nopose.items()), encoding="utf-8"
+    )
+    bag = write_cdpr_bag(csv_run, tmp_path / "run", len(csv_run.t), StoragePlugin.SQLITE3)
+    lines = (cdpr_csv / "run.csv").read_text(encoding="utf-8").splitlines()
+    keep = 25  # t and the 24 drum columns (no poses: the force check)
+    (tmp_path / "run.csv").write_text(
+        "\n".join(",".join(r.split(",")[:keep]) for r in lines) + "\n", encoding="utf-8"
+    )
+    reports = {}
+    for kind, path in (("csv", tmp_path / "run.csv"), ("bag", bag)):
+        out = tmp_path / f"out_{kind}"
+        args = ["cdpr", "diagnose", "--run", str(path), "--robot", str(tmp_path / "mini.toml")]
+        assert main([*args, "--out", str(out), "--quiet", "--no-plots"]) == 0
+        reports[kind] = (out / "diagnose.md").read_text(encoding="utf-8")
+
+    def body(r: str) -> str:
+        keep = [x for x in r.splitlines() if not x.startswith(("run.csv,", "run,", "Note: run:"))]
+        return re.sub(r"\n{2,}", "\n\n", "\n".join(keep))
+
+    strip = [body(reports["csv"]), body(reports["bag"])]
+    assert strip[0] == strip[1]
+    assert "sensor_gain" in reports["csv"] or "calibration" in reports["csv"]
+
+
+def test_bad_cdpr_topics_are_data_errors_naming_the_key(cdpr_csv, tmp_path):
+    from cablekit.cdpr import Robot
+    from cablekit.cdpr.formats import bag_topics, load_cdpr_run
+
+    robot = Robot.load(cdpr_csv / "mini.toml")
+    with pytest.raises(ck.DataError, match=r"unknown key\(s\) \['alpha_9', 'theta'\]"):
+        bag_topics({"alpha_9": "/a:b", "theta": "/a:c"}, robot)
+    with pytest.raises(ck.DataError, match=r"topics\.sensor: 8 fields \(one per cable\), got 2"):
+        bag_topics({"sensor": ["/a:b", "/a:c"]}, robot)
+    with pytest.raises(ck.DataError, match=r"topics\.alpha: an array field without an index"):
+        bag_topics({"alpha": "/winches:position[0]"}, robot)
+    with pytest.raises(ck.DataError, match=r"topics\.x: .*not a bag field"):
+        bag_topics({"x": "tracker.x"}, robot)
+    with pytest.raises(ck.DataError, match=r"topics\.current\[1\]: a bag field"):
+        bag_topics({"current": ["/a:b", 3, *["/a:b"] * 6]}, robot)
+    run = load_cdpr_run(cdpr_csv / "run.csv", robot)
+    bag = write_cdpr_bag(run, tmp_path / "bag", 200)
+    with pytest.raises(ck.DataError, match=r"needs a \[topics\] table"):
+        load_cdpr_run(bag, robot)
+    with pytest.raises(ck.DataError, match=r"missing column\(s\) \['current_1'"):
+        load_cdpr_run(bag, robot, topics={"alpha": "/winches:position", "sensor": "/load_cells:data"})
+    with pytest.raises(ck.DataError, match=r"/winches:effort\[8\].*out of range"):
+        load_cdpr_run(bag, robot, topics={**CDPR_TOPICS, "current_1": "/winches:effort[8]"})
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    table=st.dictionaries(
+        st.sampled_from(
+            ["alpha", "current", "sensor", "alpha_1", "sensor_8", "x", "yaw", "theta", "", "alpha_0"]
+        ),
+        st.one_of(
+            st.text(max_size=12),
+            st.sampled_from(["/a:b", "/a:b[1]", "/a:b.c", "/a", ":b"]),
+            st.lists(st.sampled_from(["/a:b", "/c:d[2]", 1.5]), max_size=9),
+            st.sampled_from([None, 3, 1e308, float("nan"), {"a": 1}]),
+        ),
+        max_size=6,
+    )
+)
+def test_bag_topics_answers_any_table_with_fields_or_a_data_error(table):
+    from cablekit.cdpr import shipped
+    from cablekit.cdpr.formats import bag_topics
+
+    try:
+        out = bag_topics(table, shipped("seed002_mini"))
+    except ck.DataError:
+        return
+    for col, field in out.items():
+        assert isinstance(col, str) and parse_field(field)[0].startswith("/")

@@ -131,7 +131,7 @@ def _drive_run(robot: Any) -> tuple[Any, ...]:
 
 def _factories() -> dict[str, Any]:
     """Each public function's valid call, built on first use (some simulate a run)."""
-    from cablekit.cdpr import Winch, compensate, drives, force, mjcf, planar, sensors, winch
+    from cablekit.cdpr import Winch, compensate, drives, force, formats, mjcf, planar, sensors, winch
     from cablekit.cdpr import diagnose as cdiag
 
     ws = importlib.import_module("cablekit.cdpr.workspace")
@@ -175,6 +175,13 @@ def _factories() -> dict[str, Any]:
         "cablekit.cdpr.drives.smoothing_kernel": lambda: Call(drives.smoothing_kernel, (5,)),
         "cablekit.cdpr.drives.estimate_rest_length": lambda: Call(
             drives.estimate_rest_length, tuple(_drive_run(mini)[i] for i in (0, 1, 3, 4, 6, 7))
+        ),
+        "cablekit.cdpr.topics_of": lambda: Call(
+            cablekit.cdpr.topics_of, ({"topics": {"alpha": "/winches:position"}}, "robot.toml")
+        ),
+        "cablekit.cdpr.formats.bag_topics": lambda: Call(
+            formats.bag_topics,
+            ({"alpha": "/winches:position", "sensor_2": "/cell2:data"}, mini),
         ),
         "cablekit.cdpr.path_friction_of": lambda: Call(
             cablekit.cdpr.path_friction_of,

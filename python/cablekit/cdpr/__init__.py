@@ -77,11 +77,24 @@ __all__ = [
     "root_locus",
     "shipped",
     "shipped_names",
+    "topics_of",
     "workspace",
 ]
 
-_TOP = {"name", "motion", "gravity", "platform", "cable", "cables", "description", "path_friction"}
+_TOP = {"name", "motion", "gravity", "platform", "cable", "cables", "description", "path_friction", "topics"}
 _PATH_FRICTION = {"coefficient", "viscous", "guide_wrap", "presliding"}
+
+
+@checked
+def topics_of(doc: dict[str, Any], source: str = "<robot>") -> dict[str, Any] | None:
+    """The robot file's optional ``[topics]`` table: where a ROS 2 bag carries each column of
+    a run (:func:`cablekit.cdpr.formats.bag_topics`, checked when a bag is read); ``None``
+    without one, a :class:`~cablekit.errors.DataError` when it is not a table."""
+    if "topics" not in doc:
+        return None
+    if not isinstance(doc["topics"], dict):
+        raise DataError(f'{source}: [topics] must be a table of column = "/topic:field"')
+    return doc["topics"]
 
 
 @checked

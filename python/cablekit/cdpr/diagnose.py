@@ -636,12 +636,13 @@ def diagnose_file(
     *,
     rest_length: np.ndarray | None = None,
     platform_side: Mapping[str, Any] | None = None,
+    topics: Mapping[str, Any] | None = None,
 ) -> CdprDiagnosis:
-    """:func:`diagnose` on a run file (:func:`load_cdpr_run`): the force channel always, the
-    length channel when the file has poses (``rest_length`` default:
-    :func:`rest_from_first_sample`)."""
+    """:func:`diagnose` on a run file (:func:`load_cdpr_run`, a ROS 2 bag through ``topics``):
+    the force channel always, the length channel when the file has poses (``rest_length``
+    default: :func:`rest_from_first_sample`)."""
     winch = winch or Winch.seed003()
-    run = load_cdpr_run(path, robot)
+    run = load_cdpr_run(path, robot, topics=topics)
     lengths = None
     if run.poses is not None:
         rest = rest_from_first_sample(robot, winch, run) if rest_length is None else rest_length
@@ -674,14 +675,16 @@ def diagnose_runs(
     *,
     platform_side: Mapping[str, Any] | None = None,
     effects: tuple[str, ...] = EFFECTS,
+    topics: Mapping[str, Any] | None = None,
 ) -> CdprDiagnosis:
     """:func:`diagnose` with the candidates fitted on the ``fit`` run files and scored on the
     ``holdout`` run files (never fitted), as ``cablekit diagnose`` does for a joint model. The
     length channel runs when every file has poses; each run's rest lengths come from its first
-    sample (:func:`rest_from_first_sample`)."""
+    sample (:func:`rest_from_first_sample`). Bags are read through ``topics``
+    (:func:`load_cdpr_run`)."""
     if not fit or not holdout:
         raise ParameterError("give at least one fit run and one held-out run")
-    runs = [(Path(p).name, load_cdpr_run(p, robot)) for p in [*fit, *holdout]]
+    runs = [(Path(p).name, load_cdpr_run(p, robot, topics=topics)) for p in [*fit, *holdout]]
     return diagnose_loaded(runs, len(fit), robot, winch, platform_side=platform_side, effects=effects)
 
 

@@ -200,7 +200,13 @@ def _diagnose_run(args: argparse.Namespace) -> int:
     from cablekit.cdpr.diagnose import diagnose_file, diagnose_runs
 
     robot = robot_from(args.robot)
-    friction = None
+    friction, topics = None, None
+    if Path(args.robot).suffix == ".toml" or Path(args.robot).exists():
+        from cablekit._files import parse_toml, read_text
+        from cablekit.cdpr import path_friction_of, topics_of
+
+        doc = parse_toml(read_text(args.robot, "robot file"), str(args.robot))
+        friction, topics = path_friction_of(doc, str(args.robot)), topics_of(doc, str(args.robot))
     if args.platform_friction is not None:
         mu, visc, wrap, presliding = _floats(args.platform_friction, 4, "platform-friction")
         m = robot.n_cables
@@ -210,25 +216,22 @@ def _diagnose_run(args: argparse.Namespace) -> int:
             "guide_wrap": np.full(m, wrap),
             "presliding": presliding,
         }
-    elif Path(args.robot).suffix == ".toml" or Path(args.robot).exists():
-        from cablekit._files import parse_toml, read_text
-        from cablekit.cdpr import path_friction_of
-
-        friction = path_friction_of(parse_toml(read_text(args.robot, "robot file"), str(args.robot)))
     winch = _winch_with(args.winch_parameters)
-    if (args.holdout or len(args.run) == 1) and _drives_diagnosis(args, robot, winch, friction):
+    if (args.holdout or len(args.run) == 1) and _drives_diagnosis(args, robot, winch, friction, topics):
         return 0
     if args.holdout:
-        d = diagnose_runs(args.run, args.holdout, robot, winch, platform_side=friction)
+        d = diagnose_runs(args.run, args.holdout, robot, winch, platform_side=friction, topics=topics)
     elif len(args.run) == 1:
-        d = diagnose_file(args.run[0], robot, winch, platform_side=friction)
+        d = diagnose_file(args.run[0], robot, winch, platform_side=friction, topics=topics)
     else:
         raise DataError("several --run files need --holdout runs (one run alone is split in halves)")
     write_run_diagnosis(robot, d, args.run, args.holdout, Path(args.out), args.quiet, plots=not args.no_plots)
     return 0
 
 
-def _drives_diagnosis(args: argparse.Namespace, robot: Robot, winch: Any, friction: Any) -> bool:
+def _drives_diagnosis(
+    args: argparse.Namespace, robot: Robot, winch: Any, friction: Any, topics: Any = None
+) -> bool:
     """With measured poses in every run: the drives as a network through the one engine
     (:mod:`cablekit.cdpr.drives`; ``diagnosis.json`` and ``.html``), a lone run fitted on its
     first half and scored on its second. ``False`` (nothing done) without poses."""
@@ -239,7 +242,7 @@ def _drives_diagnosis(args: argparse.Namespace, robot: Robot, winch: Any, fricti
     from cablekit.cli.diagnose import _run_diagnosis
 
     paths = [*args.run, *(args.holdout or [])]
-    runs = [(Path(p).name, load_cdpr_run(p, robot)) for p in paths]
+    runs = [(Path(p).name, load_cdpr_run(p, robot, topics=topics)) for p in paths]
     if any(r.poses is None for _, r in runs):
         return False
     if not args.holdout:

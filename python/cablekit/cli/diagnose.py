@@ -192,13 +192,15 @@ def _diagnose(args: argparse.Namespace) -> int:
 
     if is_robot_file(model_path):
         from cablekit._files import parse_toml, read_text
-        from cablekit.cdpr import Robot, Winch, path_friction_of
+        from cablekit.cdpr import Robot, Winch, path_friction_of, topics_of
         from cablekit.cdpr.diagnose import diagnose_runs
         from cablekit.cdpr.formats import load_cdpr_run
         from cablekit.cli.cdpr import write_run_diagnosis
 
         robot = Robot.load(model_path)
-        runs = [(p.name, load_cdpr_run(p, robot)) for p in [*fit_paths, *hold_paths]]
+        doc = parse_toml(read_text(model_path, "robot file"), str(model_path))
+        topics = topics_of(doc, str(model_path))
+        runs = [(p.name, load_cdpr_run(p, robot, topics=topics)) for p in [*fit_paths, *hold_paths]]
         if all(r.poses is not None for _, r in runs):
             from cablekit.cdpr.drives import drive_runs
 
@@ -206,7 +208,7 @@ def _diagnose(args: argparse.Namespace) -> int:
                 f"cablekit: {robot.name} is a cable robot: its drives at the measured poses as a cable "
                 "network (seed 003's winch; see docs/cdpr.md)"
             )
-            friction = path_friction_of(parse_toml(read_text(model_path, "robot file"), str(model_path)))
+            friction = path_friction_of(doc, str(model_path))
             spec, loaded = drive_runs(robot, Winch.seed003(), runs, friction)
             return _run_diagnosis(
                 spec, loaded[: len(fit_paths)], loaded[len(fit_paths) :], out, args, str(model_path)
@@ -215,7 +217,7 @@ def _diagnose(args: argparse.Namespace) -> int:
             f"cablekit: {robot.name} is a cable robot without measured poses: the drum-side force check "
             "(seed 003's winch; see docs/cdpr.md)"
         )
-        d = diagnose_runs(fit_paths, hold_paths, robot)
+        d = diagnose_runs(fit_paths, hold_paths, robot, topics=topics)
         fit_names, hold_names = [str(p) for p in fit_paths], [str(p) for p in hold_paths]
         write_run_diagnosis(robot, d, fit_names, hold_names, out, args.quiet, plots=not args.no_html)
         return 0
