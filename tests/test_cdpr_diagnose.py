@@ -176,13 +176,13 @@ def test_any_cell_of_a_cdpr_run_loads_or_raises_data_error(tmp_path_factory, row
 @pytest.mark.timeout(1200)  # (one whole diagnosis of 8 cables: minutes on 2 shared cores)
 def test_cablekit_diagnose_takes_a_robot_file_as_the_model(tmp_path):
     """``cablekit diagnose FIT --holdout HOLD --model robot.toml``: the engine's command takes a
-    cable robot's file, its runs with poses (6 s each, both with a Dahl pulley before cable 6's
+    cable robot's file, its runs with poses (4 s each, both with a Dahl pulley before cable 6's
     load cell) going through the same engine as a network's: the first effect is that pulley's
     friction at cable 6's routing, and the report is the engine's."""
     from cablekit.cli import main
 
     for name, seed in (("fit", 3), ("hold", 4)):
-        _write(tmp_path / f"{name}.csv", twin_run("pulley_friction", 5, seed=seed), rows=6_000)
+        _write(tmp_path / f"{name}.csv", twin_run("pulley_friction", 5, seed=seed), rows=4_000)
     robot = robot_file(tmp_path / "mini.toml")
     out = tmp_path / "out"
     args = [str(tmp_path / "fit.csv"), "--holdout", str(tmp_path / "hold.csv"), "--model", str(robot)]
