@@ -11,9 +11,11 @@ answers is void.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import math
 import statistics
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -131,7 +133,9 @@ def missing_modules(names: tuple[str, ...]) -> list[str]:
     out = []
     for name in names:
         try:
-            importlib.import_module(name)
+            # in a scratch working directory: pyswarms writes report.log where it is imported
+            with tempfile.TemporaryDirectory() as tmp, contextlib.chdir(tmp):
+                importlib.import_module(name)
         except Exception:  # an ImportError, or a package broken in this environment
             out.append(name)
     return out

@@ -21,6 +21,7 @@ pyswarms + torch.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import tempfile
 from pathlib import Path
@@ -201,7 +202,6 @@ def pyswarms_torch(d: dict[str, Any]) -> float:
     """PSO-BPNN as a pyswarms + torch user writes it: ``GlobalBestPSO`` over the flat weights
     (torch fitness), then Adam from the best particle with validation early stopping. Returns the
     test MSE in physical units."""
-    import pyswarms as ps
     import torch
 
     cfg, pso = d["cfg"], d["cfg"].pso
@@ -228,15 +228,20 @@ def pyswarms_torch(d: dict[str, Any]) -> float:
 
     dim = int(cuts[-1])
     np.random.seed(cfg.seed)  # noqa: NPY002 (pyswarms draws from NumPy's global generator)
-    swarm = ps.single.GlobalBestPSO(
-        n_particles=pso.swarm,
-        dimensions=dim,
-        options={"c1": pso.c1, "c2": pso.c2, "w": pso.w},
-        bounds=(-pso.x_max * np.ones(dim), pso.x_max * np.ones(dim)),
-        velocity_clamp=(-pso.v_max, pso.v_max),
-        bh_strategy="nearest",
-    )
-    _, best = swarm.optimize(cost, iters=pso.iterations, verbose=False)
+    # pyswarms' reporter writes `report.log` into the working directory (on import and for each
+    # optimizer): keep it out of the tree
+    with tempfile.TemporaryDirectory() as tmp, contextlib.chdir(tmp):
+        import pyswarms as ps
+
+        swarm = ps.single.GlobalBestPSO(
+            n_particles=pso.swarm,
+            dimensions=dim,
+            options={"c1": pso.c1, "c2": pso.c2, "w": pso.w},
+            bounds=(-pso.x_max * np.ones(dim), pso.x_max * np.ones(dim)),
+            velocity_clamp=(-pso.v_max, pso.v_max),
+            bh_strategy="nearest",
+        )
+        _, best = swarm.optimize(cost, iters=pso.iterations, verbose=False)
     net = torch.nn.Sequential(
         torch.nn.Linear(n_in, n_h), torch.nn.Tanh(), torch.nn.Linear(n_h, n_out)
     ).double()
