@@ -428,3 +428,86 @@ def test_bag_topics_answers_any_table_with_fields_or_a_data_error(table):
         return
     for col, field in out.items():
         assert isinstance(col, str) and parse_field(field)[0].startswith("/")
+
+
+# -- the estimators' inputs (``read_signals``)
+
+
+def test_an_estimator_reads_its_arrays_from_a_bag(tmp_path):
+    """Raven-II's motor angles and torques recorded as JointState (header stamps with a 30 µs
+    jitter): ``read_signals`` gives the arrays on the clock's grid, and the sr-UKF's joint states
+    from them equal those from the arrays themselves."""
+    from cablekit.bags import read_signals
+    from cablekit.estimate import estimate_joint_states
+    from cablekit.twins import raven_joint_state_experiment
+
+    run = raven_joint_state_experiment("A", seconds=1.5, seed=1)
+    rows = 1500
+    q_m, tau_m = run.q_m[:rows], run.tau_m[:rows]
+    n = q_m.shape[1]
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    jitter = np.random.default_rng(0).uniform(-3e-5, 3e-5, rows)
+    t0 = 1_700_000_000_000_000_000
+    with Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        conn = w.add_connection("/motors", "sensor_msgs/msg/JointState", typestore=ts)
+        for k in range(rows):
+            ns = t0 + round((k * run.dt + jitter[k]) * 1e9)
+            msg = T["sensor_msgs/msg/JointState"](
+                header=T["std_msgs/msg/Header"](
+                    stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9), frame_id="m"
+                ),
+                name=[f"m{i}" for i in range(n)],
+                position=q_m[k].copy(),
+                velocity=np.zeros(0),
+                effort=tau_m[k].copy(),
+            )
+            w.write(conn, ns, ts.serialize_cdr(msg, msg.__msgtype__))
+    sig = read_signals(
+        tmp_path / "bag",
+        {
+            "q_m": [f"/motors:position[{i}]" for i in range(n)],
+            "tau_m": [f"/motors:effort[{i}]" for i in range(n)],
+            "shoulder": "/motors:position[0]",
+        },
+    )
+    # (the period is the jittered stamps' fitted clock)
+    assert sig.dt == pytest.approx(run.dt, rel=1e-5)
+    np.testing.assert_array_equal(sig["q_m"], q_m)
+    np.testing.assert_array_equal(sig["tau_m"], tau_m)
+    np.testing.assert_array_equal(sig["shoulder"], q_m[:, 0])
+    assert any("jitter" in n for n in sig.notes), sig.notes
+    est = estimate_joint_states(run.nominal, sig["q_m"], sig["tau_m"], sig.dt, encoder_noise=1e-4)
+    ref = estimate_joint_states(run.nominal, q_m, tau_m, sig.dt, encoder_noise=1e-4)
+    np.testing.assert_array_equal(est.q_l, ref.q_l)
+    assert np.abs(est.q_l - run.q_l_true[:rows]).max() < 0.05 * np.ptp(run.q_l_true[:rows])
+    with pytest.raises(ck.DataError, match="no signal 'x'"):
+        sig["x"]
+    with pytest.raises(ck.DataError, match="name the signals"):
+        read_signals(tmp_path / "bag", {})
+    with pytest.raises(ck.DataError, match="non-empty list"):
+        read_signals(tmp_path / "bag", {"q": []})
+    with pytest.raises(ck.DataError, match=r"no field 'pos'"):
+        read_signals(tmp_path / "bag", {"q": "/motors:pos"})
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    signals=st.one_of(
+        st.dictionaries(
+            st.text(max_size=5),
+            st.one_of(
+                st.text(max_size=10), st.lists(st.text(max_size=10), max_size=3), st.none(), st.integers()
+            ),
+            max_size=3,
+        ),
+        st.none(),
+        st.integers(),
+    )
+)
+def test_read_signals_answers_any_mapping_with_a_typed_error(tmp_path_factory, signals):
+    from cablekit.bags import read_signals
+
+    folder = tmp_path_factory.mktemp("nobag")
+    with pytest.raises(ck.CablekitError):
+        read_signals(folder, signals)

@@ -8,6 +8,9 @@ have a ``header`` (``std_msgs/Header``), the recorder's receive times otherwise 
 which); the topic with the most messages is the base, every other field is interpolated linearly
 onto it, and the table is cut to the span every topic covers. The run loader then treats it as
 it treats a CSV file (:func:`cablekit.diagnose.data.from_arrays`: jitter, gaps, duplicates).
+:func:`read_signals` gives the estimators' arrays (``(T,)`` or ``(T, k)`` on that uniform time
+base) by name, e.g. a transmission's motor angles and torques for
+:func:`cablekit.estimate.estimate_joint_states`.
 
 Types come from the bag (MCAP and SQLite3 version 9 store each type's definition) or from ROS 2
 Humble's standard set. Needs the ``ros`` extra (``pip install 'cablekit[ros]'``: ``rosbags``, which
@@ -20,6 +23,8 @@ backwards, a type whose definition the bag does not carry.
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +34,7 @@ from numpy.typing import NDArray
 from cablekit._args import checked, instance
 from cablekit.errors import DataError
 
-__all__ = ["is_bag", "parse_field", "read_bag"]
+__all__ = ["BagSignals", "is_bag", "parse_field", "read_bag", "read_signals"]
 
 _FIELD = re.compile(r"^(/[^:\s]*):([A-Za-z_]\w*(?:\[\d+\])*(?:\.[A-Za-z_]\w*(?:\[\d+\])*)*)$")
 _PART = re.compile(r"([A-Za-z_]\w*)((?:\[\d+\])*)")
@@ -197,3 +202,61 @@ def read_bag(path: str | Path, fields: list[str]) -> tuple[list[str], NDArray[np
     if len(topics) > 1:
         notes.append(f"fields of other topics interpolated onto {base}'s times")
     return ["t", *fields], np.column_stack(cols), notes
+
+
+@dataclass(frozen=True)
+class BagSignals:
+    """Named signals of a bag on one uniform time base: ``t`` ``(T,)`` s from the first common
+    sample, its period ``dt``, each signal ``(T,)`` (one field) or ``(T, k)`` (a list of ``k``
+    fields), and what the loader did (``notes``: header stamps or receive times per topic, an
+    interpolation, a resampling). ``signals["q_m"]`` is a signal."""
+
+    t: NDArray[np.float64]
+    dt: float
+    arrays: dict[str, NDArray[np.float64]] = field(repr=False)
+    notes: tuple[str, ...] = ()
+
+    def __getitem__(self, name: str) -> NDArray[np.float64]:
+        try:
+            return self.arrays[name]
+        except KeyError:
+            raise DataError(f"no signal {name!r}; the bag was read for {sorted(self.arrays)}") from None
+
+
+@checked
+def read_signals(path: str | Path, signals: Mapping[str, str | list[str]]) -> BagSignals:
+    """The ``signals`` of the bag at ``path`` — each name a field ``"/topic:field"`` or a list of
+    fields (its columns) — on one uniform time base: :func:`read_bag`, then the run loader's
+    handling of a table (:func:`cablekit.diagnose.data.load_run`: jittered stamps put on a
+    uniform grid, gaps refused), so that the arrays go straight into an estimator::
+
+        s = read_signals("run_bag", {"q_m": [f"/motors:position[{i}]" for i in range(3)],
+                                     "tau_m": [f"/motors:effort[{i}]" for i in range(3)]})
+        estimate_joint_states(model, s["q_m"], s["tau_m"], s.dt)
+
+    An empty mapping or list, a value that is not a field, and every defect :func:`read_bag`
+    names are :class:`~cablekit.errors.DataError` errors."""
+    from cablekit.diagnose.data import load_run
+
+    if not signals:
+        raise DataError(f"{path}: name the signals to read (name = field or list of fields)")
+    fields: dict[str, list[str]] = {}
+    for name, v in signals.items():
+        group = [v] if isinstance(v, str) else v
+        if not isinstance(group, list) or not group or not all(isinstance(f, str) for f in group):
+            raise DataError(
+                f'signal {name!r}: a bag field "/topic:field" or a non-empty list of them, got {v!r}'
+            )
+        for f in group:
+            parse_field(f)
+        fields[name] = group
+    unique = list(dict.fromkeys(f for group in fields.values() for f in group))
+    run = load_run(path, columns=unique)
+    arrays = {}
+    for name, group in fields.items():
+        cols = [run.column(f) for f in group]
+        arrays[name] = np.ascontiguousarray(
+            cols[0] if isinstance(signals[name], str) else np.column_stack(cols)
+        )
+    t = np.ascontiguousarray(run.t)
+    return BagSignals(t, float(t[1] - t[0]), arrays, tuple(run.notes))
