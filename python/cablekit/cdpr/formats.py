@@ -168,11 +168,10 @@ def load_cdpr_run(path: str | Path, robot: Robot, *, topics: Mapping[str, Any] |
             raise DataError(f"{p}: the [topics] table names no column")
         names = list(fields)
         unique = list(dict.fromkeys(fields.values()))
-        bag_header, bag_data, bag_notes = read_bag(p, unique)
+        _, bag_data, bag_notes = read_bag(p, unique)
         at = {f: i + 1 for i, f in enumerate(unique)}
         header = ["t", *names]
         data = np.column_stack([bag_data[:, 0], *(bag_data[:, at[fields[c]]] for c in names)])
-        del bag_header
     else:
         header, data = read_table(p)
     m = robot.n_cables
