@@ -489,6 +489,9 @@ def test_an_estimator_reads_its_arrays_from_a_bag(tmp_path):
         read_signals(tmp_path / "bag", {"q": []})
     with pytest.raises(ck.DataError, match=r"no field 'pos'"):
         read_signals(tmp_path / "bag", {"q": "/motors:pos"})
+    (tmp_path / "run.csv").write_text("t,q\n0,1\n0.001,2\n", encoding="utf-8")
+    with pytest.raises(ck.DataError, match="not a rosbag2 recording"):
+        read_signals(tmp_path / "run.csv", {"q": "/motors:position[0]"})
 
 
 @settings(max_examples=100, deadline=None)

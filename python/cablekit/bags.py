@@ -250,6 +250,10 @@ def read_signals(path: str | Path, signals: Mapping[str, str | list[str]]) -> Ba
         for f in group:
             parse_field(f)
         fields[name] = group
+    if not is_bag(path):
+        raise DataError(
+            f"{path}: not a rosbag2 recording (a folder with metadata.yaml and its .mcap or .db3)"
+        )
     unique = list(dict.fromkeys(f for group in fields.values() for f in group))
     run = load_run(path, columns=unique)
     arrays = {}
