@@ -160,24 +160,7 @@ impl Model {
         out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         if let Some(obj) = out.filter(|o| !o.is_none()) {
-            let mut work = self.work();
-            let w = &mut *work;
-            vector_into(x, "x", &mut w.x)?;
-            vector_into(u, "u", &mut w.u)?;
-            match u_next.filter(|o| !o.is_none()) {
-                Some(v) => vector_into(v, "u_next", &mut w.u_next)?,
-                None => w.u_next.copy_from_slice(&w.u),
-            }
-            let mut rw = out_vector(obj, "out", self.n_states())?;
-            let dst = rw.as_slice_mut()?;
-            py.detach(|| {
-                guarded(|| {
-                    cable_core::with_model!(&self.inner, m => cable_core::integrate::rk4_interval_into(
-                        m, &w.x, &w.u, &w.u_next, dt, substeps, dst, &mut w.rk4,
-                    ))
-                })
-            })?;
-            return Ok(obj.clone().cast_into::<PyArray1<f64>>()?);
+            return self.rk4_step_into(py, (x, u, u_next), dt, substeps, obj);
         }
         let (x, u) = self.point(x, u)?;
         let u_b = match u_next {
@@ -231,6 +214,40 @@ impl Model {
 }
 
 impl Model {
+    /// `rk4_step`'s form with `out`: `(x, u, u_next)` read into the model's buffers, the step
+    /// integrated in its workspace and written into `obj`.
+    fn rk4_step_into<'py>(
+        &self,
+        py: Python<'py>,
+        (x, u, u_next): (
+            &Bound<'py, PyAny>,
+            &Bound<'py, PyAny>,
+            Option<&Bound<'py, PyAny>>,
+        ),
+        dt: f64,
+        substeps: usize,
+        obj: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let mut work = self.work();
+        let w = &mut *work;
+        vector_into(x, "x", &mut w.x)?;
+        vector_into(u, "u", &mut w.u)?;
+        match u_next.filter(|o| !o.is_none()) {
+            Some(v) => vector_into(v, "u_next", &mut w.u_next)?,
+            None => w.u_next.copy_from_slice(&w.u),
+        }
+        let mut rw = out_vector(obj, "out", self.n_states())?;
+        let dst = rw.as_slice_mut()?;
+        py.detach(|| {
+            guarded(|| {
+                cable_core::with_model!(&self.inner, m => cable_core::integrate::rk4_interval_into(
+                    m, &w.x, &w.u, &w.u_next, dt, substeps, dst, &mut w.rk4,
+                ))
+            })
+        })?;
+        Ok(obj.clone().cast_into::<PyArray1<f64>>()?)
+    }
+
     /// The buffers of the `out=` calls, or fresh ones while another thread's call holds them.
     fn work(&self) -> WorkGuard<'_> {
         match self.work.try_lock() {
