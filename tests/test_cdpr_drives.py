@@ -185,3 +185,48 @@ def test_drive_columns_never_returns_non_finite_numbers_from_any_input(rows, col
         return
     assert all(np.isfinite(c).all() for c in out.columns.values())
     assert all(np.isfinite(v[0]) for v in out.input_noise.values())
+
+
+def test_a_wound_cables_creep_of_its_stretch_is_the_twins_creep():
+    """The Mini CDPR twin's creeping cable (a Kelvin–Voigt element in series with a crept length
+    ``c`` in metres, ratio ``ρ``, time constant ``τ``), replayed through its drive network: the
+    network's creep of the stretch (``creep@cable.c5/stretch``) at the twin's values
+    (``κ = ρ/(1+ρ)``, ``τ/(1+ρ)``) gives the twin's tensions as closely as the nominal gives a
+    twin without creep; the creep of the tension at the same values does not (the cable's free
+    length changes by ±12 % along the path, and the crept length stays in the free span)."""
+    from cablekit.cdpr.diagnose import Lengths
+    from cablekit.cdpr.selftest import TWIN_CABLE_DAMPING
+    from cablekit.diagnose.data import Run, common_interval
+    from cablekit.diagnose.prepare import prepare
+
+    cable, rho, tau = 4, 0.5, 5.0
+    poses = second_test_trajectory(dt=1e-3).poses[:12_000]
+    nominal = mini_plant(home=poses[0])
+    ratio = np.zeros(8)
+    ratio[cable] = rho
+    plant = mini_plant(plant_robot(), home=poses[0], creep=(ratio, np.full(8, tau)))
+    offset = excitation(plant_robot(), poses, np.random.default_rng(17))
+    run = plant.closed_loop(poses, 1e-3, tension_offset=offset)
+    t = np.arange(poses.shape[0]) * 1e-3
+    lg = Lengths(plant_robot(), nominal.rest_length, run.pose, TWIN_FRICTION)
+    sensor = run.sensor + np.random.default_rng(1).normal(0.0, 1e-3, run.sensor.shape)
+    rest = lg.rest_length
+    cols = drives.drive_columns(lg.robot, plant.winch, rest, t, run.alpha, run.current, sensor, lg.poses)
+    spec = drives.drive_spec(
+        lg.robot, plant.winch, rest, cols.input_noise, TWIN_FRICTION, cable_damping=TWIN_CABLE_DAMPING
+    )
+    runs = common_interval([spec.in_si(Run("run", cols.t, cols.columns))])
+    prep = prepare(spec, runs, runs)
+    channel = prep.channel_names.index(f"tension{cable + 1}")
+    truth = np.array([rho / (1 + rho), tau / (1 + rho)])
+
+    def rms(effect: str, theta: np.ndarray) -> float:
+        r = prep.fit0.with_effects([effect], prep.substeps).residuals(theta).reshape(-1, prep.q)
+        return float(np.sqrt(np.mean((r[:, channel] * prep.sigma[channel]) ** 2)))
+
+    nominal_rms = rms(f"creep@cable.c{cable + 1}", np.array([0.0, 1.0]))
+    stretch = rms(f"creep@cable.c{cable + 1}/stretch", truth)
+    tension = rms(f"creep@cable.c{cable + 1}", truth)
+    assert stretch < 0.08, stretch  # N: the nominal's own match of a twin without creep is 0.04 N
+    assert nominal_rms > 5 * stretch and tension > 5 * stretch, (nominal_rms, tension, stretch)
+    assert "creep@cable.c5/stretch" in prep.candidates

@@ -369,6 +369,7 @@ pub fn augment_network(nom: &Network, effects: &[(Candidate, &[f64])]) -> Networ
                     fraction: p[0].clamp(0.0, 0.99),
                     time_constant: p[1].max(f64::MIN_POSITIVE),
                     whole: c.form == Form::Whole,
+                    stretch: c.form == Form::Stretch,
                 },
             ),
             // about the cable's reference stretch (its tension where it was held stays)

@@ -658,6 +658,7 @@ fn site_context(nominal: &Plant, channels: &[Channel], coupled: bool) -> SiteCon
                 routing_in_dynamics: (0..n.n_cables())
                     .map(|c| n.routing_driver(c).is_some())
                     .collect(),
+                wound: (0..n.n_cables()).map(|c| n.is_wound(c)).collect(),
             }),
             _ => None,
         },

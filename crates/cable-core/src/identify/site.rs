@@ -304,11 +304,17 @@ pub enum Form {
     Lugre,
     /// Viscous drag as a power of speed, `b·|θ̇|ⁿ·sgn(θ̇)` (standard: linear in speed).
     PowerLaw,
+    /// Creep of a wound cable's stretch: a Kelvin–Voigt element in series with the elastic one,
+    /// its crept length kept while a winch changes the free length (standard: creep of the
+    /// tension, the crept strain carried with the cable). The two agree on a cable of fixed
+    /// length; only a cable a motor winds has this form.
+    Stretch,
 }
 
 impl Form {
     /// `"standard"`, `"load_dependent"`, `"generalised"`, `"whole"`, `"cubic"`, `"second_order"`,
-    /// `"scale"`, `"resonant"`, `"averaging"`, `"sticking"`, `"lugre"`, `"power_law"`.
+    /// `"scale"`, `"resonant"`, `"averaging"`, `"sticking"`, `"lugre"`, `"power_law"`,
+    /// `"stretch"`.
     pub fn name(self) -> &'static str {
         match self {
             Form::Standard => "standard",
@@ -323,6 +329,7 @@ impl Form {
             Form::Sticking => "sticking",
             Form::Lugre => "lugre",
             Form::PowerLaw => "power_law",
+            Form::Stretch => "stretch",
         }
     }
 
@@ -341,6 +348,7 @@ impl Form {
             Form::Sticking,
             Form::Lugre,
             Form::PowerLaw,
+            Form::Stretch,
         ]
         .into_iter()
         .find(|f| f.name() == name)
@@ -348,7 +356,7 @@ impl Form {
             name: "form".into(),
             value: name.into(),
             allowed: "standard, load_dependent, generalised, whole, cubic, second_order, scale, \
-                      resonant, averaging, sticking, lugre, power_law"
+                      resonant, averaging, sticking, lugre, power_law, stretch"
                 .into(),
         })
     }
@@ -398,6 +406,8 @@ pub struct NetworkSites {
     /// Per cable: whether friction on its routing acts in the dynamics (it has a driver with
     /// inertia: a torque-driven motor or a driven stage).
     pub routing_in_dynamics: Vec<bool>,
+    /// Per cable: whether its motor winds it (its free length changes with the motor's angle).
+    pub wound: Vec<bool>,
 }
 
 impl NetworkSites {
@@ -639,8 +649,15 @@ impl Candidate {
             CableDamping | Slack => cables().collect(),
             // pre-sliding of a joint's dry friction, or of a routing's (a pulley's bristles)
             DahlHysteresis => joints().chain(routings()).collect(),
+            // a wound cable's creep also in its stretch (the forms differ where the free length
+            // changes)
             Creep => cables()
                 .chain(cables().map(|x| x.with_form(Form::Whole)))
+                .chain(
+                    (0..net.cables.len())
+                        .filter(|&k| net.wound[k])
+                        .map(|k| c(Site::NetCable(idx(k))).with_form(Form::Stretch)),
+                )
                 .collect(),
             // play between a position-driven motor and its capstan (a torque-driven motor's
             // play and a joint hub's clearance are not modelled on networks); not at a motor
@@ -723,6 +740,10 @@ impl Candidate {
             }
             (Effect::DahlHysteresis, _) => "hysteresis (Dahl)",
             (Effect::Creep, Form::Whole) => "creep relaxing the whole tension, pretension included",
+            (Effect::Creep, Form::Stretch) => {
+                "creep of the cable's stretch (a Kelvin–Voigt element in series, its crept length \
+                 kept as the winch changes the free length)"
+            }
             (Effect::NonlinearStiffness, Form::Cubic) => "cubic hardening of the cable law",
             (Effect::NonlinearStiffness, Form::Scale) => {
                 "a stiffness other than the nominal (a compliant stage in series)"

@@ -313,6 +313,14 @@ impl Presliding {
 /// settled there) and the nominal's lengths were calibrated — a run that stays there keeps its
 /// tension. The whole form's reference is 0 (the pretension freshly applied). `F_r` is a state of
 /// zero rate after `w`'s, set by [`Network::rest_at`]. Inserted by the diagnosis.
+///
+/// The `stretch` form is the same solid written in the cable's stretch: a Kelvin–Voigt element
+/// in series with the elastic one, its crept length `δ` (m) beyond the settled one,
+/// `T = T₀ + F(e − δ) + b·ė`, `δ̇ = (κ·(e − e_r) − δ)/τ`, `e_r` the elongation at the first input.
+/// On a cable of fixed length with a linear law the two are one model (`w = k·δ`); on a cable a
+/// motor winds they differ: the tension form carries the crept strain with the cable (the loss
+/// scales with `E·A/L` as the free length `L` changes), the stretch form keeps the crept length
+/// in the free span (a lumped element, as a winch's cable model with one creep state has it).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TensionCreep {
     /// Relaxed fraction `κ` in `[0, 1)`.
@@ -321,6 +329,8 @@ pub struct TensionCreep {
     pub time_constant: f64,
     /// Relax the pretension too.
     pub whole: bool,
+    /// Creep of the stretch (a length `δ`), not of the tension.
+    pub stretch: bool,
 }
 
 /// One joint of a built network.
@@ -1120,7 +1130,7 @@ impl Network {
                     - self.creep_of(c, x);
                 if t > 0.0 {
                     g += s * t;
-                    dg += rho * self.slope_of(c, e);
+                    dg += rho * self.slope_of(c, e, x);
                 }
             }
             (g, dg)
@@ -1160,7 +1170,7 @@ impl Network {
                 - self.creep_of(c, x)
                 > 0.0
             {
-                let kc = self.slope_of(c, e);
+                let kc = self.slope_of(c, e, x);
                 let row = &self.arms[c * n..(c + 1) * n];
                 let dp: f64 = row.iter().enumerate().map(|(j, a)| a * x[2 * j + 1]).sum();
                 num += s * kc * dp;
@@ -1170,17 +1180,37 @@ impl Network {
         (q, if den > 0.0 { num / den } else { wm })
     }
 
-    /// Creep relaxation `w` of cable `c` at state `x` (0 without creep).
+    /// Creep relaxation `w` of cable `c`'s tension at state `x` (0 without creep, or with its
+    /// stretch form).
     #[inline]
     fn creep_of(&self, c: usize, x: &[f64]) -> f64 {
-        self.cables[c].creep.map_or(0.0, |(_, k)| x[k])
+        match self.cables[c].creep {
+            Some((cr, k)) if !cr.stretch => x[k],
+            _ => 0.0,
+        }
+    }
+
+    /// Crept length `δ` of cable `c` at state `x` (its creep's stretch form; 0 otherwise): the
+    /// law acts on `e − δ`.
+    #[inline]
+    fn crept_of(&self, c: usize, x: &[f64]) -> f64 {
+        match self.cables[c].creep {
+            Some((cr, k)) if cr.stretch => x[k],
+            _ => 0.0,
+        }
+    }
+
+    /// Whether cable `c`'s motor winds it (its free length changes with the motor's angle).
+    pub fn is_wound(&self, c: usize) -> bool {
+        self.cables[c].free_length.is_some() && self.cables[c].motor.is_some()
     }
 
     /// The elastic part of cable `c`'s law at elongation `e`, state `x`: `F(e)`, or
-    /// `F_r + s·(F(e) − F_r)` with a stiffness scaled about its reference.
+    /// `F_r + s·(F(e) − F_r)` with a stiffness scaled about its reference; of `e − δ` with a
+    /// creep of the stretch.
     #[inline]
     fn elastic_of(&self, c: usize, e: f64, x: &[f64]) -> f64 {
-        let f = self.cables[c].run.law.elastic(e);
+        let f = self.cables[c].run.law.elastic(e - self.crept_of(c, x));
         match self.cables[c].stiffness {
             None => f,
             Some((s, k)) => x[k] + s * (f - x[k]),
@@ -1189,8 +1219,8 @@ impl Network {
 
     /// The slope of [`Self::elastic_of`] in `e`.
     #[inline]
-    fn slope_of(&self, c: usize, e: f64) -> f64 {
-        let k = self.cables[c].run.law.slope(e);
+    fn slope_of(&self, c: usize, e: f64, x: &[f64]) -> f64 {
+        let k = self.cables[c].run.law.slope(e - self.crept_of(c, x));
         self.cables[c].stiffness.map_or(k, |(s, _)| s * k)
     }
 
@@ -1623,7 +1653,12 @@ impl Network {
                 if let Some((cr, k)) = cable.creep {
                     if !cr.whole {
                         let (e, _) = self.elongation(c, &x, u0);
-                        let r = self.elastic_of(c, e, &x) * self.length_scale_at(c, &x, u0);
+                        // the stretch form's reference is the elongation, the tension's its law
+                        let r = if cr.stretch {
+                            e
+                        } else {
+                            self.elastic_of(c, e, &x) * self.length_scale_at(c, &x, u0)
+                        };
                         x[k + 1] = if r.is_finite() { r } else { 0.0 };
                     }
                 }
@@ -1869,11 +1904,15 @@ impl Model for Network {
         for (c, cable) in self.cables.iter().enumerate() {
             if let Some((cr, k)) = cable.creep {
                 let (e, _) = self.elongation(c, x, u);
-                let mut target = self.elastic_of(c, e, x);
-                if cr.whole {
-                    target += cable.run.pretension;
-                }
-                target *= self.length_scale_at(c, x, u);
+                let target = if cr.stretch {
+                    e
+                } else {
+                    let mut t = self.elastic_of(c, e, x);
+                    if cr.whole {
+                        t += cable.run.pretension;
+                    }
+                    t * self.length_scale_at(c, x, u)
+                };
                 dx[k] = (cr.fraction * (target - x[k + 1]) - x[k]) / cr.time_constant;
                 dx[k + 1] = 0.0;
             }
@@ -2001,9 +2040,14 @@ impl Model for Network {
             }
         }
         for (c, name) in self.cables.iter().zip(&self.cable_names) {
-            if let Some((_, k)) = c.creep {
-                out[k] = format!("creep:{name}");
-                out[k + 1] = format!("creep_ref:{name}");
+            if let Some((cr, k)) = c.creep {
+                let (w, r) = if cr.stretch {
+                    ("crept", "crept_ref")
+                } else {
+                    ("creep", "creep_ref")
+                };
+                out[k] = format!("{w}:{name}");
+                out[k + 1] = format!("{r}:{name}");
             }
             if let Some((_, k)) = c.stiffness {
                 out[k] = format!("stiffness_ref:{name}");

@@ -414,6 +414,7 @@ fn creep_relaxes_the_tension_at_constant_stretch() {
                 fraction: kappa,
                 time_constant: tau,
                 whole,
+                stretch: false,
             },
         );
         assert_eq!(net.state_names()[2], "creep:drive");
@@ -619,6 +620,7 @@ fn creep_relaxes_from_the_first_stretch() {
                 fraction: kappa,
                 time_constant: 0.1,
                 whole,
+                stretch: false,
             },
         );
         assert_eq!(net.n_states(), base.n_states() + 2);
@@ -645,6 +647,64 @@ fn creep_relaxes_from_the_first_stretch() {
             "{whole}: {t_end} vs {expect}"
         );
     }
+}
+
+/// The stretch form relaxes as the tension form does while the free length stays (a linear law:
+/// `w = k·f·δ`), and keeps its crept length when the drum winds: right after a wind at the same
+/// elongation its loss has scaled with the free length's factor `f`, the tension form's has not.
+#[test]
+fn creep_of_the_stretch_keeps_its_length_as_the_drum_winds() {
+    let base =
+        Network::new(&NetworkSpec::from_json(&winch("position").to_string()).unwrap()).unwrap();
+    let tension = |net: &Network, x: &[f64], u: &[f64]| {
+        let mut y = vec![0.0; net.n_outputs()];
+        net.output(x, u, &mut y);
+        y[2]
+    };
+    let (alpha, end, kappa, de) = (2.0, 1e-3, 0.3, 2e-4);
+    let u0 = [alpha, 0.0, end, 0.0];
+    let held = [alpha, 0.0, end + de, 0.0];
+    let len = 1000;
+    let u: Vec<f64> = u0.into_iter().chain((1..len).flat_map(|_| held)).collect();
+    let scale = |a: f64| 0.8 / (0.8 - 0.02 * a);
+    // wound 10 cm further in at the same elongation (the end moves with it)
+    let alpha2 = alpha + 5.0;
+    let wound = [alpha2, 0.0, end + de - 0.02 * (alpha2 - alpha), 0.0];
+    let mut loss = Vec::new();
+    for stretch in [false, true] {
+        let mut net = base.clone();
+        net.set_creep(
+            0,
+            TensionCreep {
+                fraction: kappa,
+                time_constant: 0.1,
+                whole: false,
+                stretch,
+            },
+        );
+        let names = net.state_names();
+        let want = if stretch { "crept:c" } else { "creep:c" };
+        assert_eq!(names[names.len() - 2], want);
+        let x0 = net.rest_at(&u0);
+        assert!((tension(&net, &x0, &u0) - tension(&base, &base.rest_at(&u0), &u0)).abs() < 1e-9);
+        let out = simulate(
+            &net,
+            &u,
+            &x0,
+            &SimOptions::new(1e-3, 4, InputHold::Zoh).unwrap(),
+        )
+        .unwrap();
+        let x_end = &out.states[(len - 1) * net.n_states()..len * net.n_states()];
+        let relaxed = tension(&base, &base.rest_at(&u0), &held) - tension(&net, x_end, &held);
+        assert!(
+            (relaxed - kappa * 2.5e4 * de * scale(alpha)).abs() < 1e-3 * relaxed,
+            "{stretch}: relaxed {relaxed}"
+        );
+        loss.push(tension(&base, &base.rest_at(&u0), &wound) - tension(&net, x_end, &wound));
+    }
+    let ratio = loss[1] / loss[0];
+    let want = scale(alpha2) / scale(alpha);
+    assert!((ratio - want).abs() < 1e-6, "{ratio} vs {want}");
 }
 
 /// A stiffness scaled about the reference keeps the tension at the run's first input and scales
