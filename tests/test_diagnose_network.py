@@ -215,7 +215,11 @@ def test_diagnosis_names_an_effect_at_its_element():
     top = res.effects[0]
     assert (top.name, top.site) == ("coulomb_friction", "joint.jaw"), [e.id for e in res.effects[:3]]
     assert res.selected.held_out.closed_fraction > 0.8
-    # the nominal file itself: nothing to explain
+
+
+def test_the_nominal_network_file_has_nothing_to_explain():
+    """The two-stage instrument's own file, simulated and diagnosed: no significant gap (the
+    control of the test above, apart so that the two run side by side)."""
     fit0, hold0 = _runs(nw.shipped_document("two_stage_forceps"), 2)
     res0 = diagnose(model_spec_from_dict(_doc()), fit0, hold0, Options(progress=False))
     assert res0.verdict == "no_significant_gap", [e.id for e in res0.effects[:3]]
@@ -364,23 +368,27 @@ def test_the_simulators_nominal_file_as_cablekit_reads_it(smoothing, senses):
         assert doc["capstan_smoothing"] == smoothing
 
 
-def test_independent_simulators_play_and_presliding_are_named_at_their_elements():
+@pytest.mark.parametrize(
+    ("name", "want"),
+    [
+        ("two_stage_backlash_motor.drive", "backlash@motor.drive"),
+        ("two_stage_dahl_hysteresis_joint.spindle", "dahl_hysteresis@joint.spindle"),
+    ],
+)
+def test_independent_simulators_play_and_presliding_are_named_at_their_elements(name, want):
     """Two cases of the independent simulator's two-stage instrument (issue #39 §2; its capstans
     stick exactly, its Dahl element replaces the spindle's Coulomb friction, its play is a dead band
     between motor and capstan): each effect is named first at its element. Without the network's
     pre-sliding and play states both were named Stribeck friction at the spindle. (The plant's
-    controls: the nominal file's in :func:`test_diagnosis_names_an_effect_at_its_element`, the
-    independent simulator's in docs/diagnosis.md's full table; .ci/run's network subset has the
-    finger's.)"""
+    controls: the nominal file's in :func:`test_the_nominal_network_file_has_nothing_to_explain`,
+    the independent simulator's in docs/diagnosis.md's full table; .ci/run's network subset has
+    the transmission's.)"""
     from cablekit.diagnose.selftest_network import run_network_self_test
 
-    names = ["two_stage_backlash_motor.drive", "two_stage_dahl_hysteresis_joint.spindle"]
-    rows = {r["label"]: r for r in run_network_self_test(progress=False, only=names)["cases"]}
-    assert rows[names[0]]["top1_id"] == "backlash@motor.drive", rows[names[0]]
-    assert rows[names[1]]["top1_id"] == "dahl_hysteresis@joint.spindle", rows[names[1]]
-    for name in names:
-        assert rows[name]["held_out_closed"] > 0.9
-        assert rows[name]["verdict"] in ("explained", "ambiguous"), rows[name]
+    (row,) = run_network_self_test(progress=False, only=[name])["cases"]
+    assert row["top1_id"] == want, row
+    assert row["held_out_closed"] > 0.9
+    assert row["verdict"] in ("explained", "ambiguous"), row
 
 
 _ANY = st.one_of(
