@@ -674,6 +674,21 @@ def test_contact_is_a_localisation_condition(control_result):
     assert 0.05 < rows["in contact"].time_share < 0.95
 
 
+def test_a_gap_in_the_fit_runs_alone_is_flagged_not_named():
+    """A sensor lag in the fit run and none in the held-out one (the same nominal; seed 5 draws the
+    same model for both): the held-out runs decide the verdict (``no_significant_gap``), and a flag
+    says that the fit runs have a significant gap the held-out runs do not, with the candidate that
+    closes most of it there (the lag). A control gets no such flag."""
+    lag, control = make_case(("sensor_lag",), seed=5, duration=5.0), make_case((), seed=5, duration=5.0)
+    res = diagnose(lag.spec, lag.fit, control.hold, Options(progress=False, bootstrap=400))
+    assert res.verdict == "no_significant_gap" and res.selected.effects == []
+    (flag,) = [f for f in res.flags if "fit runs show a significant gap" in f]
+    assert "sensor_lag@" in flag, flag
+    both = diagnose(control.spec, control.fit, control.hold, Options(progress=False, bootstrap=400))
+    assert both.verdict == "no_significant_gap"
+    assert not any("fit runs show" in f for f in both.flags), both.flags
+
+
 def test_control_run_has_no_significant_gap(control_result):
     assert control_result.verdict == "no_significant_gap"
     assert control_result.selected.effects == []
