@@ -594,6 +594,13 @@ fn a_winch_without_joints_stretches_its_free_length_and_taps_between_contacts() 
     assert!((y[names.len() - 2 - 1] - 0.02 * y[3]).abs() < 1e-12 * t);
 }
 
+/// The winch's cable tension (output 2) of `net` at state `x`, input `u`.
+fn tension(net: &Network, x: &[f64], u: &[f64]) -> f64 {
+    let mut y = vec![0.0; net.n_outputs()];
+    net.output(x, u, &mut y);
+    y[2]
+}
+
 /// A creeping cable's reference is its law at the run's first input: held there, the tension
 /// stays; stretched further by `Δe` it relaxes by `κ·ΔF`; the whole form relaxes from the start.
 #[test]
@@ -603,11 +610,6 @@ fn creep_relaxes_from_the_first_stretch() {
     let (alpha, end) = (2.0, 1e-3);
     // inputs: the drum's [q, q̇], the end's [q, q̇] (no joint loads)
     let u0 = [alpha, 0.0, end, 0.0];
-    let tension = |net: &Network, x: &[f64], u: &[f64]| {
-        let mut y = vec![0.0; net.n_outputs()];
-        net.output(x, u, &mut y);
-        y[2]
-    };
     let plain = tension(&base, &base.rest_at(&u0), &u0);
     let (kappa, scale) = (0.3, 0.8 / (0.8 - 0.02 * alpha));
     let (len, de) = (1000, 2e-4);
@@ -656,11 +658,6 @@ fn creep_relaxes_from_the_first_stretch() {
 fn creep_of_the_stretch_keeps_its_length_as_the_drum_winds() {
     let base =
         Network::new(&NetworkSpec::from_json(&winch("position").to_string()).unwrap()).unwrap();
-    let tension = |net: &Network, x: &[f64], u: &[f64]| {
-        let mut y = vec![0.0; net.n_outputs()];
-        net.output(x, u, &mut y);
-        y[2]
-    };
     let (alpha, end, kappa, de) = (2.0, 1e-3, 0.3, 2e-4);
     let u0 = [alpha, 0.0, end, 0.0];
     let held = [alpha, 0.0, end + de, 0.0];
@@ -714,11 +711,6 @@ fn creep_of_the_stretch_keeps_its_length_as_the_drum_winds() {
 fn a_stiffness_scale_pivots_about_the_first_stretch() {
     let base =
         Network::new(&NetworkSpec::from_json(&winch("position").to_string()).unwrap()).unwrap();
-    let tension = |net: &Network, x: &[f64], u: &[f64]| {
-        let mut y = vec![0.0; net.n_outputs()];
-        net.output(x, u, &mut y);
-        y[2]
-    };
     let s = 0.4;
     let mut net = base.clone();
     net.set_stiffness_scale(0, s);
