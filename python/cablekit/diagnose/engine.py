@@ -89,9 +89,7 @@ def diagnose(
     where = localise_all(prep, base)
     g_hold = gap(base.hold_resid)
     g_fit = gap(base.fit_resid)
-    sb, cnt = segments(base.hold_resid, dt, opts.segment_s)
-    idx = rng.integers(0, len(sb), size=(opts.bootstrap, len(sb)))
-    g_lo = float(np.quantile(sb[idx].sum(axis=1) / cnt[idx].sum(axis=1), 0.025))
+    g_lo = _gap_lower(base.hold_resid, dt, opts, rng)
     gap_significant = g_hold > NOISE_LEVEL and g_lo > 1.0
     # which kinds of term the gap follows, before any candidate is named
     nominal_terms = discover(prep, base.fit_resid, base.hold_resid) if gap_significant else []
@@ -389,6 +387,13 @@ def _ambiguity(
     return None
 
 
+def _gap_lower(resid: list[_F], dt: float, opts: Options, rng: np.random.Generator) -> float:
+    """The 2.5 % bound of a gap by a bootstrap over ~``opts.segment_s`` segments of ``resid``."""
+    sb, cnt = segments(resid, dt, opts.segment_s)
+    idx = rng.integers(0, len(sb), size=(opts.bootstrap, len(sb)))
+    return float(np.quantile(sb[idx].sum(axis=1) / cnt[idx].sum(axis=1), 0.025))
+
+
 def _fit_only_gap(
     base: CandidateFit,
     fits: dict[str, CandidateFit],
@@ -404,9 +409,7 @@ def _fit_only_gap(
     from the fit runs alone; the flag says which candidate closes most of the fit runs' gap."""
     if not g_fit > NOISE_LEVEL:
         return []
-    sb, cnt = segments(base.fit_resid, dt, opts.segment_s)
-    idx = rng.integers(0, len(sb), size=(opts.bootstrap, len(sb)))
-    if not float(np.quantile(sb[idx].sum(axis=1) / cnt[idx].sum(axis=1), 0.025)) > 1.0:
+    if not _gap_lower(base.fit_resid, dt, opts, rng) > 1.0:
         return []
     closed = {k: closed_fraction(g_fit, gap(c.fit_resid)) for k, c in fits.items() if not c.error}
     best = max(closed, key=lambda k: closed[k], default=None)
