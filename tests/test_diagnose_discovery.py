@@ -492,6 +492,57 @@ def test_a_revisited_law_starts_from_the_parameters_it_shares_with_the_one_it_re
     assert _carry_over(prep, cur, strib, coul, [lag, coul], None) is None
 
 
+def test_a_revisited_law_is_refined_from_its_global_stage_too(control_prep, monkeypatch):
+    """The alternative a selected law is swapped for is refined twice — from the start carried
+    over from the law it replaces and from the core's global stage (no start) — and the fit of
+    lower fit cost is the one judged on the held-out runs: a carried start stuck in the replaced
+    law's basin no longer hides a better alternative (the da Vinci bench's smooth Stribeck law),
+    and a global stage that ends worse on the fit runs is not taken for its held-out luck."""
+    import cablekit.diagnose.select as sel_mod
+    from cablekit.diagnose.fit import CandidateFit
+    from cablekit.diagnose.select import Forward, refine_forms
+
+    prep, _ = control_prep
+    lag, lugre, strib = "sensor_lag@sensors.force", "stribeck_friction@joint/lugre", "stribeck_friction@joint"
+    rng = np.random.default_rng(4)
+    q = len(prep.channel_names)
+    hold = [rng.normal(0.0, 3.0, (4000, q))]
+
+    def fake(effects, cost, scale, start=None):
+        specs = prep.fit0.with_effects(effects, 1).param_specs()
+        params = np.zeros(len(specs)) if start is None else np.asarray(start, dtype=float)
+        resid = [h * scale for h in hold]
+        return CandidateFit(effects, params, specs, 1, True, [], resid, cost, np.zeros(len(specs)), 1)
+
+    current = fake([lag, lugre], 100.0, 1.0)
+    fits = {k: fake([k], 200.0, 1.0) for k in (lag, lugre, strib)}
+    scores = {k: {"closed_fraction": 0.5} for k in fits}
+
+    def fitter(carried_cost: float, global_cost: float, refined: list):
+        def fit_many(prep_, jobs, opts, label, *a, **k):
+            if label.strip() == "forms":
+                return [fake(e, 150.0, 1.0, th) for e, th in jobs]
+            refined.extend(jobs)
+            # the carried start ends where it began (held out unchanged); the global stage finds
+            # the basin that closes most of the held-out gap
+            return [
+                fake(e, carried_cost, 1.0, th) if th is not None else fake(e, global_cost, 0.4)
+                for e, th in jobs
+            ]
+
+        return fit_many
+
+    for carried_cost, global_cost, swapped in ((90.0, 80.0, True), (80.0, 90.0, False)):
+        refined: list = []
+        monkeypatch.setattr(sel_mod, "fit_many", fitter(carried_cost, global_cost, refined))
+        sel = Forward([lag, lugre], [], current)
+        out = refine_forms(prep, sel, fits, scores, Options(progress=False), np.random.default_rng(1))
+        assert [e for e, _ in refined] == [[lag, strib], [lag, strib]]
+        assert refined[0][1] is not None and refined[1][1] is None
+        assert out.chosen == ([lag, strib] if swapped else [lag, lugre])
+        assert (out.current.cost == global_cost) if swapped else (out.current is current)
+
+
 def test_two_forms_of_one_law_at_one_site_are_never_fitted_together(control_prep):
     """Coulomb beside Stribeck friction at the joint, or two forms of one effect at one site, are
     alternatives of one law (their sum is that law with other parameters): not combinable. The
