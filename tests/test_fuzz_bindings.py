@@ -615,3 +615,62 @@ def test_a_channels_window_averages_its_residual_or_is_a_typed_error(window):
     r1 = windowed.residuals(np.zeros(0)).reshape(-1, 2)
     assert np.array_equal(r0[:, 1], r1[:, 1])
     np.testing.assert_allclose(r1[:, 0], _clamped_mean(r0[:, 0], window), rtol=1e-12, atol=1e-14)
+
+
+def _shifted(x: np.ndarray, m: int) -> np.ndarray:
+    """NumPy reference of a delay by ``m`` whole samples, the record's first sample held."""
+    return x[np.clip(np.arange(len(x)) - m, 0, None)]
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    commands=st.one_of(
+        st.integers(1, 3).map(lambda k: np.sin(np.arange(120 * k) * 0.05).reshape(120, k) * 0.01),
+        st.sampled_from(["nan", "inf", "huge", "short", "text", "none", "1d"]),
+    ),
+    command=st.one_of(st.integers(-2, 3), st.sampled_from([2**64, 1.5, "0"]), st.none()),
+    shift=st.integers(0, 12),
+)
+def test_a_channels_command_is_delayed_by_the_input_delay_or_is_a_typed_error(commands, command, shift):
+    """``JointRun(commands=...)`` and channels ``(output, weight, sensor, window, command)``: under
+    ``time_delay@input`` at ``d`` the channel holding command column ``j`` gains ``τ_j(t) −
+    τ_j(t − d)`` (NumPy reference, ``d`` a whole number of samples), every other channel is
+    unchanged; without a delay nothing changes. Bad commands (NaN/inf, a wrong length, a column
+    no run has, wrong types) are typed errors."""
+    t = np.arange(120) * 1e-3
+    rng = np.random.default_rng(2)
+    meas = rng.normal(0, 0.1, (120, 2))
+    if isinstance(commands, str):
+        commands = {
+            "nan": np.full((120, 1), np.nan),
+            "inf": np.full((120, 1), np.inf),
+            "huge": np.full((120, 1), 1e300),
+            "short": np.zeros((60, 1)),
+            "text": "abc",
+            "none": None,
+            "1d": np.cos(t),
+        }[commands]
+    x = 1e-3 * np.sin(6 * t)
+    chans = [(0, 2.0, True), (4, 50.0, False)]
+    plain = JointProblem(AJ, chans, [JointRun(1e-3, x, meas)], ["time_delay"], substeps=4)
+    try:
+        run = JointRun(1e-3, x, meas, commands=commands)
+        held = JointProblem(AJ, [(0, 2.0, True, 1, command), chans[1]], [run], ["time_delay"], substeps=4)
+    except (ck.CablekitError, TypeError, OverflowError):
+        width = commands.shape[1] if isinstance(commands, np.ndarray) and commands.ndim == 2 else 1
+        in_range = command is None or (type(command) is int and 0 <= command < width)
+        finite = isinstance(commands, np.ndarray) and bool(np.all(np.isfinite(commands)))
+        assert not (finite and len(commands) == 120 and in_range)
+        return
+    assert commands is None or (isinstance(commands, np.ndarray) and np.all(np.isfinite(commands)))
+    assert command is None or commands is not None
+    d = shift * 1e-3
+    r0 = plain.residuals(np.array([d])).reshape(-1, 2)
+    r1 = held.residuals(np.array([d])).reshape(-1, 2)
+    assert np.array_equal(r0[:, 1], r1[:, 1])
+    if command is None or shift == 0:
+        np.testing.assert_allclose(r1[:, 0], r0[:, 0], rtol=1e-12, atol=1e-14)
+        return
+    cmd = np.asarray(commands, dtype=float).reshape(120, -1)[:, command]
+    want = r0[:, 0] + 2.0 * (cmd - _shifted(cmd, shift))
+    np.testing.assert_allclose(r1[:, 0], want, rtol=1e-9, atol=1e-12)

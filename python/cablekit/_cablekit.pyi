@@ -250,6 +250,7 @@ class JointRun:
         external: _F | None = None,
         x0: _F | None = None,
         start: int = 0,
+        commands: _F | None = None,
     ) -> JointRun: ...
     def with_measured(self, measured: _F) -> JointRun: ...
     @property
@@ -261,7 +262,9 @@ class JointProblem:
     def __new__(
         cls,
         model: Model,
-        channels: Sequence[tuple[int, float, bool] | tuple[int, float, bool, int]],
+        channels: Sequence[
+            tuple[int, float, bool] | tuple[int, float, bool, int] | tuple[int, float, bool, int, int | None]
+        ],
         runs: Sequence[JointRun],
         effects: list[str],
         substeps: int = 1,

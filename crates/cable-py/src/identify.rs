@@ -54,8 +54,10 @@ fn optional(obj: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Vec<f64>> {
 /// One recorded run of a `JointProblem`: sample interval `dt` (s); `input` (joint: `x_m` `(T,)`
 /// in m; transmission: motor torques `(T, n)`; under a servo the references `[q_m_ref, dq_m_ref]`
 /// `(T, 2n)`); `measured` `(T, q)`; optional `coupled` `(T,)`, `external` joint torques `(T,)` or
-/// `(T, n)`, initial state `x0` and the first sample counted, `start`. Checked against the
-/// plant when the problem is built.
+/// `(T, n)`, initial state `x0`, the first sample counted, `start`, and `commands` `(T,)` or
+/// `(T, c)`: recorded commands that are not the plant's input (the torque of a motor replayed
+/// from its measured angle, held in a derived load channel: a channel's `command`). Checked
+/// against the plant when the problem is built.
 #[pyclass(frozen, module = "cablekit._cablekit")]
 #[derive(Clone)]
 pub struct JointRun {
@@ -65,7 +67,8 @@ pub struct JointRun {
 #[pymethods]
 impl JointRun {
     #[new]
-    #[pyo3(signature = (dt, input, measured, *, coupled = None, external = None, x0 = None, start = 0))]
+    #[pyo3(signature = (dt, input, measured, *, coupled = None, external = None, x0 = None, start = 0, commands = None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         dt: f64,
         input: &Bound<'_, PyAny>,
@@ -74,6 +77,7 @@ impl JointRun {
         external: Option<&Bound<'_, PyAny>>,
         x0: Option<&Bound<'_, PyAny>>,
         start: usize,
+        commands: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let (input, width) = flat(input, "input")?;
         let inner = core::JointRun {
@@ -84,6 +88,7 @@ impl JointRun {
             coupled: optional(coupled, "coupled")?,
             external: optional(external, "external")?,
             measured: flat(measured, "measured")?.0,
+            commands: optional(commands, "commands")?,
             start,
         };
         Ok(Self { inner })
@@ -130,10 +135,12 @@ fn candidate_dict<'py>(
     Ok(d)
 }
 
-/// A channel as Python gives it: `(output, weight, sensor)`, or with the residual's averaging
-/// window `(output, weight, sensor, window)`.
+/// A channel as Python gives it: `(output, weight, sensor)`, with the residual's averaging
+/// window `(output, weight, sensor, window)`, or with the run's command column it holds
+/// `(output, weight, sensor, window, command)` (`command` None: none).
 #[derive(FromPyObject)]
 enum ChannelTuple {
+    Commanded((usize, f64, bool, usize, Option<usize>)),
     Windowed((usize, f64, bool, usize)),
     Plain((usize, f64, bool)),
 }
@@ -143,6 +150,10 @@ impl ChannelTuple {
         match self {
             Self::Plain((o, w, s)) => core::Channel::new(o, w, s),
             Self::Windowed((o, w, s, n)) => core::Channel::new(o, w, s).with_window(n),
+            Self::Commanded((o, w, s, n, None)) => core::Channel::new(o, w, s).with_window(n),
+            Self::Commanded((o, w, s, n, Some(j))) => {
+                core::Channel::new(o, w, s).with_window(n).with_command(j)
+            }
         }
     }
 }
@@ -153,7 +164,10 @@ impl ChannelTuple {
 /// `channels` is a list of `(output_index, weight, is_force_sensor)`, or `(output_index,
 /// weight, is_force_sensor, window)` with the odd width of a centred moving average applied to
 /// the channel's residual before weighting (1: none; for a channel whose noise is blue, such as a
-/// load derived from an encoder's second difference); joint output indices are
+/// load derived from an encoder's second difference), or `(..., window, command)` with the
+/// column of each run's `commands` the channel's measurement holds as recorded (a late command,
+/// `time_delay@input`, then acts on that part and not on the measured motor angle that drives
+/// the plant); joint output indices are
 /// `[T_m1, T_m2, T_j1, T_j2, theta, contact_force, T_m1 - T_m2]`, transmission ones the model's
 /// outputs (5 per link). `runs` is a list of `JointRun`. With `servo = (kp, kd, torque_limit)` a
 /// transmission is replayed in closed loop under its motor PD servo: each run's `input` is then
@@ -182,7 +196,9 @@ impl JointProblem {
     ) -> PyResult<Self> {
         let plant = guarded(|| core::Plant::of(&model.get().inner, servo))?;
         let runs = runs.iter().map(|r| r.inner.clone()).collect();
-        let what = "a list of (output, weight, sensor) or (output, weight, sensor, window) tuples";
+        let what =
+            "a list of (output, weight, sensor), (output, weight, sensor, window) or (output, \
+                    weight, sensor, window, command) tuples";
         let channels: Vec<ChannelTuple> = tuples(channels, "channels", what)?;
         let channels = channels.into_iter().map(ChannelTuple::channel).collect();
         let bare = guarded(|| core::JointProblem::new(plant, channels, runs, vec![], substeps))?

@@ -125,6 +125,13 @@ def joint_run(spec: ModelSpec, run: Run, columns: list[str], model: Any = None) 
     x0 = None
     if spec.kind == "cable_transmission" and model is not None:
         x0 = _transmission_x0(spec, run, model)
+    # the torque commands the derived load channels hold, in :func:`commanded` order, as the
+    # channels hold them (held over the stencil, or sampled as they are)
+    derived = spec.extra.get("derived_load", {})
+    cmds = []
+    for c in commanded(spec):
+        tau, held = derived[c][0], derived[c][3] if len(derived[c]) > 3 else True
+        cmds.append(_held_torque(run.column(tau)) if held else run.column(tau))
     return JointRun(
         run.dt,
         np.ascontiguousarray(cols[0] if len(cols) == 1 else np.column_stack(cols)),
@@ -133,7 +140,15 @@ def joint_run(spec: ModelSpec, run: Run, columns: list[str], model: Any = None) 
         external=external,
         x0=x0,
         start=scored_start(spec.warmup, run),
+        commands=np.ascontiguousarray(np.column_stack(cmds)) if cmds else None,
     )
+
+
+def commanded(spec: ModelSpec) -> list[str]:
+    """The measured columns that hold a recorded command (a motor's load ``τ − J·q̈`` when the
+    motor is replayed from its measured angle), in the order of the runs' command columns."""
+    derived = spec.extra.get("derived_load", {})
+    return [c for _, c in spec.outputs if c in derived]
 
 
 def _transmission_x0(spec: ModelSpec, run: Run, model: Any) -> _F:
@@ -213,9 +228,12 @@ def prepare(spec: ModelSpec, fit_runs: list[Run], hold_runs: list[Run]) -> Prepa
         lines.append(sorted({f for _, ls in per_run for f, _ in ls}))
         windows.append(window)
     sigma = np.array(sigma_list)
+    # a derived load channel holds its motor's torque command as recorded: a late command acts
+    # on that part, not on the measured angle that drives the motor (``time_delay@input``)
+    held = commanded(spec)
     chans = [
-        (spec.output(o)[0], 1.0 / s, spec.output(o)[2], w)
-        for o, s, w in zip(names, sigma, windows, strict=True)
+        (spec.output(o)[0], 1.0 / s, spec.output(o)[2], w, held.index(c) if c in held else None)
+        for o, c, s, w in zip(names, columns, sigma, windows, strict=True)
     ]
     model = spec.model()
     fit_core = [joint_run(spec, r, columns, model) for r in fit_runs]
@@ -496,7 +514,7 @@ SHARPEN_SHARE = 0.5
 
 
 def _dry_friction_nominal(
-    spec: ModelSpec, chans: list[tuple[int, float, bool, int]], fit_core: list[JointRun]
+    spec: ModelSpec, chans: list[tuple[int, float, bool, int, int | None]], fit_core: list[JointRun]
 ) -> tuple[ModelSpec, list[str]]:
     """The nominal a network diagnosis replays: the file's dry friction, or the same resolved
     sharply (:func:`~cablekit.diagnose.spec.sharpen_dry_friction`) when the fit runs say so.

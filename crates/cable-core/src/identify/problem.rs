@@ -160,6 +160,24 @@ impl JointProblem {
             check::all_finite(&format!("runs[{i}].measured"), &r.measured, q)?;
             check::all_finite(&format!("runs[{i}].coupled"), &r.coupled, 1)?;
             check::all_finite(&format!("runs[{i}].external"), &r.external, width)?;
+            let n_cmd = r.n_commands();
+            if r.commands.len() != t * n_cmd {
+                return Err(CableError::Shape {
+                    what: format!("runs[{i}].commands"),
+                    expected: format!("(T = {t}, c) row-major, or empty"),
+                    got: format!("{} values", r.commands.len()),
+                });
+            }
+            check::all_finite(&format!("runs[{i}].commands"), &r.commands, n_cmd.max(1))?;
+            for (c, ch) in channels.iter().enumerate() {
+                if let Some(j) = ch.command.filter(|&j| j >= n_cmd) {
+                    return Err(CableError::InvalidParameter {
+                        name: format!("channels[{c}].command"),
+                        value: j as f64,
+                        requirement: "a command column of every run (runs[i].commands)",
+                    });
+                }
+            }
             let wants_coupled = candidates.iter().any(|c| c.effect == Effect::Coupling);
             if joint && wants_coupled && r.coupled.is_empty() {
                 return Err(CableError::InvalidOption {
@@ -435,21 +453,37 @@ impl JointProblem {
 
     /// Input columns `0..width` of a run, each delayed by `d`.
     fn delayed_columns(run: &JointRun, width: usize, d: f64) -> Vec<Vec<f64>> {
-        Self::delayed_first(run, width, width, d)
+        Self::delayed_where(run, width, |_| true, d)
     }
 
-    /// The first `width` input columns of `run`, the first `delayed` of them (the commands, not
-    /// a network's measured signals) delayed by `d` s.
-    fn delayed_first(run: &JointRun, width: usize, delayed: usize, d: f64) -> Vec<Vec<f64>> {
+    /// The first `width` input columns of `run`, those that are commands (`delayed(c)`; not a
+    /// network's measured signals or a motor's measured angle) delayed by `d` s.
+    fn delayed_where(
+        run: &JointRun,
+        width: usize,
+        delayed: impl Fn(usize) -> bool,
+        d: f64,
+    ) -> Vec<Vec<f64>> {
         let mut cols: Vec<Vec<f64>> = (0..width).map(|c| run.input_column(c)).collect();
         if d > 0.0 {
             let mut tmp = vec![0.0; run.len()];
-            for col in cols.iter_mut().take(delayed) {
-                signal::delay(col, d, run.dt, &mut tmp);
-                col.copy_from_slice(&tmp);
+            for (c, col) in cols.iter_mut().enumerate() {
+                if delayed(c) {
+                    signal::delay(col, d, run.dt, &mut tmp);
+                    col.copy_from_slice(&tmp);
+                }
             }
         }
         cols
+    }
+
+    /// Whether motor `i` of a network is replayed from its measured angle: a channel holds its
+    /// command ([`Channel::command`]) and scores its load.
+    fn measured_motor(&self, net: &Network, i: usize) -> bool {
+        let load = net.load_output(i);
+        self.channels
+            .iter()
+            .any(|c| c.command.is_some() && c.output == load)
     }
 
     /// Plant outputs of run `i` for `a` (before the sensor stage): joint `(T, 7)`
@@ -521,7 +555,8 @@ impl JointProblem {
 
     /// Plant outputs of a network run.
     fn network_outputs(&self, net: &Network, a: &Augmented, run: &JointRun) -> Result<Vec<f64>> {
-        let cols = Self::delayed_first(run, run.width, net.n_motors(), a.delay);
+        let delayed = |c: usize| c < net.n_motors() && !self.measured_motor(net, c);
+        let cols = Self::delayed_where(run, run.width, delayed, a.delay);
         let u = network_inputs(net, &cols, &run.external, run.dt);
         let x0 = if run.x0.len() == net.n_states() {
             run.x0.clone()
@@ -545,6 +580,14 @@ impl JointProblem {
                 col[k] = plant[k * n_out + ch.output];
             }
             a.sensors[c].run(&mut col, &mut tmp, run.dt);
+            if let (Some(j), true) = (ch.command, a.delay > 0.0) {
+                // the measurement holds the command as recorded, the plant felt it `d` late
+                let cmd = run.command_column(j);
+                signal::delay(&cmd, a.delay, run.dt, &mut tmp);
+                for k in 0..t {
+                    col[k] += cmd[k] - tmp[k];
+                }
+            }
             for k in 0..t {
                 pred[k * q + c] = col[k];
             }
@@ -712,6 +755,7 @@ mod tests {
             coupled: vec![],
             external: vec![],
             measured: vec![0.0; t_len * 3],
+            commands: vec![],
             start: 50,
         }
     }
@@ -933,6 +977,7 @@ mod tests {
             coupled: vec![],
             external: vec![tau; t_len],
             measured: vec![0.0; t_len],
+            commands: vec![],
             start: 0,
         };
         let p = JointProblem::new(nominal(), chans, vec![r], vec![], 4).unwrap();
@@ -961,6 +1006,7 @@ mod tests {
             coupled: vec![],
             external: vec![],
             measured: vec![0.0; t_len * 4],
+            commands: vec![],
             start: 20,
         }
     }
@@ -1131,6 +1177,70 @@ mod tests {
     }
 
     #[test]
+    fn a_late_command_acts_on_the_load_that_holds_it_not_on_the_measured_angle() {
+        // the motor is replayed from its measured angle; its load channel holds the torque
+        // command as recorded, which the plant felt `d` late
+        let net = network();
+        let mut data = run(2.0);
+        let t = data.len();
+        let w = 2.0 * std::f64::consts::PI * 1.5;
+        data.commands = (0..t)
+            .map(|k| 0.02 * (w * k as f64 * data.dt).sin())
+            .collect();
+        data.measured = vec![0.0; t * 2];
+        let load = net.load_output(0);
+        assert_eq!(load, 7);
+        let chans = vec![
+            Channel::new(0, 100.0, false),
+            Channel::new(load, 1e3, false).with_command(0),
+        ];
+        let nominal =
+            JointProblem::new(net.clone(), chans.clone(), vec![data.clone()], vec![], 4).unwrap();
+        let plant = nominal.predict(&[], 0).unwrap();
+        let d = 0.012;
+        let cmd = data.command_column(0);
+        let mut late = vec![0.0; t];
+        signal::delay(&cmd, d, data.dt, &mut late);
+        data.measured = (0..t)
+            .flat_map(|k| [plant[2 * k], plant[2 * k + 1] + cmd[k] - late[k]])
+            .collect();
+        let c = nominal.parse_candidate("time_delay@input").unwrap();
+        let p =
+            JointProblem::new(net.clone(), chans.clone(), vec![data.clone()], vec![c], 4).unwrap();
+        let mut r = vec![0.0; p.n_residuals()];
+        p.residuals(&[d], &mut r).unwrap();
+        assert!(
+            r.iter().all(|v| v.abs() < 1e-9),
+            "the truth leaves a residual"
+        );
+        // without the delay the load's residual is the command's change over d; the angle's
+        // channel (the motor's measured angle drives the plant) is untouched either way
+        p.residuals(&[0.0], &mut r).unwrap();
+        let angle = r.iter().step_by(2).fold(0.0_f64, |m, v| m.max(v.abs()));
+        let loads = r
+            .iter()
+            .skip(1)
+            .step_by(2)
+            .fold(0.0_f64, |m, v| m.max(v.abs()));
+        assert!(
+            angle < 1e-9 && loads > 1e3 * 0.02 * w * d * 0.5,
+            "{angle} {loads}"
+        );
+        let fit = p.fit(None, &LmOptions::default()).unwrap();
+        assert_relative_eq!(fit.params[0], d, max_relative = 1e-3);
+        // a channel without the command: the delay moves the (position-commanded) motor instead
+        let plain = vec![chans[0], Channel::new(load, 1e3, false)];
+        let q = JointProblem::new(net, plain, vec![data.clone()], vec![c], 4).unwrap();
+        let moved = q.predict(&[d], 0).unwrap();
+        let still = q.predict(&[0.0], 0).unwrap();
+        assert!(max_abs_diff(&moved, &still) > 1e-6);
+        // a command column no run has is a typed error naming the channel
+        let bad = vec![chans[0], Channel::new(load, 1e3, false).with_command(1)];
+        let e = JointProblem::new(network(), bad, vec![data], vec![], 4).unwrap_err();
+        assert!(e.to_string().contains("channels[1].command"), "{e}");
+    }
+
+    #[test]
     fn a_position_motors_added_dry_friction_is_as_sharp_as_its_capstan() {
         let net = network();
         let mut data = run(0.2);
@@ -1197,6 +1307,7 @@ mod tests {
             coupled: vec![],
             external: vec![],
             measured: vec![0.0; t_len * 6],
+            commands: vec![],
             start: 10,
         };
         let plant = Plant::Servo(raven, pd);

@@ -15,6 +15,11 @@ pub struct Channel {
     /// — a load derived as `τ − J·q̈` from an encoder — the weight is then 1 / the noise of the
     /// *averaged* residual; the window is clamped at the ends of the scored samples.
     pub window: usize,
+    /// The column of the run's `commands` that this channel's measurement holds as recorded (a
+    /// load derived as `τ − J·q̈` of a motor replayed from its measured angle), or `None`. An
+    /// input-stage delay `d` then acts on that part of the measurement — the prediction gains
+    /// `τ(t) − τ(t − d)` — and not on the motor's measured angle, which is the plant's input.
+    pub command: Option<usize>,
 }
 
 impl Channel {
@@ -25,12 +30,21 @@ impl Channel {
             weight,
             sensor,
             window: 1,
+            command: None,
         }
     }
 
     /// The same channel with its residual averaged over `window` samples.
     pub fn with_window(self, window: usize) -> Self {
         Self { window, ..self }
+    }
+
+    /// The same channel holding the run's command column `command` (see [`Channel::command`]).
+    pub fn with_command(self, command: usize) -> Self {
+        Self {
+            command: Some(command),
+            ..self
+        }
     }
 }
 
@@ -52,6 +66,10 @@ pub struct JointRun {
     pub external: Vec<f64>,
     /// Measured channels, row-major `(T, q)`.
     pub measured: Vec<f64>,
+    /// Recorded commands that are not the plant's input, row-major `(T, c)`, or empty: the torque
+    /// of a motor replayed from its measured angle, held in a derived load channel
+    /// ([`Channel::command`]).
+    pub commands: Vec<f64>,
     /// First sample that counts in the residual.
     pub start: usize,
 }
@@ -65,6 +83,20 @@ impl JointRun {
     /// Whether the run has no samples.
     pub fn is_empty(&self) -> bool {
         self.input.is_empty()
+    }
+
+    /// Number of command columns (0 without commands).
+    pub fn n_commands(&self) -> usize {
+        match self.len() {
+            0 => 0,
+            t => self.commands.len() / t,
+        }
+    }
+
+    /// Column `j` of the commands (`j < n_commands`).
+    pub(crate) fn command_column(&self, j: usize) -> Vec<f64> {
+        let c = self.n_commands().max(1);
+        self.commands.iter().skip(j).step_by(c).copied().collect()
     }
 
     /// Column `c` of the input.

@@ -965,6 +965,10 @@ impl Network {
     pub fn n_motors(&self) -> usize {
         self.motors.len()
     }
+    /// The output index of motor `i`'s load `load_m:<motor>` (the layout of `output`).
+    pub fn load_output(&self, i: usize) -> usize {
+        2 * self.n_joints() + self.n_motors() + 2 * self.n_cables() + i
+    }
     /// Joint names, in order.
     pub fn joint_names(&self) -> &[String] {
         &self.joint_names
