@@ -1638,34 +1638,135 @@ impl Network {
     }
 
     /// The state at rest for the first input `u0` (`[q_m, q̇_m]` of each position motor, the
-    /// torques, the loads): the joints at the angles that leave every cable at its pretension —
-    /// `J·q = e₀`, `e₀` the position motors' hauls `σ·ρ·q_m` (0 for the other cables), in the
-    /// least-squares sense — every speed zero and every torque-driven motor at 0. A cable's creep
-    /// takes its reference there (`F_r = F(e₀)`, see [`TensionCreep`]; 0 for the whole form).
+    /// torques, the loads): every speed zero, every torque-driven motor at 0, and the joints in
+    /// static equilibrium under that input — the cables' tensions, gravity and the external
+    /// torques balanced (Newton's method from the angles that leave every cable at its
+    /// pretension, `J·q = e₀`, `e₀` the position motors' hauls `σ·ρ·q_m`, in the least-squares
+    /// sense; those angles when the iteration finds no smaller imbalance, or when a motor has
+    /// play, across which the capstan floats and any angle in the play rests). A pair whose
+    /// pretensions differ, a sagging joint or a held load starts where it rests rather than
+    /// ringing from the kinematic angles. A cable's creep takes its reference there
+    /// (`F_r = F(e₀)`, see [`TensionCreep`]; 0 for the whole form).
     pub fn rest_at(&self, u0: &[f64]) -> Vec<f64> {
-        let mut x = self.joints_at_rest(u0);
-        if u0.len() >= self.n_inputs {
-            // the stiffness' references first: the creep's is the law there, scaled or not
-            for (c, cable) in self.cables.iter().enumerate() {
-                if let Some((_, k)) = cable.stiffness {
+        let x = self.with_references(self.joints_at_rest(u0), u0);
+        // across a motor's play the capstan floats: joints and capstan then rest anywhere in
+        // the play, and the kinematic angles are kept (no rest is better defined)
+        if u0.len() < self.n_inputs
+            || self.n_joints() == 0
+            || self.motors.iter().any(|m| m.play > 0.0)
+        {
+            return x;
+        }
+        self.balanced(x, u0)
+    }
+
+    /// `x` with the states that take their reference at rest (a cable's stiffness law there, its
+    /// creep's reference) set for its joints and the input `u0`.
+    fn with_references(&self, mut x: Vec<f64>, u0: &[f64]) -> Vec<f64> {
+        if u0.len() < self.n_inputs {
+            return x;
+        }
+        // the stiffness' references first: the creep's is the law there, scaled or not
+        for (c, cable) in self.cables.iter().enumerate() {
+            if let Some((_, k)) = cable.stiffness {
+                let (e, _) = self.elongation(c, &x, u0);
+                let r = cable.run.law.elastic(e);
+                x[k] = if r.is_finite() { r } else { 0.0 };
+            }
+        }
+        for (c, cable) in self.cables.iter().enumerate() {
+            if let Some((cr, k)) = cable.creep {
+                if !cr.whole {
                     let (e, _) = self.elongation(c, &x, u0);
-                    let r = cable.run.law.elastic(e);
-                    x[k] = if r.is_finite() { r } else { 0.0 };
+                    // the stretch form's reference is the elongation, the tension's its law
+                    let r = if cr.stretch {
+                        e
+                    } else {
+                        self.elastic_of(c, e, &x) * self.length_scale_at(c, &x, u0)
+                    };
+                    x[k + 1] = if r.is_finite() { r } else { 0.0 };
                 }
             }
-            for (c, cable) in self.cables.iter().enumerate() {
-                if let Some((cr, k)) = cable.creep {
-                    if !cr.whole {
-                        let (e, _) = self.elongation(c, &x, u0);
-                        // the stretch form's reference is the elongation, the tension's its law
-                        let r = if cr.stretch {
-                            e
-                        } else {
-                            self.elastic_of(c, e, &x) * self.length_scale_at(c, &x, u0)
-                        };
-                        x[k + 1] = if r.is_finite() { r } else { 0.0 };
-                    }
+        }
+        x
+    }
+
+    /// The net torque on each joint at state `x` (at rest) under input `u0`.
+    fn joint_imbalance(&self, x: &[f64], u0: &[f64], dx: &mut [f64]) -> Vec<f64> {
+        self.derivative(x, u0, dx);
+        self.joints
+            .iter()
+            .enumerate()
+            .map(|(j, joint)| dx[2 * j + 1] / joint.inv_inertia)
+            .collect()
+    }
+
+    /// [`Self::rest_at`]'s equilibrium: damped Newton steps on the joint angles (a
+    /// finite-difference Jacobian of the net joint torques, solved by SVD so that a joint no
+    /// cable holds takes no step), each kept only when it lowers the imbalance; at most
+    /// [`REST_ITERATIONS`] steps.
+    fn balanced(&self, x0: Vec<f64>, u0: &[f64]) -> Vec<f64> {
+        let n = self.n_joints();
+        let mut dx = vec![0.0; self.n_states];
+        let norm = |g: &[f64]| g.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let mut x = x0;
+        let mut g = self.joint_imbalance(&x, u0, &mut dx);
+        let mut size = norm(&g);
+        // the torque a cable at its pretension puts on its joints: the scale of "balanced"
+        let scale = self
+            .cables
+            .iter()
+            .enumerate()
+            .map(|(c, cable)| {
+                let arm = self.arms[c * n..(c + 1) * n]
+                    .iter()
+                    .map(|a| a.abs())
+                    .sum::<f64>();
+                arm * cable.run.pretension.abs()
+            })
+            .sum::<f64>()
+            .max(f64::MIN_POSITIVE);
+        for _ in 0..REST_ITERATIONS {
+            if !size.is_finite() || size <= 1e-10 * scale {
+                break;
+            }
+            let h = 1e-7;
+            let mut jac = nalgebra::DMatrix::zeros(n, n);
+            for i in 0..n {
+                let mut xi = x.clone();
+                xi[2 * i] += h;
+                let xi = self.with_references(xi, u0);
+                let gi = self.joint_imbalance(&xi, u0, &mut dx);
+                for j in 0..n {
+                    jac[(j, i)] = (gi[j] - g[j]) / h;
                 }
+            }
+            let rhs = nalgebra::DVector::from_fn(n, |j, _| -g[j]);
+            let Ok(step) = jac.svd(true, true).solve(&rhs, 1e-12) else {
+                break;
+            };
+            if step.iter().any(|v| !v.is_finite()) {
+                break;
+            }
+            // halve the step until the imbalance falls
+            let mut t = 1.0;
+            let mut taken = false;
+            for _ in 0..30 {
+                let mut xt = x.clone();
+                for j in 0..n {
+                    xt[2 * j] += t * step[j];
+                }
+                let xt = self.with_references(xt, u0);
+                let gt = self.joint_imbalance(&xt, u0, &mut dx);
+                let st = norm(&gt);
+                if st.is_finite() && st < size {
+                    (x, g, size, taken) = (xt, gt, st, true);
+                    break;
+                }
+                t *= 0.5;
+            }
+            if !taken {
+                break;
             }
         }
         x
@@ -1879,6 +1980,9 @@ impl NetworkSpec {
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
+
+/// The most Newton steps [`Network::rest_at`] takes towards the joints' equilibrium.
+pub const REST_ITERATIONS: usize = 50;
 
 impl Model for Network {
     fn n_states(&self) -> usize {

@@ -899,3 +899,40 @@ fn a_bad_path_or_signal_is_a_typed_error_naming_it() {
     assert!(el.contains("t1") && el.contains("path"), "{el}");
     assert!(reason.contains("turns no joint"), "{reason}");
 }
+
+#[test]
+fn the_rest_state_balances_the_joints_under_unequal_pretension_and_a_held_load() {
+    // the test joint's cables: 10 N at 12 kN/m and 8 N at 9 kN/m on one pulley — at the
+    // kinematic angle (both cables at their pretension) the joint feels 2 N · r
+    let j = joint();
+    let net = Network::new(&NetworkSpec::from_joint(&j).unwrap()).unwrap();
+    let mut dx = vec![0.0; net.n_states()];
+    for (x_m, tau_ext) in [(0.0, 0.0), (3e-4, 0.0), (-2e-4, 4e-3)] {
+        let u0 = [x_m, 0.0, tau_ext];
+        let x = net.rest_at(&u0);
+        net.derivative(&x, &u0, &mut dx);
+        // at rest: no speed, no acceleration
+        assert!(x[1].abs() < f64::MIN_POSITIVE);
+        assert!(dx[1].abs() * 1e-5 < 1e-10, "{}", dx[1]); // N·m (8e-3 at the kinematic angle)
+                                                          // the joint sits where the two cables' tensions differ by the held load alone,
+                                                          // r·(T1 − T2) = −τ_ext (closed form for the linear cables)
+        let (k1, k2, t1, t2) = (12_000.0, 9_000.0, 10.0, 8.0);
+        let r = j.radius;
+        // stretch s = x_m − r·θ on cable 1, −s on cable 2: T1 − T2 = t1 − t2 + (k1 + k2)·s
+        let s = (-tau_ext / r - (t1 - t2)) / (k1 + k2);
+        let theta = (x_m - s) / r;
+        assert!(
+            (x[0] - theta).abs() < 1e-9 * (1.0 + theta.abs()),
+            "{} vs {theta}",
+            x[0]
+        );
+        // the kinematic angle, where the old rest started, is not at rest
+        assert!((x[0] - x_m / r).abs() > 1e-3);
+    }
+    // a balanced pair keeps its kinematic angle exactly
+    let mut even = j;
+    even.ret = even.drive;
+    let net = Network::new(&NetworkSpec::from_joint(&even).unwrap()).unwrap();
+    let x = net.rest_at(&[3e-4, 0.0, 0.0]);
+    assert!((x[0] - 3e-4 / even.radius).abs() < 1e-14);
+}
